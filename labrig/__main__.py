@@ -1,0 +1,5 @@
+"""Allow ``python -m labrig``."""
+
+from labrig.cli import main
+
+main()

@@ -1,0 +1,59 @@
+"""The ``labrig`` command line.
+
+Sub-commands live in their own modules and are imported only when used, so that
+``labrig --help`` answers at once and a missing optional device library cannot break
+unrelated commands. A ``LabrigError`` becomes one clear line on stderr and its exit code
+(2 for bad input), never a traceback.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+import click
+
+import labrig
+from labrig.errors import LabrigError
+
+# name -> "module:attribute" of a click command or group. Only what is built is listed:
+# the CLI never shows a command that would pretend.
+COMMANDS: dict[str, tuple[str, str]] = {}
+
+
+class LazyGroup(click.Group):
+    """A click group whose sub-commands are imported on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted([*super().list_commands(ctx), *COMMANDS])
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name in COMMANDS:
+            module_name, attribute = COMMANDS[cmd_name]
+            return getattr(importlib.import_module(module_name), attribute)
+        return super().get_command(ctx, cmd_name)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(labrig.__version__, prog_name="labrig")
+def cli() -> None:
+    """labrig: run inflation protocols on a soft-actuator rig (real or simulated),
+    store them in HDF5, and compare them with the snap-through stability model."""
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Console entry point: run the CLI, turning labrig's own errors into one line."""
+    try:
+        result = cli.main(args=argv, prog_name="labrig", standalone_mode=False)
+    except click.exceptions.Abort:
+        click.echo("aborted", err=True)
+        sys.exit(130)
+    except click.ClickException as exc:
+        exc.show()
+        sys.exit(exc.exit_code)
+    except LabrigError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(exc.exit_code)
+    except click.exceptions.Exit as exc:
+        sys.exit(exc.exit_code)
+    sys.exit(result if isinstance(result, int) else 0)
