@@ -124,7 +124,7 @@ class SegmentCurve:
         """Sample indices where p(v) changes direction (interior local extrema).
 
         With PCHIP these are exactly the interpolant's extrema. Runs of equal samples
-        (a flat plateau) count as one extremum at their first sample.
+        (a flat plateau) count as one extremum at their last sample.
         """
         dp = np.diff(self.p_kpa)
         signs = np.sign(dp)
