@@ -22,19 +22,31 @@ COMMANDS: dict[str, tuple[str, str]] = {}
 
 
 class LazyGroup(click.Group):
-    """A click group whose sub-commands are imported on first use."""
+    """A click group whose sub-commands are imported on first use.
+
+    ``lazy_commands`` maps a name to ("module", "attribute"); sub-groups use the same
+    class with their own mapping.
+    """
+
+    def __init__(self, *args, lazy_commands: dict[str, tuple[str, str]], **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.lazy_commands = lazy_commands
 
     def list_commands(self, ctx: click.Context) -> list[str]:
-        return sorted([*super().list_commands(ctx), *COMMANDS])
+        return sorted([*super().list_commands(ctx), *self.lazy_commands])
 
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
-        if cmd_name in COMMANDS:
-            module_name, attribute = COMMANDS[cmd_name]
+        if cmd_name in self.lazy_commands:
+            module_name, attribute = self.lazy_commands[cmd_name]
             return getattr(importlib.import_module(module_name), attribute)
         return super().get_command(ctx, cmd_name)
 
 
-@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(
+    cls=LazyGroup,
+    lazy_commands=COMMANDS,
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
 @click.version_option(labrig.__version__, prog_name="labrig")
 def cli() -> None:
     """labrig: run inflation protocols on a soft-actuator rig (real or simulated),

@@ -1,0 +1,15 @@
+"""``labrig model``: the stability model from the command line (curves, paths, scans)."""
+
+from __future__ import annotations
+
+import click
+
+from labrig.cli import LazyGroup
+
+# name -> ("module", "attribute"), imported on first use.
+MODEL_COMMANDS: dict[str, tuple[str, str]] = {}
+
+
+@click.group(cls=LazyGroup, lazy_commands=MODEL_COMMANDS)
+def model() -> None:
+    """Predict segments and combined actuators with the stability model."""
