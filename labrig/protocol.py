@@ -25,26 +25,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any
 
-import yaml
-from pydantic import (
-    BaseModel,
-    ConfigDict,
-    Discriminator,
-    Field,
-    Tag,
-    ValidationError,
-    model_validator,
-)
+from pydantic import BaseModel, Discriminator, Field, Tag, model_validator
 
 from labrig.errors import InputError
+from labrig.yamlmodel import Strict, parse_yaml_model
 
 STEP_KINDS = ("zero_pressure", "infuse", "withdraw", "hold", "repeat")
-
-
-class Strict(BaseModel):
-    """Forbid unknown keys and silent type coercion from strings."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
 
 
 class Specimen(Strict):
@@ -275,91 +261,7 @@ def load_protocol(path: str | Path) -> LoadedProtocol:
 
 
 def parse_protocol(text: str, filename: str = "<protocol>") -> Protocol:
-    try:
-        data = yaml.safe_load(text)
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = f" line {mark.line + 1}:" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or str(exc)
-        context, context_mark = getattr(exc, "context", None), getattr(exc, "context_mark", None)
-        if context and context_mark is not None:
-            problem += f" ({context} that starts on line {context_mark.line + 1})"
-        raise InputError(f"{filename}:{line} not valid YAML: {problem}") from None
-    if not isinstance(data, dict):
-        raise InputError(f"{filename}: a protocol is a YAML mapping with keys {_top_keys()}")
-    try:
-        return Protocol.model_validate(data)
-    except ValidationError as exc:
-        raise InputError(_describe(exc, root, filename)) from None
-
-
-def _top_keys() -> str:
-    return ", ".join(Protocol.model_fields)
-
-
-def _describe(exc: ValidationError, root: yaml.Node | None, filename: str) -> str:
-    """One line per problem: file:line: key.path: what is wrong and what is allowed."""
-    lines = []
-    for error in exc.errors():
-        loc = _without_tags(error["loc"])
-        node = _node_at(root, loc)
-        line = f"line {node.start_mark.line + 1}" if node is not None else "line ?"
-        key_path = _format_loc(loc) or "(top level)"
-        lines.append(f"{filename}: {line}: {key_path}: {_message(error)}")
-    first, *rest = lines
-    if rest:
-        return first + "\n" + "\n".join(rest)
-    return first
-
-
-def _without_tags(loc: tuple) -> list:
-    """Drop the union tag pydantic inserts before a step's own key (steps[1].repeat.repeat)."""
-    cleaned: list = []
-    for part in loc:
-        if cleaned and part == cleaned[-1] and part in STEP_KINDS:
-            continue
-        cleaned.append(part)
-    return cleaned
-
-
-def _message(error: dict) -> str:
-    kind = error["type"]
-    if kind == "extra_forbidden":
-        return "unknown key (check the spelling; `labrig protocol schema` lists the keys)"
-    if kind == "missing":
-        return "required key is missing"
-    message = error["msg"]
-    return message.removeprefix("Value error, ")
-
-
-def _format_loc(loc: list) -> str:
-    text = ""
-    for part in loc:
-        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
-    return text
-
-
-def _node_at(root: yaml.Node | None, loc: list) -> yaml.Node | None:
-    """The YAML node at a pydantic error location (or its nearest existing parent)."""
-    node = root
-    for part in loc:
-        child = None
-        if isinstance(node, yaml.MappingNode):
-            for key, value in node.value:
-                if key.value == part:
-                    child = value
-                    break
-        elif (
-            isinstance(node, yaml.SequenceNode)
-            and isinstance(part, int)
-            and 0 <= part < len(node.value)
-        ):
-            child = node.value[part]
-        if child is None:
-            return node
-        node = child
-    return node
+    return parse_yaml_model(text, filename, Protocol, what="a protocol", hide=STEP_KINDS)
 
 
 def protocol_json_schema() -> str:
