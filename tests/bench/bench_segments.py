@@ -43,9 +43,8 @@ def main() -> None:
         t0 = time.perf_counter()
         curve = load_csv(path)
         t_load = time.perf_counter() - t0
-    print(
-        f"load + fit a raw CSV of {len(v)} rows     {t_load * 1e3:8.1f} ms ({len(curve.v_ml)} samples)"
-    )
+    rows = f"load + fit a raw CSV of {len(v)} rows"
+    print(f"{rows:40s}{t_load * 1e3:8.1f} ms ({len(curve.v_ml)} samples)")
 
 
 if __name__ == "__main__":
