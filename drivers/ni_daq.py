@@ -158,12 +158,7 @@ class NiDaqPressure:
         except _daq_error() as exc:
             raise self._translate(exc, "reading the number of available samples") from exc
         if n == 0:
-            # A device that stops delivering shows up as a read that times out, not as an
-            # endless run of empty blocks.
-            next_sample_s = self._t_start_s + self._n_read / self.rate_hz
-            if self.clock.now() - next_sample_s <= self.read_timeout_s:
-                return self._block(np.empty((len(self.channels), 0)))
-            n = 1
+            return self._block(np.empty((len(self.channels), 0)))
         return self._block(self._read_samples(n, timeout_s=self.read_timeout_s))
 
     def stop(self) -> None:
