@@ -34,7 +34,8 @@ _MERGED_AREA = (1.3, 2.8)
 @dataclass(frozen=True)
 class MarkerFix:
     """The two markers in one frame, in px. NaN and ``ok=False`` unless both were found;
-    ``status`` says why not: "lost", "merged" or "ambiguous"."""
+    ``status`` says why not: "lost", "merged" (one blob, or two too close to measure
+    apart) or "ambiguous" (more than two look-alike blobs)."""
 
     x1_px: float
     y1_px: float
@@ -192,6 +193,12 @@ class MarkerTracker:
                 markers = markers[:2]
             else:
                 return _failed("merged" if self._has_merged(blobs) else "lost")
+        first, second = markers
+        apart_px = math.hypot(first.x - second.x, first.y - second.y)
+        if apart_px < _window_radius_px(first) + _window_radius_px(second):
+            # Each centre's window would hold part of the other marker and be pulled
+            # towards it: too close to measure apart is as good as merged.
+            return _failed("merged")
         centres = np.array([self._refine(frame, b) for b in markers])
         if not np.all(np.isfinite(centres)):
             return _failed("lost")
@@ -235,7 +242,7 @@ class MarkerTracker:
         the background is the median of a ring just outside the window.
         """
         h, w = frame.shape[:2]
-        r_in = math.sqrt(blob.area_px / math.pi) + 4.0
+        r_in = _window_radius_px(blob)
         r_out = r_in + 3.0
         half = math.ceil(r_out)
         cx, cy = round(blob.x), round(blob.y)
@@ -258,6 +265,11 @@ class MarkerTracker:
         if self._hsv is not None:
             return cv2.cvtColor(patch, cv2.COLOR_BGR2HSV)[:, :, 1].astype(np.float32)
         return 255.0 - _grey(patch).astype(np.float32)
+
+
+def _window_radius_px(blob: _Blob) -> float:
+    """The centroid window: the blob's radius plus room for its blurred edge."""
+    return math.sqrt(blob.area_px / math.pi) + 4.0
 
 
 def _grey(image: np.ndarray) -> np.ndarray:
