@@ -121,22 +121,30 @@ class NiDaqPressure:
         self._reader: Any = None
         self._t_start_s = 0.0
         self._n_read = 0  # samples per channel read since the acquisition started
+        self._unread: list[np.ndarray] = []  # read by zero() during a run, for read()
 
     # -- PressureSource ------------------------------------------------------------------
 
     def zero(self, duration_s: float = 1.0) -> float:
-        """Average ``duration_s`` of readings at atmospheric pressure into the offset that
-        every later reading subtracts; returns it in kPa. Call it before ``start``."""
-        if self._task is not None:
-            raise RuntimeError("zero() takes its own acquisition: call it before start()")
+        """Average the next ``duration_s`` of readings, taken at atmospheric pressure, into
+        the offset every later reading subtracts; returns it in kPa.
+
+        Before ``start`` it runs its own short acquisition. During one it uses the running
+        stream and keeps those samples for the next ``read``, so the record has no gap.
+        """
         if not duration_s > 0:
             raise InputError(f"zero duration_s: must be > 0 s, got {duration_s}")
         n = max(1, round(duration_s * self.rate_hz))
-        self._open(self.rate_hz)
-        try:
-            data = self._read_samples(n, timeout_s=duration_s + self.read_timeout_s)
-        finally:
-            self.stop()
+        timeout_s = duration_s + self.read_timeout_s
+        if self._task is not None:
+            data = self._read_samples(n, timeout_s)
+            self._unread.append(data)
+        else:
+            self._open(self.rate_hz)
+            try:
+                data = self._read_samples(n, timeout_s)
+            finally:
+                self.stop()
         p_raw_kpa, adc_flags = self._to_raw_kpa(data)
         self.offset_kpa = mpx5100.zero_offset(p_raw_kpa, adc_flags).offset_kpa
         return self.offset_kpa
@@ -157,9 +165,12 @@ class NiDaqPressure:
             n = self._task.in_stream.avail_samp_per_chan
         except _daq_error() as exc:
             raise self._translate(exc, "reading the number of available samples") from exc
-        if n == 0:
+        blocks, self._unread = self._unread, []
+        if n > 0:
+            blocks.append(self._read_samples(n, timeout_s=self.read_timeout_s))
+        if not blocks:
             return self._block(np.empty((len(self.channels), 0)))
-        return self._block(self._read_samples(n, timeout_s=self.read_timeout_s))
+        return self._block(np.concatenate(blocks, axis=1))
 
     def stop(self) -> None:
         """Stop and release the task; safe to call at any time."""
@@ -224,8 +235,10 @@ class NiDaqPressure:
         self._task, self._reader = task, reader
         self._t_start_s = 0.5 * (before_s + after_s)
         self._n_read = 0
+        self._unread = []
 
     def _read_samples(self, n: int, timeout_s: float) -> np.ndarray:
+        """The next n samples per channel (channels x n volts), counted in ``_n_read``."""
         data = np.empty((len(self.channels), n))
         try:
             n_got = self._reader.read_many_sample(

@@ -137,14 +137,24 @@ def test_readings_beyond_the_sensor_or_adc_are_flagged_not_clipped():
     np.testing.assert_array_equal(flags, v_in >= 1.0 - 2.0 / 2**14)
 
 
-def test_zero_refuses_a_pressurised_line_and_a_running_acquisition():
+def test_zero_refuses_a_pressurised_line():
     rig = Rig(lambda t: np.full(np.shape(t), 15.0))
     with pytest.raises(DeviceError, match="open the line to atmosphere"):
         rig.daq.zero(0.2)
     assert rig.daq.offset_kpa == 0.0
-    rig.daq.start()
-    with pytest.raises(RuntimeError, match="before start"):
-        rig.daq.zero(0.2)
+
+
+def test_zero_during_a_run_leaves_no_gap_in_the_record():
+    # Pressurised for 2 s, vented at 2 s: the zero is taken while acquiring.
+    rig = Rig(lambda t: np.where(t < 2.0, 30.0, 0.0), sim={"offset_error_kpa": 1.5})
+    rig.daq.start(500.0)
+    _, t_before, p_before, _ = rig.collect(2.5, every_s=0.5)
+    assert np.mean(p_before[t_before < 1.9]) == pytest.approx(31.5, abs=0.05)
+    assert rig.daq.zero(0.5) == pytest.approx(1.5, abs=0.02)
+    _, t_after, p_after, _ = rig.collect(1.0, every_s=0.5)
+    t = np.concatenate([t_before, t_after])
+    np.testing.assert_allclose(np.diff(t), 1 / 500.0, rtol=1e-6)  # the zeroing samples too
+    assert np.mean(p_after) == pytest.approx(0.0, abs=0.02)
 
 
 def test_read_timeout_becomes_a_clear_device_error():
