@@ -113,6 +113,8 @@ class MarkerTracker:
         """Find both markers in a BGR (or grey) frame; keeps their identity between calls."""
         if frame is None or frame.ndim not in (2, 3) or frame.size == 0:
             raise InputError("marker tracking: the frame is empty or not an image")
+        if self._hsv is not None and frame.ndim != 3:
+            raise InputError("marker tracking: colour markers (hsv_range) need colour frames")
         if self._last is not None:
             fix = self._track_near_last(frame)
             if fix is not None:

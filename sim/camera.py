@@ -92,7 +92,9 @@ class SimCamera:
         self.background_bgr = np.array(background_bgr, dtype=np.float32)
         self._rng = np.random.default_rng(seed)
         self._noise = self._make_noise() if self.noise_grey > 0 else None
+        self.hidden_markers: set[int] = set()  # fault injection: 0 and/or 1 not drawn
         self._pos_msec = 0.0
+        self._last_frame = -1
         self._opened = True
 
     # -- the truth ------------------------------------------------------------------------------
@@ -104,6 +106,12 @@ class SimCamera:
         sway_y = self.sway_px * math.sin(2 * math.pi * t_s / 11.9 + 1.0)
         cx, cy = self.centre_px[0] + sway_x, self.centre_px[1] + sway_y
         return np.array([[cx - half_px, cy], [cx + half_px, cy]])
+
+    def hide_marker(self, index: int, hidden: bool = True) -> None:
+        """Stop drawing marker 0 or 1 (a fallen-off or covered marker), or draw it again."""
+        if index not in (0, 1):
+            raise ValueError(f"SimCamera has markers 0 and 1, not {index}")
+        (self.hidden_markers.add if hidden else self.hidden_markers.discard)(index)
 
     def light_gain(self, t_s: float) -> float:
         return 1.0 + self.lighting_drift * math.sin(2 * math.pi * t_s / self.drift_period_s)
@@ -124,8 +132,9 @@ class SimCamera:
         y1 = min(round(cy + self.band_half_px), self.height)
         if x0 < x1 and y0 < y1:
             _fill(frame, x0, y0, x1, y1, self.specimen_bgr * gain)
-        for x, y in centres:
-            self._draw_dot(frame, x, y, gain)
+        for index, (x, y) in enumerate(centres):
+            if index not in self.hidden_markers:
+                self._draw_dot(frame, x, y, gain)
         if self._noise is not None:
             frame = self._add_noise(frame)
         return frame
@@ -172,10 +181,11 @@ class SimCamera:
 
     def read(self) -> tuple[bool, np.ndarray | None]:
         """The next frame, like ``cv2.VideoCapture.read``: waits on the clock for the next
-        frame time (k / fps) and renders the scene at that time."""
+        frame time (k / fps, never the same k twice) and renders the scene at that time."""
         if not self._opened:
             return False, None
-        k = math.ceil(self.clock.now() * self.fps)
+        k = max(math.ceil(self.clock.now() * self.fps), self._last_frame + 1)
+        self._last_frame = k
         t_s = k / self.fps
         self.clock.sleep(t_s - self.clock.now())
         self._pos_msec = 1000.0 * t_s

@@ -23,11 +23,8 @@ def video(tmp_path_factory):
     path = tmp_path_factory.mktemp("track") / "specimen.avi"
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 20.0, (640, 360))
     for k in range(20):
-        frame = cam.render(k / 20.0)
-        if 5 <= k < 10:
-            (x, y) = cam.marker_centres_px(k / 20.0)[1]
-            cv2.circle(frame, (round(x), round(y)), 16, (190, 190, 190), -1)
-        writer.write(frame)
+        cam.hide_marker(1, hidden=5 <= k < 10)
+        writer.write(cam.render(k / 20.0))
     writer.release()
     return path, 32.0 + 4.0 * np.arange(20) / 20.0
 

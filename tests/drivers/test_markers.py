@@ -176,3 +176,5 @@ def test_bad_settings_are_input_errors(kwargs, match):
 def test_a_frame_that_is_not_an_image_is_an_input_error():
     with pytest.raises(InputError, match="not an image"):
         MarkerTracker().track(np.zeros((0, 0, 3), np.uint8))
+    with pytest.raises(InputError, match="need colour frames"):
+        MarkerTracker(hsv_range=((0, 80, 60), (10, 255, 255))).track(np.zeros((9, 9), np.uint8))

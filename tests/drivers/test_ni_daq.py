@@ -33,7 +33,9 @@ def ramp_after(t_on_s, kpa_per_s):
 class Rig:
     """The driver wired to simulated tasks; keeps each task it made for inspection."""
 
-    def __init__(self, truth, speed=100.0, sim=None, **driver):
+    def __init__(self, truth, speed=50.0, sim=None, **driver):
+        # At 50x the 10 s DAQmx buffer lasts 0.2 s of real time: a busy machine's pauses
+        # must not overflow it.
         self.clock = SimulatedClock(speed=speed)
         self.truth = truth
         self.tasks = []
@@ -188,6 +190,7 @@ def test_overflow_when_read_too_late_becomes_a_clear_device_error():
     with pytest.raises(DaqOverflowError, match=r"-200279.*samples were lost.*buffer_s"):
         rig.daq.read()
     rig.daq.stop()
+    rig.clock.set_speed(20.0)  # from here on, a pause must not overflow it again
     rig.daq.start(1000.0)  # a restart recovers
     rig.clock.sleep(0.1)
     assert len(rig.daq.read()) > 0

@@ -72,7 +72,10 @@ def test_read_is_a_capture_paced_by_the_clock():
         assert ok and frame.shape == (240, 320, 3) and frame.dtype == np.uint8
         stamps.append(cam.get(cv2.CAP_PROP_POS_MSEC))
         assert clock.now() >= stamps[-1] / 1000.0  # never a frame from the future
-    np.testing.assert_allclose(np.diff(stamps), 100.0)
+    # Consecutive frames, 100 ms apart; a late reader gets the next frame, never an old one.
+    steps = np.diff(stamps) / 100.0
+    np.testing.assert_allclose(steps, np.rint(steps))
+    assert np.all(steps >= 1) and np.median(steps) == 1
     assert cam.get(cv2.CAP_PROP_FRAME_WIDTH) == 320 and cam.get(cv2.CAP_PROP_FPS) == 10.0
     cam.release()
     assert not cam.isOpened()
@@ -107,3 +110,15 @@ def test_a_marker_outside_the_frame_is_simply_not_drawn():
     cam = camera(size=(320, 240), mm_per_px=0.2, length_mm_at=lambda t: 90.0, noise_grey=0.0)
     frame = cam.render(0.0)
     assert frame.min() >= 80  # only background and specimen: no dark dot anywhere
+
+
+def test_a_hidden_marker_is_not_drawn_until_shown_again():
+    cam = camera(size=(320, 240), mm_per_px=0.2, noise_grey=0.0)
+    (x1, y1), (x2, y2) = cam.marker_centres_px(0.0)
+    cam.hide_marker(1)
+    frame = cam.render(0.0)
+    assert frame[round(y1), round(x1)].max() < 60 and frame[round(y2), round(x2)].min() > 150
+    cam.hide_marker(1, hidden=False)
+    assert cam.render(0.0)[round(y2), round(x2)].max() < 60
+    with pytest.raises(ValueError, match="markers 0 and 1"):
+        cam.hide_marker(2)
