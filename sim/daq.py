@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from labrig.drivers import mpx5100
@@ -63,14 +64,12 @@ def default_buffer_size(rate_hz: float) -> int:
     return 1_000_000
 
 
+@dataclass(frozen=True)
 class _Channel:
     """One configured input: where it is wired and the range the ADC digitises."""
 
-    def __init__(self, physical: str, index: int, terminal: TerminalConfiguration, range_v: float):
-        self.physical = physical
-        self.index = index
-        self.terminal = terminal
-        self.range_v = range_v  # the hardware range is ±range_v
+    physical: str
+    range_v: float  # the hardware range is ±range_v
 
 
 class SimAIChannelCollection:
@@ -115,10 +114,10 @@ class SimAIChannelCollection:
             )
         if any(i >= n_allowed for i in indices):
             raise task._error(
-                "Requested value is not a supported value for this property. The property "
-                "value may be monotonic with respect to the channel.\n"
+                "Requested value is not a supported value for this property.\n"
                 f"Property: DAQmx_AI_TermCfg\nRequested Value: {terminal.name}\n"
-                f"Channel Name: {physical_channel}",
+                f"Channel Name: {physical_channel}\n"
+                "In differential mode ai0-ai3 pair with ai4-ai7.",
                 DAQmxErrors.INVALID_ATTRIBUTE_VALUE,
             )
         # DAQmx picks the smallest hardware range holding [min_val, max_val].
@@ -136,8 +135,7 @@ class SimAIChannelCollection:
         if units != VoltageUnits.VOLTS or custom_scale_name:
             raise ValueError("SimDaqTask simulates voltage channels in volts only")
         for i in indices:
-            physical = f"{task.device}/ai{i}"
-            self._channels.append(_Channel(physical, i, terminal, min(fitting)))
+            self._channels.append(_Channel(f"{task.device}/ai{i}", min(fitting)))
 
     def _parse(self, physical_channel: str) -> list[int]:
         task = self._task
@@ -176,7 +174,6 @@ class SimTiming:
         self._task = task
         self.samp_clk_rate = 1000.0
         self.samp_quant_samp_per_chan = 1000
-        self.samp_quant_samp_mode = AcquisitionType.FINITE
 
     def cfg_samp_clk_timing(
         self,
@@ -193,7 +190,6 @@ class SimTiming:
             )
         self.samp_clk_rate = float(rate)
         self.samp_quant_samp_per_chan = int(samps_per_chan)
-        self.samp_quant_samp_mode = sample_mode
 
 
 class SimInStream:
@@ -214,16 +210,11 @@ class SimInStream:
             return 0
         return min(task._acquired() - task._read_pos, task._buffer_size)
 
-    @property
-    def input_buf_size(self) -> int:
-        return self._task._buffer_size
-
 
 class SimAnalogMultiChannelReader:
     """``AnalogMultiChannelReader`` over a ``SimDaqTask``'s in_stream, same signatures."""
 
     def __init__(self, task_in_stream: SimInStream) -> None:
-        self._in_stream = task_in_stream
         self._task = task_in_stream._task
         self.verify_array_shape = True
 
@@ -288,10 +279,6 @@ class SimDaqTask:
     @property
     def channel_names(self) -> list[str]:
         return [c.physical for c in self.ai_channels._channels]
-
-    @property
-    def number_of_channels(self) -> int:
-        return len(self.ai_channels)
 
     def start(self) -> None:
         self._check_open()
