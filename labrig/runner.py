@@ -54,6 +54,9 @@ class Rig:
     length: LengthSource | None
     config_text: str
     close: Callable[[], None] = lambda: None
+    # The simulated specimen and emulators behind the drivers, when simulated: the
+    # truth that tests and benchmarks compare the recorded data with.
+    simulation: object | None = None
 
 
 @dataclass(frozen=True)
@@ -338,14 +341,17 @@ class Runner:
         self._device_loop("camera", period_s, self._read_length)
 
     def _device_loop(self, device: str, period_s: float, read_once: Callable[[], None]) -> None:
-        """Read one device every ``period_s``; a device error is a fault of the run."""
+        """Read one device every ``period_s`` (paced by deadlines, so a slow read does
+        not stretch the period); a device error is a fault of the run."""
+        next_s = self.clock.now()
         while not self._stop_loops.is_set():
             try:
                 read_once()
             except (DeviceError, OSError) as exc:
                 self.monitor.trip(f"{device}: {exc}", "faulted")
                 return
-            self._pause(period_s)
+            next_s = max(next_s + period_s, self.clock.now() - period_s)
+            self._pause(next_s - self.clock.now())
 
     def _read_pressure(self) -> None:
         block = self.rig.pressure.read()
