@@ -18,7 +18,9 @@ from labrig.errors import LabrigError
 
 # name -> "module:attribute" of a click command or group. Only what is built is listed:
 # the CLI never shows a command that would pretend.
-COMMANDS: dict[str, tuple[str, str]] = {}
+COMMANDS: dict[str, tuple[str, str]] = {
+    "pump": ("labrig.cli.pump", "pump"),
+}
 
 
 class LazyGroup(click.Group):
