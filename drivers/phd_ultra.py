@@ -394,15 +394,13 @@ class PhdUltra:
     def _exchange_locked(self, command: str, *, expect_payload: bool, stop_on_fault: bool) -> Reply:
         try:
             reply = self._transfer(command, expect_payload)
+            check_refusal(reply, command)  # a clean refusal: the pump's state is known
+            if not expect_payload and reply.lines:
+                raise PumpProtocolError(f"unexpected reply to {command!r}: {reply.text!r}")
         except (PumpTimeout, PumpProtocolError) as exc:
             if not stop_on_fault:
                 raise
             raise type(exc)(f"{exc}; {self._stop_after_fault()}") from exc
-        check_refusal(reply, command)
-        if expect_payload and not reply.lines:
-            raise PumpProtocolError(f"no value in the reply to {command!r}")
-        if not expect_payload and reply.lines:
-            raise PumpProtocolError(f"unexpected reply to {command!r}: {reply.text!r}")
         return reply
 
     def _stop_after_fault(self) -> str:
