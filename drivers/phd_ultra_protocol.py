@@ -119,31 +119,37 @@ def parse_reply(raw: bytes, *, expect_payload: bool, command: str = "") -> Reply
     if not elements:
         return None
     payload: list[str] = []
-    prompt: re.Match[str] | None = None
+    prompts: list[re.Match[str]] = []
     for element in elements[:-1]:
         if match := _PROMPT.match(element):
-            prompt = match  # a prompt followed by more: status-after-prompt firmware
+            prompts.append(match)  # followed by more: status-after-prompt, or unsolicited
         elif element.strip("\r"):
             payload.append(element.rstrip("\r"))
     last = elements[-1]
     if match := _PROMPT.match(last):
-        prompt = match
-    elif not (last == "" and prompt is not None and payload and elements[-2].endswith("\r")):
+        prompts.append(match)
+    elif not (last == "" and prompts and payload and elements[-2].endswith("\r")):
         return None
-    if prompt is None or (expect_payload and not payload):
+    if not prompts or (expect_payload and not payload):
         return None
-    lines = tuple(_clean_line(line, prompt[0]) for line in payload)
+    prompt = prompts[-1]  # the latest state; an earlier one was an event before the reply
+    # Longest first, so '00T*' is not cut as if it were '00T'.
+    prefixes = sorted({match[0] for match in prompts}, key=len, reverse=True)
+    lines = tuple(_clean_line(line, prefixes) for line in payload)
     if any(not ch.isascii() or not ch.isprintable() for ch in "".join(lines)):
         raise PumpProtocolError(f"unreadable reply to {command!r}: {raw!r}")
     address = prompt["address"]
     return Reply(lines, prompt["prompt"], int(address) if address else None)
 
 
-def _clean_line(line: str, prompt: str) -> str:
-    """Drop what some firmware puts before a payload line: the reply's own prompt with
-    its address (``00:15.3 ml/min``), or a leaked target prompt."""
-    if line.startswith(prompt):
-        line = line[len(prompt) :]
+def _clean_line(line: str, prefixes: list[str]) -> str:
+    """Drop what some firmware puts before a payload line: a prompt of the same reply
+    with its address (``00:15.3 ml/min``; the prompt may have changed by the end of
+    the reply, so any prompt received with it counts), or a leaked target prompt."""
+    for prefix in prefixes:
+        if line.startswith(prefix):
+            line = line[len(prefix) :]
+            break
     return _LEAKED_TARGET.sub("", line, count=1).strip()
 
 

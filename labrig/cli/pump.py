@@ -114,7 +114,10 @@ def _run_options(command):
         help="Stop by itself after this volume; without it, run until stopped.",
     )(command)
     return click.option(
-        "--rate-ml-min", type=click.FloatRange(min=0, min_open=True), required=True
+        "--rate-ml-min",
+        type=click.FloatRange(min=0, min_open=True),
+        required=True,
+        help="Rate in mL/min, within the syringe's limits.",
     )(command)
 
 
@@ -122,7 +125,7 @@ def _run_options(command):
 @_run_options
 @click.pass_context
 def infuse(ctx: click.Context, **options) -> None:
-    """Clear the counters and infuse at a rate, optionally up to a volume."""
+    """Infuse at a rate (to a volume); clears the counters."""
     _run(ctx, "infuse", **options)
 
 
@@ -130,7 +133,7 @@ def infuse(ctx: click.Context, **options) -> None:
 @_run_options
 @click.pass_context
 def withdraw(ctx: click.Context, **options) -> None:
-    """Clear the counters and withdraw at a rate, optionally up to a volume."""
+    """Withdraw at a rate (to a volume); clears the counters."""
     _run(ctx, "withdraw", **options)
 
 
@@ -203,8 +206,9 @@ def _follow(driver) -> None:
 def emulate(
     ctx: click.Context, speed: float, emulated_address: int | None, reply_style: str
 ) -> None:
-    """Serve an emulated PHD ULTRA; prints the device path to connect to, then serves
-    until Ctrl-C."""
+    """Serve an emulated PHD ULTRA on a pseudo-terminal.
+
+    Prints the device path to connect to, then serves until Ctrl-C."""
     from labrig.clock import RealClock, SimulatedClock
     from labrig.sim.pump import PumpEmulator
 

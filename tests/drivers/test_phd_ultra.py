@@ -272,7 +272,7 @@ def test_a_second_program_on_the_same_pump_gets_a_clear_error(pump, emulator):
 
 
 def test_stop_goes_before_the_rest_of_a_status_poll(pump, emulator):
-    emulator.slow_replies(0.05)  # status() is three exchanges: 0.15 s
+    emulator.slow_replies(0.15)  # status() is three exchanges: 0.45 s
     poller = threading.Thread(target=pump.status)
     poller.start()
     while "00status" not in emulator.received:

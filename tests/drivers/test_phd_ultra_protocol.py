@@ -151,6 +151,8 @@ def test_frame_command_rejects_an_address_beyond_the_chain():
         # A target prompt leaked into the first line, and one received just before.
         (b"\nT*1.000 ml\r\nT*", True, ("1.000 ml",), "T*", None),
         (b"\nT*\n2.5 ml\r\n:", True, ("2.5 ml",), ":", None),
+        # The target was reached just after the line was sent: its own prefix is '00>'.
+        (b"\n00>0 994 4968 I..TI.\r\n00>\n00T*", True, ("0 994 4968 I..TI.",), "T*", 0),
         # A payload line that looks like time with the address in front stays whole.
         (b"\n00:00:01:40\r\n00:", True, ("00:01:40",), ":", 0),
     ],
