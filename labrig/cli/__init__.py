@@ -21,6 +21,7 @@ from labrig.errors import LabrigError
 COMMANDS: dict[str, tuple[str, str]] = {
     "model": ("labrig.cli.model", "model"),
     "protocol": ("labrig.cli.protocol", "protocol"),
+    "pump": ("labrig.cli.pump", "pump"),
     "track": ("labrig.cli.track", "track"),
 }
 
