@@ -64,6 +64,23 @@ _REFUSALS: tuple[tuple[str, type[PumpCommandError]], ...] = (
 
 FL_PER_ML = 1e12
 
+# Rate limits scale with the plunger area (the lead screw's speed range is fixed). The
+# reference pair is the `irate lim` reply chembot quotes from a real PHD ULTRA with its
+# 9.525 mm syringe.
+REFERENCE_DIAMETER_MM = 9.525
+REFERENCE_RATE_LIMITS_ML_MIN = (14.7792e-6, 15.3477)
+
+
+def rate_limits_ml_min(diameter_mm: float) -> tuple[float, float]:
+    """(min, max) rate a PHD ULTRA drives a syringe of this inner diameter at, in mL/min.
+
+    The emulator answers ``irate lim`` with it, and protocols are checked against it
+    before a run; on the bench the driver checks again against the pump's own answer.
+    """
+    scale = (diameter_mm / REFERENCE_DIAMETER_MM) ** 2
+    low, high = REFERENCE_RATE_LIMITS_ML_MIN
+    return low * scale, high * scale
+
 
 def frame_command(command: str, *, address: int, address_form: str = "digits") -> bytes:
     """The bytes that send ``command`` to the pump at ``address``.

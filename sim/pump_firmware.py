@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 from labrig.clock import Clock
 from labrig.devices import PumpState
+from labrig.drivers.phd_ultra_protocol import rate_limits_ml_min
 
 from .syringe_drive import INFUSE, WITHDRAW, SyringeDrive
 
@@ -36,10 +37,6 @@ SERIAL_NUMBER = "EMU00001"
 # a 60 mL plastic syringe.
 DEFAULT_DIAMETER_MM = 26.7
 DEFAULT_SYRINGE_ML = 60.0
-# Rate limits scale with the plunger area. The reference pair is the `irate lim` reply
-# chembot quotes from a real PHD ULTRA with its 9.525 mm syringe.
-REFERENCE_DIAMETER_MM = 9.525
-REFERENCE_RATE_LIMITS_ML_MIN = (14.7792e-6, 15.3477)
 # PHD ULTRA catalogue: 75 lbf linear force at 100 % force (unverified).
 MAX_FORCE_N = 75 * 4.4482216
 DIAMETER_RANGE_MM = (0.1, 50.0)
@@ -196,9 +193,7 @@ class PumpFirmware:
 
     @property
     def rate_limits_ml_min(self) -> tuple[float, float]:
-        scale = (self._diameter_mm / REFERENCE_DIAMETER_MM) ** 2
-        low, high = REFERENCE_RATE_LIMITS_ML_MIN
-        return low * scale, high * scale
+        return rate_limits_ml_min(self._diameter_mm)
 
     # ---- what moves it -------------------------------------------------------------
 
