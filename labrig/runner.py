@@ -100,6 +100,7 @@ class _Latest:
     volume_ml: float = 0.0
     pump_state: PumpState = PumpState.IDLE
     pump_t_s: float = float("-inf")
+    pump_seq: int = -1
     pressure_blocks: int = 0
     lock: threading.Condition = field(default_factory=threading.Condition)
 
@@ -141,6 +142,7 @@ class Runner:
         self._t_start = 0.0
         self._step_label = "starting"
         self._repetition_started = False
+        self._motion_seq = 0
         self._marker_lost_since: float | None = None
         self._last_progress_s = float("-inf")
         self.shutdown_errors: list[str] = []
@@ -240,26 +242,42 @@ class Runner:
         else:
             pump.set_withdraw_rate(rate_ml_min)
         pump.set_target_volume(remaining_ml)
-        started_s = self.clock.now()
         if self.monitor.tripped:
             return
         pump.infuse() if direction > 0 else pump.withdraw()
+        with self.latest.lock:
+            # only a status requested after this point may say the motion has ended
+            self._motion_seq += 1
+            seq = self._motion_seq
         expected_s = 60.0 * remaining_ml / rate_ml_min
-        deadline_s = started_s + 1.2 * expected_s + self.timing.target_grace_s
-        self._wait_until_pump_stops(started_s, deadline_s)
+        deadline_s = self.clock.now() + 1.2 * expected_s + self.timing.target_grace_s
+        if self._wait_until_pump_stops(seq, deadline_s):
+            self._check_arrival(target_ml)
 
-    def _wait_until_pump_stops(self, started_s: float, deadline_s: float) -> None:
+    def _wait_until_pump_stops(self, seq: int, deadline_s: float) -> bool:
+        """True once a status newer than the run command shows the motor stopped."""
         latest = self.latest
         while not self.monitor.tripped:
             with latest.lock:
-                done = latest.pump_t_s > started_s and latest.pump_state not in MOVING
-            if done:
-                return
+                if latest.pump_seq >= seq and latest.pump_state not in MOVING:
+                    return True
             if self.clock.now() > deadline_s:
                 self.monitor.trip("the pump did not reach its target volume in time", "faulted")
-                return
+                return False
             self._pause(self.timing.pump_period_s)
             self._report_progress()
+        return False
+
+    def _check_arrival(self, target_ml: float) -> None:
+        """A pump that stopped short of its target (stopped at the pump, a lost step)
+        is a fault: the following steps would start from the wrong volume."""
+        with self._volume_lock:
+            volume_ml = self.monitor.specimen_volume_ml(self.rig.pump.status())
+        if abs(volume_ml - target_ml) > 0.05 + 0.01 * abs(target_ml):
+            self.monitor.trip(
+                f"the pump stopped at {volume_ml:.3f} mL instead of {target_ml:.3f} mL",
+                "faulted",
+            )
 
     def _hold(self, seconds: float) -> None:
         end_s = self.clock.now() + seconds
@@ -368,6 +386,8 @@ class Runner:
             latest.lock.notify_all()
 
     def _read_pump(self) -> None:
+        with self.latest.lock:
+            seq = self._motion_seq
         with self._volume_lock:
             status = self.rig.pump.status()
             volume_ml = self.monitor.specimen_volume_ml(status)
@@ -379,12 +399,13 @@ class Runner:
             status.withdrawn_ml,
             status.state.value,
         )
-        self.monitor.check_pump(status)
+        self.monitor.check_pump(status, volume_ml)
         latest = self.latest
         with latest.lock:
             latest.volume_ml = volume_ml
             latest.pump_state = status.state
             latest.pump_t_s = status.t_s
+            latest.pump_seq = seq
             latest.lock.notify_all()
 
     def _read_length(self) -> None:
