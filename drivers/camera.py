@@ -36,12 +36,27 @@ class Frame:
 
 class FrameSource:
     """Timestamped frames from a capture. ``clock`` given: a live source stamped on the
-    shared clock; ``clock=None``: a file stamped with its own position."""
+    shared clock; ``clock=None``: a file stamped with its own position.
 
-    def __init__(self, capture: Any, *, clock: Clock | None, name: str) -> None:
+    ``exposure_timestamps``: a live capture whose ``CAP_PROP_POS_MSEC`` is the exposure
+    time on the shared clock (SimCamera; a hardware-triggered camera could be wired the
+    same way). It is then used instead of the host's reading after the grab, which is
+    late by the transfer and, on a fast simulated clock, by the render time times the
+    clock's speed.
+    """
+
+    def __init__(
+        self,
+        capture: Any,
+        *,
+        clock: Clock | None,
+        name: str,
+        exposure_timestamps: bool = False,
+    ) -> None:
         self.capture = capture
         self.clock = clock
         self.name = name
+        self.exposure_timestamps = exposure_timestamps
         self.n_frames = 0
 
     @classmethod
@@ -82,6 +97,8 @@ class FrameSource:
             t_s = self.clock.now()  # right after the grab, before any processing
             if not ok or image is None:
                 raise DeviceError(f"{self.name} returned no frame: is it still connected?")
+            if self.exposure_timestamps:
+                t_s = self.capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
         else:
             if not ok or image is None:
                 if self.n_frames == 0:

@@ -344,14 +344,21 @@ class PhdUltra:
 
     def status(self) -> PumpStatus:
         """State (prompt and status flags) and volumes, stamped on the clock at the
-        middle of the volume queries."""
+        middle of the query of the counter that is moving: the other one is constant,
+        so that is the moment the net volume describes (a stamp across both queries
+        would be late by a quarter of the exchange time, which a fast simulated clock
+        turns into hundredths of a mL)."""
         line, prompt_state = self.read_status_line()
+        state = _state(line, prompt_state)
         t0_s = self.clock.now()
-        infused_ml, withdrawn_ml = self.volumes_ml()
+        infused_ml = parse_volume_ml(self._query("ivolume").text)
         t1_s = self.clock.now()
+        withdrawn_ml = parse_volume_ml(self._query("wvolume").text)
+        t2_s = self.clock.now()
+        moving_query = (t1_s, t2_s) if state is PumpState.WITHDRAWING else (t0_s, t1_s)
         return PumpStatus(
-            t_s=0.5 * (t0_s + t1_s),
-            state=_state(line, prompt_state),
+            t_s=0.5 * sum(moving_query),
+            state=state,
             infused_ml=infused_ml,
             withdrawn_ml=withdrawn_ml,
         )

@@ -216,21 +216,25 @@ def _build_sim_rig(protocol: Protocol, config: RigConfig) -> Rig:
         stack.callback(pump.close)
         pump.configure_syringe(syringe.diameter_mm, syringe.volume_ml)
         p = config.pressure
-        factories = {
-            "task_factory": lambda: SimDaqTask(
+        daq_tasks: list[SimDaqTask] = []
+
+        def new_task() -> SimDaqTask:
+            task = SimDaqTask(
                 clock,
                 plant.pressure_kpa_at,
                 supply_v=p.supply_v,
                 noise_kpa=sim.noise_kpa,
                 offset_error_kpa=sim.offset_error_kpa,
-                seed=sim.seed,
+                seed=sim.seed + len(daq_tasks),
                 output_channel=p.channel,
                 supply_channel=p.supply_channel,
-            ),
-            "reader_factory": SimAnalogMultiChannelReader,
-        }
+            )
+            daq_tasks.append(task)
+            return task
+
+        factories = {"task_factory": new_task, "reader_factory": SimAnalogMultiChannelReader}
         pressure = _pressure_driver(NiDaqPressure, clock, config, protocol, factories)
-        length = None
+        length = camera = None
         if protocol.acquisition.camera_fps > 0:
             mm_per_px = sim.mm_per_px or _fitting_scale_mm_per_px(segments, protocol)
             camera = SimCamera(
@@ -240,10 +244,12 @@ def _build_sim_rig(protocol: Protocol, config: RigConfig) -> Rig:
                 fps=protocol.acquisition.camera_fps,
                 seed=sim.seed,
             )
-            frames = FrameSource(camera, clock=clock, name="simulated camera")
+            frames = FrameSource(
+                camera, clock=clock, name="simulated camera", exposure_timestamps=True
+            )
             length = CameraLength(frames, mm_per_px=mm_per_px)
         closer = stack.pop_all()
-    simulation = SimulatedParts(plant, emulator, camera if length is not None else None)
+    simulation = SimulatedParts(plant, emulator, camera, daq_tasks)
     return Rig(clock, pump, pressure, length, rig_config_text(config), closer.close, simulation)
 
 
@@ -254,6 +260,7 @@ class SimulatedParts:
     plant: object
     emulator: object
     camera: object | None
+    daq_tasks: list  # every SimDaqTask made so far; the last one is acquiring
 
 
 def _fitting_scale_mm_per_px(segments, protocol: Protocol) -> float:

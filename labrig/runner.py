@@ -85,8 +85,8 @@ class Timing:
     """Loop periods in clock seconds, with a floor in host seconds so a fast simulated
     clock cannot turn a loop into a busy spin."""
 
-    pressure_period_s: float = 0.05
-    pump_period_s: float = 0.1
+    pressure_period_s: float = 0.2
+    pump_period_s: float = 0.2
     progress_period_s: float = 0.5
     real_floor_s: float = 0.002
     max_marker_loss_s: float = 10.0

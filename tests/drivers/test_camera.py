@@ -110,3 +110,13 @@ def test_exactly_one_scale_is_required(video):
         CameraLength(frames, mm_per_px=0.1, reference_distance_mm=30.0)
     with pytest.raises(InputError, match="must be > 0"):
         CameraLength(frames, mm_per_px=-0.1)
+
+
+def test_exposure_timestamps_come_from_the_capture():
+    clock = SimulatedClock(speed=20.0)
+    camera = SimCamera(clock, lambda t: 40.0 + t, fps=5.0)
+    frames = FrameSource(camera, clock=clock, name="sim", exposure_timestamps=True)
+    stamps = [frames.read().t_s for _ in range(3)]
+    assert stamps == sorted(stamps)
+    assert stamps[-1] == camera.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
+    assert np.allclose(np.diff(stamps), 0.2, atol=0.05)  # one frame per 1/fps
