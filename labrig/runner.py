@@ -143,6 +143,9 @@ class Runner:
         self._step_label = "starting"
         self._repetition_started = False
         self._motion_seq = 0
+        self._shutting_down = False
+        self._interrupts = 0
+        self._hurry = False
         self._marker_lost_since: float | None = None
         self._last_progress_s = float("-inf")
         self.shutdown_errors: list[str] = []
@@ -335,7 +338,7 @@ class Runner:
     def _stop_acquisition(self) -> None:
         self._stop_loops.set()
         for thread in self._threads:
-            thread.join(timeout=5.0)
+            thread.join(timeout=0.1 if self._hurry else 5.0)
         self._threads = []
         if self._acquiring:
             self._acquiring = False
@@ -468,19 +471,35 @@ class Runner:
         self.on_progress(snapshot)
 
     def _install_sigint(self) -> Callable[[], None]:
+        """First Ctrl-C: stop safely, like any interlock. Second: stop now — leave the
+        step loop at once and do not wait for the acquisition threads (the pump is
+        still sent a stop). The handler does no I/O itself: it runs in the main thread,
+        which may be inside a driver call holding the port's lock."""
         if threading.current_thread() is not threading.main_thread():
             return lambda: None
         previous = signal.getsignal(signal.SIGINT)
 
         def handler(signum, frame):
-            if not self.monitor.trip("stopped by the operator (Ctrl-C)", "aborted"):
+            self._interrupts += 1
+            if self._interrupts == 1:
+                threading.Thread(
+                    target=self.monitor.trip,
+                    args=("stopped by the operator (Ctrl-C)", "aborted"),
+                    name="ctrl-c",
+                    daemon=True,
+                ).start()
+                return
+            self._hurry = True
+            if not self._shutting_down:
                 raise _StopNow()
 
         signal.signal(signal.SIGINT, handler)
         return lambda: signal.signal(signal.SIGINT, previous)
 
     def _shutdown(self, status: str, reason: str) -> None:
-        """The one exit: pump stopped first, loops stopped, file finalised."""
+        """The one exit: pump stopped first, loops stopped, file finalised. Once here,
+        a further Ctrl-C changes nothing: this is already the fastest way out."""
+        self._shutting_down = True
         try:
             self.rig.pump.stop()
         except (LabrigError, OSError) as exc:
