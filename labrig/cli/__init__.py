@@ -18,7 +18,11 @@ from labrig.errors import LabrigError
 
 # name -> "module:attribute" of a click command or group. Only what is built is listed:
 # the CLI never shows a command that would pretend.
-COMMANDS: dict[str, tuple[str, str]] = {}
+COMMANDS: dict[str, tuple[str, str]] = {
+    "model": ("labrig.cli.model", "model"),
+    "protocol": ("labrig.cli.protocol", "protocol"),
+    "track": ("labrig.cli.track", "track"),
+}
 
 
 class LazyGroup(click.Group):

@@ -7,7 +7,9 @@ import click
 from labrig.cli import LazyGroup
 
 # name -> ("module", "attribute"), imported on first use.
-MODEL_COMMANDS: dict[str, tuple[str, str]] = {}
+MODEL_COMMANDS: dict[str, tuple[str, str]] = {
+    "curve": ("labrig.cli.model_curve", "curve"),
+}
 
 
 @click.group(cls=LazyGroup, lazy_commands=MODEL_COMMANDS)

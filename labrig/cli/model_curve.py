@@ -1,0 +1,124 @@
+"""``labrig model curve SEG``: one segment's p(v) and l(v), as a summary, JSON or a plot.
+
+SEG is a library name (``B46-T20``), a Gent membrane (``gent-a``) or a measured-curve
+CSV. The JSON carries the segment's table itself, so the peak and valley it reports are
+samples of the arrays.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from labrig.errors import InputError
+
+
+def _extremum(extremum) -> dict | None:
+    return None if extremum is None else {"v_ml": extremum.v_ml, "p_kpa": extremum.p_kpa}
+
+
+def _contact_ml(spec: str) -> float | None:
+    """Volume at which the braids touch the tube, for an analytical library segment."""
+    from labrig.model.library import LIBRARY_NAMES, library_geometry
+
+    if spec.strip().upper() not in LIBRARY_NAMES:
+        return None
+    from labrig.model.braided import BraidedSegment
+
+    return BraidedSegment(*library_geometry(spec)).contact_ml
+
+
+def summary_lines(curve, contact_ml: float | None) -> list[str]:
+    def point(extremum, none_text):
+        if extremum is None:
+            return none_text
+        return f"{extremum.p_kpa:.2f} kPa at {extremum.v_ml:.3f} mL"
+
+    lines = [
+        f"{curve.name}: {curve.source}",
+        f"  V0       {curve.V0_ml:.3f} mL enclosed at p = 0",
+        f"  peak     {point(curve.peak, 'none: p(v) only rises')}",
+        f"  valley   {point(curve.valley, 'none')}",
+    ]
+    if contact_ml is not None:
+        lines.append(f"  contact  {contact_ml:.3f} mL (braids touch the tube; stiffening after)")
+    lines.append(
+        f"  table    {len(curve.v_ml)} samples, v 0 to {curve.v_max_ml:.3f} mL, "
+        f"p up to {curve.p_kpa[-1]:.0f} kPa"
+    )
+    return lines
+
+
+def plot_curve(curve, contact_ml: float | None, path: Path) -> None:
+    """p-v and l-v side by side (as the paper's Fig. 1C/D), peak and valley marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax_p, ax_l) = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
+    ax_p.plot(curve.v_ml, curve.p_kpa, color="tab:blue")
+    ax_l.plot(curve.v_ml, curve.l_mm, color="tab:green")
+    marks = [(curve.peak, "v", "peak"), (curve.valley, "o", "valley")]
+    for extremum, marker, label in marks:
+        if extremum is None:
+            continue
+        ax_p.plot(extremum.v_ml, extremum.p_kpa, marker, color="tab:red", label=label)
+        ax_l.plot(extremum.v_ml, curve.length_mm(extremum.v_ml), marker, color="tab:red")
+    if contact_ml is not None:
+        for ax in (ax_p, ax_l):
+            ax.axvline(contact_ml, color="grey", linestyle="--", linewidth=0.8)
+        ax_p.plot([], [], "--", color="grey", linewidth=0.8, label="contact")
+    highest = max([e.p_kpa for e, _, _ in marks if e is not None], default=0.0)
+    ax_p.set_ylim(0, min(curve.p_kpa[-1], max(100.0, 1.5 * highest)))
+    ax_p.set_xlabel("supplied volume v (mL)")
+    ax_p.set_ylabel("pressure p (kPa)")
+    ax_l.set_xlabel("supplied volume v (mL)")
+    ax_l.set_ylabel("length l (mm)")
+    ax_p.legend(loc="lower right")
+    for ax in (ax_p, ax_l):
+        ax.set_xlim(0, curve.v_max_ml)
+        ax.grid(alpha=0.3)
+    fig.suptitle(curve.name)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+@click.command("curve")
+@click.argument("seg")
+@click.option("--json", "as_json", is_flag=True, help="Print the curve as one JSON object.")
+@click.option(
+    "--plot",
+    "plot_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write p-v and l-v to this PNG.",
+)
+def curve(seg: str, as_json: bool, plot_path: Path | None) -> None:
+    """Show the pressure-volume and length-volume curve of one segment SEG: a library
+    name (B46-T20), gent-a/b/c, or a CSV with volume_ml,pressure_kpa,length_mm."""
+    from labrig.model.library import load_segment
+
+    if plot_path is not None and not plot_path.parent.is_dir():
+        raise InputError(f"--plot {plot_path}: the folder {plot_path.parent} does not exist")
+    segment = load_segment(seg)
+    contact_ml = _contact_ml(seg)
+    if plot_path is not None:
+        plot_curve(segment, contact_ml, plot_path)
+    if as_json:
+        document = {
+            "name": segment.name,
+            "V0_ml": segment.V0_ml,
+            "peak": _extremum(segment.peak),
+            "valley": _extremum(segment.valley),
+            "v_ml": segment.v_ml.tolist(),
+            "p_kpa": segment.p_kpa.tolist(),
+            "l_mm": segment.l_mm.tolist(),
+        }
+        click.echo(json.dumps(document))
+        return
+    for line in summary_lines(segment, contact_ml):
+        click.echo(line)
+    if plot_path is not None:
+        click.echo(f"  plot     {plot_path}")

@@ -1,0 +1,183 @@
+"""Measured segment curves: CSV files in, clean ``SegmentCurve`` out, and back to CSV.
+
+The file holds one row per sample with the header ``volume_ml,pressure_kpa,length_mm``,
+the volume supplied from the unpressurised state and strictly increasing. Anything else
+is refused with one line naming the file, the line and what is allowed.
+
+A table that already has the segment's shape (at most one peak followed by one valley,
+as written by ``write_csv`` or ``labrig library add``) is used as it is. Raw data with
+noise is averaged on a volume grid and fitted to the rise-fall-rise shape
+(``labrig.model.shape_fit``); its samples are the centres of the fitted blocks. Either
+way the pressure is then referred to zero at v = 0 (the unpressurised state is at
+atmospheric pressure, so what the curve shows there is a residual sensor offset; a gain
+error cannot be seen and stays), and a curve that ends below P_END_KPA is extended along
+a straight line with its final slope, so that actuators find every pressure they need
+on the table (model-notes, trap 10).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+from labrig.errors import InputError
+from labrig.model.segment import SegmentCurve
+from labrig.model.shape_fit import DIP_NOISE_FACTOR, binned_trimmed_means, fit_rise_fall_rise
+
+HEADER = ("volume_ml", "pressure_kpa", "length_mm")
+MIN_ROWS = 10
+MAX_FIRST_VOLUME_ML = 0.5  # the first row must be (close to) the unpressurised state
+MAX_BINS = 250
+P_END_KPA = 300.0
+MIN_END_SLOPE_KPA_PER_ML = 1.0
+EXTENSION_SAMPLES = 8
+# Bore of the paper's latex tube: the enclosed volume at p = 0 is estimated as
+# pi R^2 l(0) when the caller does not know it (it only enters normalisations).
+TUBE_RADIUS_MM = 6.35
+
+
+def read_csv_table(path: Path) -> np.ndarray:
+    """The (n, 3) table of a measured-curve CSV, validated row by row."""
+    where = str(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise InputError(f"{where}: no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{where}: cannot be read as a text file ({exc})") from None
+    rows = [(n, row) for n, row in enumerate(csv.reader(text.splitlines()), start=1) if row]
+    expected = ",".join(HEADER)
+    if not rows:
+        raise InputError(f"{where}: the file is empty; expected the header {expected} and rows")
+    line, header = rows[0]
+    if tuple(field.strip() for field in header) != HEADER:
+        raise InputError(
+            f"{where}: line {line}: the header must be {expected}, got {','.join(header)}"
+        )
+    values = np.empty((len(rows) - 1, 3))
+    for k, (line, row) in enumerate(rows[1:]):
+        if len(row) != 3:
+            raise InputError(
+                f"{where}: line {line}: expected 3 values ({expected}), got {len(row)}"
+            )
+        for col, (name, field) in enumerate(zip(HEADER, row, strict=True)):
+            try:
+                number = float(field)
+            except ValueError:
+                raise InputError(
+                    f"{where}: line {line}, column {name}: {field.strip()!r} is not a number"
+                ) from None
+            if not math.isfinite(number):
+                raise InputError(
+                    f"{where}: line {line}, column {name}: {field.strip()} is not a finite number"
+                )
+            values[k, col] = number
+        if k == 0 and not 0 <= values[0, 0] <= MAX_FIRST_VOLUME_ML:
+            raise InputError(
+                f"{where}: line {line}: the first volume_ml must be the unpressurised state "
+                f"(0 to {MAX_FIRST_VOLUME_ML} mL), got {values[0, 0]:g}"
+            )
+        if k > 0 and values[k, 0] <= values[k - 1, 0]:
+            raise InputError(
+                f"{where}: line {line}: volume_ml {values[k, 0]:g} does not increase "
+                f"(previous row {values[k - 1, 0]:g}); rows must be in order of supplied volume"
+            )
+        if values[k, 2] <= 0:
+            raise InputError(
+                f"{where}: line {line}, column length_mm: must be > 0, got {values[k, 2]:g}"
+            )
+    if len(values) < MIN_ROWS:
+        raise InputError(f"{where}: {len(values)} data rows; a curve needs at least {MIN_ROWS}")
+    return values
+
+
+def _has_segment_shape(v, p) -> bool:
+    """Rising, or rising to one peak, falling to one valley and rising again."""
+    branches = SegmentCurve("raw", v, p, np.ones_like(v), V0_ml=1.0).branch_bounds
+    return len(branches) in (1, 3) and p[branches[0][1]] > p[0]
+
+
+def _fit_noisy(v, p, length):
+    """Bin, fit the shape, and return the fitted blocks' centres as the table."""
+    n_bins = min(MAX_BINS, max(MIN_ROWS, len(v) // 4))
+    v_bin, (p_bin, l_bin), counts = binned_trimmed_means(v, [p, length], n_bins)
+    fit = fit_rise_fall_rise(p_bin, counts)
+    if len(fit.branches) == 3:
+        valley = min(fit.branches[1][-1][2], fit.branches[2][0][2])
+        if fit.branches[2][-1][2] - valley <= DIP_NOISE_FACTOR * fit.noise_kpa:
+            return None
+    blocks = [block for branch in fit.branches for block in branch]
+    v_fit = np.array([np.average(v_bin[a:b], weights=counts[a:b]) for a, b, _ in blocks])
+    p_fit = np.array([value for _, _, value in blocks])
+    return v_fit, p_fit, np.interp(v_fit, v_bin, l_bin)
+
+
+def _extend(v, p, length):
+    """Continue a curve that ends below P_END_KPA along a line with its final slope
+    (the secant over the last fifth of the final rising branch, at least 1 kPa/mL)."""
+    if p[-1] >= P_END_KPA - 1.0:  # analytical tables end at P_END_KPA up to rounding
+        return v, p, length, None
+    last_branch_start = SegmentCurve("fit", v, p, length, V0_ml=1.0).branch_bounds[-1][0]
+    span = v[-1] - v[last_branch_start]
+    k = min(int(np.searchsorted(v, v[-1] - 0.2 * span)), len(v) - 2)
+    slope = max((p[-1] - p[k]) / (v[-1] - v[k]), MIN_END_SLOPE_KPA_PER_ML)
+    step = np.arange(1, EXTENSION_SAMPLES + 1) / EXTENSION_SAMPLES * (P_END_KPA - p[-1]) / slope
+    return (
+        np.concatenate([v, v[-1] + step]),
+        np.concatenate([p, p[-1] + slope * step]),
+        np.concatenate([length, np.full(EXTENSION_SAMPLES, length[-1])]),
+        slope,
+    )
+
+
+def load_csv(
+    path: Path | str, *, V0_ml: float | None = None, name: str | None = None
+) -> SegmentCurve:
+    """A clean ``SegmentCurve`` from a measured-curve CSV (see the module docstring)."""
+    path = Path(path)
+    table = read_csv_table(path)
+    v, p, length = table.T
+    notes = []
+    if _has_segment_shape(v, p):
+        notes.append("used as tabulated")
+    else:
+        fitted = _fit_noisy(v, p, length)
+        if fitted is None or not _has_segment_shape(fitted[0], fitted[1]):
+            raise InputError(
+                f"{path}: the pressure still falls at the last rows (v = {v[-1]:g} mL): "
+                "measure past the valley, until the curve stiffens again"
+            )
+        v, p, length = fitted
+        notes.append(f"fitted rise-fall-rise to {len(v)} samples")
+    # zero at v = 0: extrapolate the first two samples linearly
+    offset = p[0] - (p[1] - p[0]) / (v[1] - v[0]) * v[0]
+    p = p - offset
+    if v[0] > 0:
+        v, p, length = np.r_[0.0, v], np.r_[0.0, p], np.r_[length[0], length]
+    if offset != 0:
+        notes.append(f"offset {offset:+.3f} kPa removed")
+    v, p, length, slope = _extend(v, p, length)
+    if slope is not None:
+        notes.append(f"extended linearly at {slope:.2f} kPa/mL to {P_END_KPA:g} kPa")
+    return SegmentCurve(
+        name or path.stem,
+        v,
+        p,
+        length,
+        V0_ml=np.pi * TUBE_RADIUS_MM**2 * length[0] / 1000 if V0_ml is None else V0_ml,
+        source=f"measured curve {path} ({'; '.join(notes)})",
+    )
+
+
+def write_csv(curve: SegmentCurve, path: Path | str) -> None:
+    """Write a curve in the measured-curve format, at full precision (shortest repr
+    that reads back to the same float)."""
+    lines = [",".join(HEADER)]
+    lines += [
+        f"{float(v)!r},{float(p)!r},{float(length)!r}"
+        for v, p, length in zip(curve.v_ml, curve.p_kpa, curve.l_mm, strict=True)
+    ]
+    Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")

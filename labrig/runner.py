@@ -1,0 +1,474 @@
+"""The protocol runner: pump control and acquisition at once, interlocks always on.
+
+The runner only knows the device contracts (``labrig.devices``): the same code drives
+the bench rig and the simulated one. Three acquisition loops run in their own threads
+on the rig's clock — the DAQ stream, the pump poll, the camera — and each sample is
+appended to the run file as it arrives, timestamped by the device on the shared clock.
+The interlock monitor is evaluated inside those loops, so a busy main loop cannot delay
+a stop. The main thread walks the protocol's steps.
+
+Every way a run can end goes through one exit: the pump is stopped first, the loops
+are stopped, and the file is finalised with everything recorded so far and the run
+marked complete, aborted or faulted with the reason. The first Ctrl-C stops safely
+like any interlock; the second stops now (the pump is still sent a stop).
+
+Nothing is replayed: each infuse/withdraw step has an absolute target volume in the
+specimen, and the pump is asked only for the difference between that target and the
+volume it reports.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from labrig.clock import Clock
+from labrig.devices import LengthSource, PressureBlock, PressureSource, Pump, PumpState
+from labrig.errors import DeviceError, LabrigError
+from labrig.interlocks import InterlockMonitor, PressureCeiling, PumpStall, VolumeCeiling
+from labrig.protocol import (
+    HoldStep,
+    InfuseStep,
+    LoadedProtocol,
+    WithdrawStep,
+    ZeroPressureStep,
+    iter_plan,
+    plan,
+)
+from labrig.storage import RunWriter
+
+MOVING = (PumpState.INFUSING, PumpState.WITHDRAWING)
+
+
+@dataclass
+class Rig:
+    """The devices of one run and the clock they share."""
+
+    clock: Clock
+    pump: Pump
+    pressure: PressureSource
+    length: LengthSource | None
+    config_text: str
+    close: Callable[[], None] = lambda: None
+
+
+@dataclass(frozen=True)
+class Progress:
+    """A snapshot for the live display."""
+
+    step: str
+    repetition: int
+    repetitions: int
+    volume_ml: float
+    pressure_kpa: float
+    length_mm: float
+    elapsed_s: float
+    remaining_s: float
+
+
+@dataclass(frozen=True)
+class RunResult:
+    path: Path
+    status: str
+    reason: str
+
+
+@dataclass
+class Timing:
+    """Loop periods in clock seconds, with a floor in host seconds so a fast simulated
+    clock cannot turn a loop into a busy spin."""
+
+    pressure_period_s: float = 0.05
+    pump_period_s: float = 0.1
+    progress_period_s: float = 0.5
+    real_floor_s: float = 0.002
+    max_marker_loss_s: float = 10.0
+    target_grace_s: float = 5.0
+
+
+@dataclass
+class _Latest:
+    pressure_kpa: float = float("nan")
+    length_mm: float = float("nan")
+    volume_ml: float = 0.0
+    pump_state: PumpState = PumpState.IDLE
+    pump_t_s: float = float("-inf")
+    pressure_blocks: int = 0
+    lock: threading.Condition = field(default_factory=threading.Condition)
+
+
+class Runner:
+    """Run one validated protocol on one rig into one HDF5 file."""
+
+    def __init__(
+        self,
+        loaded: LoadedProtocol,
+        rig: Rig,
+        out_path: str | Path,
+        *,
+        on_progress: Callable[[Progress], None] | None = None,
+        timing: Timing | None = None,
+    ) -> None:
+        self.loaded = loaded
+        self.protocol = loaded.protocol
+        self.rig = rig
+        self.clock = rig.clock
+        self.out_path = Path(out_path)
+        self.on_progress = on_progress
+        self.timing = timing or Timing()
+        self.plan = plan(self.protocol)
+        self.monitor = InterlockMonitor(
+            rig.pump,
+            [
+                PressureCeiling(self.protocol.limits.max_pressure_kpa),
+                VolumeCeiling(self.protocol.limits.max_volume_ml),
+                PumpStall(),
+            ],
+        )
+        self.latest = _Latest()
+        self._repetition = 1
+        self._volume_lock = threading.Lock()
+        self._stop_loops = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._acquiring = False
+        self._t_start = 0.0
+        self._step_label = "starting"
+        self._repetition_started = False
+        self._marker_lost_since: float | None = None
+        self._last_progress_s = float("-inf")
+        self.shutdown_errors: list[str] = []
+        self.writer: RunWriter | None = None
+
+    # --- public --------------------------------------------------------------------
+    def run(self) -> RunResult:
+        """Run the protocol; always returns with the pump stopped and the file closed."""
+        self.writer = RunWriter(
+            self.out_path,
+            title=self.protocol.name,
+            protocol_text=self.loaded.text,
+            protocol_path=str(self.loaded.path),
+            rig_config_text=self.rig.config_text,
+            repetitions=max(1, self.plan.repetitions),
+            with_length=self.rig.length is not None,
+        )
+        restore_sigint = self._install_sigint()
+        status, reason = "faulted", "the run did not finish"
+        try:
+            self._t_start = self.clock.now()
+            self._execute()
+            trip = self.monitor.tripped
+            status, reason = (trip.kind, trip.reason) if trip else ("complete", "")
+        except _StopNow:
+            status, reason = "aborted", "stopped now by the operator (second Ctrl-C)"
+        except _Refused as exc:
+            status, reason = "aborted", str(exc)
+        except LabrigError as exc:
+            self.monitor.trip(str(exc), "faulted")
+            status, reason = "faulted", str(exc)
+        except BaseException as exc:
+            self.monitor.trip(f"internal error: {exc!r}", "faulted")
+            status, reason = "faulted", f"internal error: {exc!r}"
+            raise
+        finally:
+            self._shutdown(status, reason)
+            restore_sigint()
+        return RunResult(self.out_path, status, reason)
+
+    # --- steps ---------------------------------------------------------------------
+    def _execute(self) -> None:
+        self._check_start(None)
+        target_ml = 0.0
+        for location, step, repetition in iter_plan(self.protocol.steps):
+            if self.monitor.tripped:
+                return
+            if isinstance(step, ZeroPressureStep):
+                self._zero(step.zero_pressure.duration_s)
+                continue
+            self._ensure_acquiring()
+            self._enter_repetition(repetition)
+            if isinstance(step, InfuseStep):
+                target_ml += step.infuse.volume_ml
+                self._step_label = f"infuse {step.infuse.volume_ml:g} mL ({location})"
+                self._flow(+1, step.infuse.rate_ml_min, target_ml)
+            elif isinstance(step, WithdrawStep):
+                target_ml -= step.withdraw.volume_ml
+                self._step_label = f"withdraw {step.withdraw.volume_ml:g} mL ({location})"
+                self._flow(-1, step.withdraw.rate_ml_min, target_ml)
+            elif isinstance(step, HoldStep):
+                self._step_label = f"hold {step.hold.seconds:g} s ({location})"
+                self._hold(step.hold.seconds)
+        if not self.monitor.tripped:
+            self._leave_repetition("complete")
+
+    def _check_start(self, block: PressureBlock | None) -> None:
+        status = self.rig.pump.status()
+        reason = self.monitor.check_start(status, block)
+        if reason:
+            raise _Refused(f"refusing to start: {reason}")
+
+    def _zero(self, duration_s: float) -> None:
+        self._step_label = "zero pressure"
+        was_acquiring = self._acquiring
+        if was_acquiring:
+            self._stop_acquisition()
+        offset_kpa = self.rig.pressure.zero(duration_s)
+        self.writer.set_zero_offset(offset_kpa)
+        if was_acquiring:
+            self._ensure_acquiring()
+
+    def _flow(self, direction: int, rate_ml_min: float, target_ml: float) -> None:
+        pump = self.rig.pump
+        with self._volume_lock:
+            status = pump.status()
+            current_ml = self.monitor.specimen_volume_ml(status)
+            remaining_ml = direction * (target_ml - current_ml)
+            if remaining_ml <= 1e-3:
+                return
+            # counters are cleared per step so the pump's target needs no firmware-
+            # specific arithmetic; the volume already moved is carried in the offset
+            self.monitor.volume_offset_ml = current_ml
+            pump.clear_volumes()
+        if direction > 0:
+            pump.set_infuse_rate(rate_ml_min)
+        else:
+            pump.set_withdraw_rate(rate_ml_min)
+        pump.set_target_volume(remaining_ml)
+        started_s = self.clock.now()
+        if self.monitor.tripped:
+            return
+        pump.infuse() if direction > 0 else pump.withdraw()
+        expected_s = 60.0 * remaining_ml / rate_ml_min
+        deadline_s = started_s + 1.2 * expected_s + self.timing.target_grace_s
+        self._wait_until_pump_stops(started_s, deadline_s)
+
+    def _wait_until_pump_stops(self, started_s: float, deadline_s: float) -> None:
+        latest = self.latest
+        while not self.monitor.tripped:
+            with latest.lock:
+                done = latest.pump_t_s > started_s and latest.pump_state not in MOVING
+            if done:
+                return
+            if self.clock.now() > deadline_s:
+                self.monitor.trip("the pump did not reach its target volume in time", "faulted")
+                return
+            self._pause(self.timing.pump_period_s)
+            self._report_progress()
+
+    def _hold(self, seconds: float) -> None:
+        end_s = self.clock.now() + seconds
+        while not self.monitor.tripped and self.clock.now() < end_s:
+            self._pause(min(self.timing.pump_period_s, max(0.0, end_s - self.clock.now())))
+            self._report_progress()
+
+    # --- repetitions ---------------------------------------------------------------
+    def _enter_repetition(self, repetition: int) -> None:
+        if repetition == self._repetition and self._repetition_started:
+            return
+        if self._repetition_started:
+            self._leave_repetition("complete")
+        self._repetition = repetition
+        self._repetition_started = True
+        self.writer.set_repetition_status(repetition, "running", t_start_s=self.clock.now())
+
+    def _leave_repetition(self, status: str, reason: str = "") -> None:
+        if self._repetition_started:
+            self.writer.set_repetition_status(
+                self._repetition, status, reason, t_end_s=self.clock.now()
+            )
+            self._repetition_started = False
+
+    # --- acquisition loops ---------------------------------------------------------
+    def _ensure_acquiring(self) -> None:
+        if self._acquiring:
+            return
+        self._stop_loops.clear()
+        self.rig.pressure.start(self.protocol.acquisition.pressure_rate_hz)
+        self._acquiring = True
+        loops = [self._pressure_loop, self._pump_loop]
+        if self.rig.length is not None and self.protocol.acquisition.camera_fps > 0:
+            loops.append(self._camera_loop)
+        self._threads = [
+            threading.Thread(target=loop, name=loop.__name__.strip("_"), daemon=True)
+            for loop in loops
+        ]
+        for thread in self._threads:
+            thread.start()
+        self._wait_for_first_readings()
+
+    def _wait_for_first_readings(self) -> None:
+        """Interlocks see a pressure block and a pump status before anything moves."""
+        deadline = time.monotonic() + 10.0
+        latest = self.latest
+        with latest.lock:
+            while latest.pressure_blocks == 0 or latest.pump_t_s == float("-inf"):
+                if self.monitor.tripped or time.monotonic() > deadline:
+                    break
+                latest.lock.wait(0.05)
+        if not self.monitor.tripped and latest.pressure_blocks == 0:
+            self.monitor.trip("no pressure readings within 10 s of starting", "faulted")
+
+    def _stop_acquisition(self) -> None:
+        self._stop_loops.set()
+        for thread in self._threads:
+            thread.join(timeout=5.0)
+        self._threads = []
+        if self._acquiring:
+            self._acquiring = False
+            try:
+                self.rig.pressure.stop()
+            except (LabrigError, OSError) as exc:
+                # keep going: the file must still be finalised; the error is reported
+                self.shutdown_errors.append(f"pressure stop: {exc}")
+
+    def _current_repetition(self) -> int:
+        return self._repetition
+
+    def _pressure_loop(self) -> None:
+        self._device_loop("pressure", self.timing.pressure_period_s, self._read_pressure)
+
+    def _pump_loop(self) -> None:
+        self._device_loop("pump", self.timing.pump_period_s, self._read_pump)
+
+    def _camera_loop(self) -> None:
+        period_s = 1.0 / self.protocol.acquisition.camera_fps
+        self._device_loop("camera", period_s, self._read_length)
+
+    def _device_loop(self, device: str, period_s: float, read_once: Callable[[], None]) -> None:
+        """Read one device every ``period_s``; a device error is a fault of the run."""
+        while not self._stop_loops.is_set():
+            try:
+                read_once()
+            except (DeviceError, OSError) as exc:
+                self.monitor.trip(f"{device}: {exc}", "faulted")
+                return
+            self._pause(period_s)
+
+    def _read_pressure(self) -> None:
+        block = self.rig.pressure.read()
+        if len(block):
+            self.writer.append_pressure(
+                self._current_repetition(), block.t_s, block.pressure_kpa, block.out_of_range
+            )
+            self.monitor.check_pressure(block)
+        latest = self.latest
+        with latest.lock:
+            if len(block):
+                latest.pressure_kpa = float(block.pressure_kpa[-1])
+            latest.pressure_blocks += 1
+            latest.lock.notify_all()
+
+    def _read_pump(self) -> None:
+        with self._volume_lock:
+            status = self.rig.pump.status()
+            volume_ml = self.monitor.specimen_volume_ml(status)
+        self.writer.append_pump(
+            self._current_repetition(),
+            status.t_s,
+            volume_ml,
+            status.infused_ml,
+            status.withdrawn_ml,
+            status.state.value,
+        )
+        self.monitor.check_pump(status)
+        latest = self.latest
+        with latest.lock:
+            latest.volume_ml = volume_ml
+            latest.pump_state = status.state
+            latest.pump_t_s = status.t_s
+            latest.lock.notify_all()
+
+    def _read_length(self) -> None:
+        sample = self.rig.length.read()
+        if sample is None:
+            return
+        self.writer.append_length(
+            self._current_repetition(),
+            sample.t_s,
+            sample.length_mm,
+            sample.x1_px,
+            sample.y1_px,
+            sample.x2_px,
+            sample.y2_px,
+            sample.ok,
+        )
+        if sample.ok:
+            self._marker_lost_since = None
+            with self.latest.lock:
+                self.latest.length_mm = sample.length_mm
+        else:
+            if self._marker_lost_since is None:
+                self._marker_lost_since = sample.t_s
+            lost_s = sample.t_s - self._marker_lost_since
+            if lost_s >= self.timing.max_marker_loss_s:
+                self.monitor.trip(
+                    f"camera: markers lost for {lost_s:.1f} s (check the camera view "
+                    "and the markers)",
+                    "faulted",
+                )
+
+    # --- time, progress, signals -----------------------------------------------------
+    def _pause(self, clock_s: float) -> None:
+        real0 = time.monotonic()
+        self.clock.sleep(clock_s)
+        left = self.timing.real_floor_s - (time.monotonic() - real0)
+        if left > 0:
+            time.sleep(left)
+
+    def _report_progress(self) -> None:
+        if self.on_progress is None:
+            return
+        now = self.clock.now()
+        if now - self._last_progress_s < self.timing.progress_period_s:
+            return
+        self._last_progress_s = now
+        latest = self.latest
+        elapsed = now - self._t_start
+        with latest.lock:
+            snapshot = Progress(
+                step=self._step_label,
+                repetition=self._repetition,
+                repetitions=self.plan.repetitions,
+                volume_ml=latest.volume_ml,
+                pressure_kpa=latest.pressure_kpa,
+                length_mm=latest.length_mm,
+                elapsed_s=elapsed,
+                remaining_s=max(0.0, self.plan.duration_s - elapsed),
+            )
+        self.on_progress(snapshot)
+
+    def _install_sigint(self) -> Callable[[], None]:
+        if threading.current_thread() is not threading.main_thread():
+            return lambda: None
+        previous = signal.getsignal(signal.SIGINT)
+
+        def handler(signum, frame):
+            if not self.monitor.trip("stopped by the operator (Ctrl-C)", "aborted"):
+                raise _StopNow()
+
+        signal.signal(signal.SIGINT, handler)
+        return lambda: signal.signal(signal.SIGINT, previous)
+
+    def _shutdown(self, status: str, reason: str) -> None:
+        """The one exit: pump stopped first, loops stopped, file finalised."""
+        try:
+            self.rig.pump.stop()
+        except (LabrigError, OSError) as exc:
+            if not reason:
+                status, reason = "faulted", f"pump stop failed: {exc}"
+        self._stop_acquisition()
+        if self._repetition_started:
+            self._leave_repetition(status, reason)
+        self.writer.finalise(status, reason)
+        self.rig.close()
+
+
+class _StopNow(BaseException):
+    """The second Ctrl-C: leave at once (the shutdown still stops the pump)."""
+
+
+class _Refused(LabrigError):
+    """The run was refused before anything moved."""

@@ -1,0 +1,474 @@
+"""One HDF5 file per run, written as the data arrives.
+
+The layout is NeXus-flavoured: an ``NXentry`` per run holding the protocol text, the rig
+configuration and the versions it ran with, and per repetition three ``NXlog`` series
+(pressure, pump volume, length) on their own time axes with ``units`` attributes.
+
+The whole layout is created before the first sample, then the file is switched to
+HDF5's single-writer/multiple-reader (SWMR) mode and only appended to. SWMR orders the
+metadata writes so that the file on disk is consistent after every flush: a process
+killed with SIGKILL leaves a file that holds everything up to its last flush (at most
+``flush_interval_s`` old). Such a file still carries the writer's "open for writing"
+flag; ``open_run`` reads it anyway and ``clear_write_flag`` (``labrig recover``) clears it.
+Status strings live in fixed-size datasets, not attributes, because SWMR allows only
+writes to existing datasets.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import platform
+import subprocess
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+import labrig
+from labrig.errors import InputError
+
+STATUS_SIZE = 16
+REASON_SIZE = 512
+TIME_SIZE = 32
+CHUNK = 4096
+
+# name -> (dtype, units) of the fields of each NXlog; "value" is the logged quantity.
+LOG_FIELDS: dict[str, dict[str, tuple[str, str]]] = {
+    "pressure": {
+        "time": ("f8", "s"),
+        "value": ("f8", "kPa"),
+        "out_of_range": ("?", ""),
+    },
+    "pump": {
+        "time": ("f8", "s"),
+        "value": ("f8", "mL"),
+        "infused": ("f8", "mL"),
+        "withdrawn": ("f8", "mL"),
+        "state": (f"S{STATUS_SIZE}", ""),
+    },
+    "length": {
+        "time": ("f8", "s"),
+        "value": ("f8", "mm"),
+        "x1": ("f8", "px"),
+        "y1": ("f8", "px"),
+        "x2": ("f8", "px"),
+        "y2": ("f8", "px"),
+        "ok": ("?", ""),
+    },
+}
+LOG_DESCRIPTION = {
+    "pressure": "specimen pressure (gauge, zeroed)",
+    "pump": "net volume supplied by the pump (infused - withdrawn)",
+    "length": "specimen length between the two markers",
+}
+
+RUN_STATUSES = ("running", "complete", "aborted", "faulted")
+REPETITION_STATUSES = ("pending", "running", "complete", "aborted", "faulted")
+
+
+def repetition_name(index: int) -> str:
+    """Group name of repetition ``index`` (1-based): rep_01, rep_02, ..."""
+    return f"rep_{index:02d}"
+
+
+def _now_iso() -> str:
+    return dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
+
+
+def _git_commit() -> str:
+    """The commit labrig runs from, when it runs from a git checkout."""
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "HEAD"],
+            cwd=Path(labrig.__file__).parent,
+            capture_output=True,
+            text=True,
+            timeout=5,
+            check=True,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return out.stdout.strip()
+
+
+def versions() -> dict[str, str]:
+    """Versions recorded in every run file."""
+    import scipy
+
+    return {
+        "labrig": labrig.__version__,
+        "git_commit": _git_commit(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+        "h5py": h5py.__version__,
+        "hdf5": h5py.version.hdf5_version,
+    }
+
+
+class RunWriter:
+    """Create a run file's layout, then append samples and flush them as they come.
+
+    Thread-safe: the runner's acquisition threads append concurrently. Every append
+    flushes when the last flush is older than ``flush_interval_s`` (host time), so the
+    file on disk is never more than that behind.
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        title: str,
+        protocol_text: str,
+        protocol_path: str,
+        rig_config_text: str,
+        repetitions: int,
+        with_length: bool,
+        flush_interval_s: float = 0.5,
+    ) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        if repetitions < 1:
+            raise ValueError("a run has at least one repetition")
+        self.repetitions = repetitions
+        self.with_length = with_length
+        self.flush_interval_s = flush_interval_s
+        self._lock = threading.Lock()
+        self._closed = False
+        self._file = h5py.File(self.path, "w", libver="latest")
+        self._create_layout(title, protocol_text, protocol_path, rig_config_text)
+        self._file.swmr_mode = True
+        self._last_flush = time.monotonic()
+
+    # --- layout --------------------------------------------------------------------
+    def _create_layout(
+        self, title: str, protocol_text: str, protocol_path: str, rig_config_text: str
+    ) -> None:
+        f = self._file
+        f.attrs.update(
+            NX_class="NXroot",
+            default="entry",
+            creator=f"labrig {labrig.__version__}",
+            file_time=_now_iso(),
+        )
+        entry = f.create_group("entry")
+        entry.attrs.update(NX_class="NXentry", default="data")
+        entry["title"] = title
+        entry["start_time"] = np.array(_now_iso().encode(), dtype=f"S{TIME_SIZE}")
+        entry["end_time"] = np.array(b"", dtype=f"S{TIME_SIZE}")
+        entry["status"] = np.array(b"running", dtype=f"S{STATUS_SIZE}")
+        entry["reason"] = np.array(b"", dtype=f"S{REASON_SIZE}")
+        protocol = entry.create_dataset("protocol", data=protocol_text)
+        protocol.attrs["source_file"] = protocol_path
+        entry["rig_config"] = rig_config_text
+        version_group = entry.create_group("versions")
+        version_group.attrs["NX_class"] = "NXcollection"
+        for name, value in versions().items():
+            version_group[name] = value
+        zero = entry.create_group("zero")
+        zero.attrs["NX_class"] = "NXcollection"
+        zero.create_dataset("offset_kpa", data=np.nan).attrs["units"] = "kPa"
+
+        reps = entry.create_group("repetitions")
+        reps.attrs["NX_class"] = "NXcollection"
+        n = self.repetitions
+        reps["status"] = np.array([b"pending"] * n, dtype=f"S{STATUS_SIZE}")
+        reps["reason"] = np.array([b""] * n, dtype=f"S{REASON_SIZE}")
+        reps.create_dataset("t_start", data=np.full(n, np.nan)).attrs["units"] = "s"
+        reps.create_dataset("t_end", data=np.full(n, np.nan)).attrs["units"] = "s"
+        for index in range(1, n + 1):
+            rep = reps.create_group(repetition_name(index))
+            rep.attrs["NX_class"] = "NXcollection"
+            for log in LOG_FIELDS:
+                if log == "length" and not self.with_length:
+                    continue
+                self._create_log(rep, log)
+
+    @staticmethod
+    def _create_log(parent: h5py.Group, log: str) -> None:
+        group = parent.create_group(log)
+        group.attrs.update(NX_class="NXlog", description=LOG_DESCRIPTION[log])
+        for field, (dtype, units) in LOG_FIELDS[log].items():
+            dataset = group.create_dataset(
+                field, shape=(0,), maxshape=(None,), chunks=(CHUNK,), dtype=dtype
+            )
+            if units:
+                dataset.attrs["units"] = units
+
+    # --- appending -----------------------------------------------------------------
+    def _append(self, repetition: int, log: str, columns: dict[str, np.ndarray]) -> None:
+        if not 1 <= repetition <= self.repetitions:
+            raise ValueError(f"repetition {repetition} outside 1..{self.repetitions}")
+        lengths = {len(np.atleast_1d(values)) for values in columns.values()}
+        if len(lengths) != 1:
+            raise ValueError(f"{log}: columns of different lengths {sorted(lengths)}")
+        (count,) = lengths
+        if count == 0:
+            return
+        with self._lock:
+            if self._closed:
+                raise RuntimeError(f"{self.path}: the run file is already closed")
+            group = self._file["entry/repetitions"][repetition_name(repetition)][log]
+            for field, values in columns.items():
+                dataset = group[field]
+                start = dataset.shape[0]
+                dataset.resize((start + count,))
+                dataset[start:] = np.atleast_1d(values)
+            self._flush_if_due()
+
+    def append_pressure(self, repetition: int, t_s, pressure_kpa, out_of_range) -> None:
+        self._append(
+            repetition,
+            "pressure",
+            {"time": t_s, "value": pressure_kpa, "out_of_range": out_of_range},
+        )
+
+    def append_pump(self, repetition: int, t_s, volume_ml, infused_ml, withdrawn_ml, state) -> None:
+        states = np.array([str(s).encode()[:STATUS_SIZE] for s in np.atleast_1d(state)])
+        self._append(
+            repetition,
+            "pump",
+            {
+                "time": t_s,
+                "value": volume_ml,
+                "infused": infused_ml,
+                "withdrawn": withdrawn_ml,
+                "state": states.astype(f"S{STATUS_SIZE}"),
+            },
+        )
+
+    def append_length(self, repetition: int, t_s, length_mm, x1, y1, x2, y2, ok) -> None:
+        if not self.with_length:
+            raise ValueError("this run was created without a length (camera) log")
+        self._append(
+            repetition,
+            "length",
+            {"time": t_s, "value": length_mm, "x1": x1, "y1": y1, "x2": x2, "y2": y2, "ok": ok},
+        )
+
+    # --- status ----------------------------------------------------------------------
+    def set_zero_offset(self, offset_kpa: float) -> None:
+        with self._lock:
+            self._file["entry/zero/offset_kpa"][()] = offset_kpa
+            self._flush_if_due(force=True)
+
+    def set_repetition_status(
+        self,
+        repetition: int,
+        status: str,
+        reason: str = "",
+        *,
+        t_start_s: float | None = None,
+        t_end_s: float | None = None,
+    ) -> None:
+        if status not in REPETITION_STATUSES:
+            raise ValueError(f"unknown repetition status {status!r}")
+        with self._lock:
+            reps = self._file["entry/repetitions"]
+            i = repetition - 1
+            reps["status"][i] = status.encode()
+            reps["reason"][i] = reason.encode()[:REASON_SIZE]
+            if t_start_s is not None:
+                reps["t_start"][i] = t_start_s
+            if t_end_s is not None:
+                reps["t_end"][i] = t_end_s
+            self._flush_if_due(force=True)
+
+    def flush(self) -> None:
+        with self._lock:
+            self._flush_if_due(force=True)
+
+    def _flush_if_due(self, force: bool = False) -> None:
+        now = time.monotonic()
+        if force or now - self._last_flush >= self.flush_interval_s:
+            self._file.flush()
+            self._last_flush = now
+
+    def finalise(self, status: str, reason: str = "") -> None:
+        """Record how the run ended and close the file cleanly (idempotent)."""
+        if status not in RUN_STATUSES[1:]:
+            raise ValueError(f"a run ends complete, aborted or faulted, not {status!r}")
+        with self._lock:
+            if self._closed:
+                return
+            entry = self._file["entry"]
+            entry["status"][()] = status.encode()
+            entry["reason"][()] = reason.encode()[:REASON_SIZE]
+            entry["end_time"][()] = _now_iso().encode()
+            reps = entry["repetitions"]
+            states = reps["status"][:]
+            for i, state in enumerate(states):
+                # a repetition still running when the run stopped shares the run's fate
+                if state == b"running":
+                    reps["status"][i] = b"complete" if status == "complete" else status.encode()
+                    reps["reason"][i] = reason.encode()[:REASON_SIZE]
+            self._file.flush()
+            self._file.close()
+            self._closed = True
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+
+# --- reading -------------------------------------------------------------------------
+@dataclass(frozen=True)
+class LogSeries:
+    """One NXlog read back: its time axis and fields, as plain arrays."""
+
+    time_s: np.ndarray
+    fields: dict[str, np.ndarray]
+
+    def __len__(self) -> int:
+        return len(self.time_s)
+
+
+def open_run(path: str | Path) -> h5py.File:
+    """Open a run file for reading, even one whose writer was killed.
+
+    A file left open by a killed SWMR writer refuses a plain open; SWMR read mode
+    reads it as it was at the writer's last flush.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{path}: no such file")
+    try:
+        return h5py.File(path, "r")
+    except OSError as plain_error:
+        try:
+            return h5py.File(path, "r", libver="latest", swmr=True)
+        except OSError:
+            raise InputError(f"{path}: not a readable HDF5 file ({plain_error})") from None
+
+
+def read_log(run: h5py.File, repetition: int, log: str) -> LogSeries:
+    """Read one repetition's NXlog; InputError naming what is missing if absent."""
+    where = f"entry/repetitions/{repetition_name(repetition)}/{log}"
+    if where not in run:
+        raise InputError(f"{run.filename}: missing {where}")
+    group = run[where]
+    fields = {name: group[name][:] for name in group if name != "time"}
+    return LogSeries(group["time"][:], fields)
+
+
+def repetition_statuses(run: h5py.File) -> list[tuple[str, str]]:
+    reps = run["entry/repetitions"]
+    return [
+        (status.decode(), reason.decode())
+        for status, reason in zip(reps["status"][:], reps["reason"][:], strict=True)
+    ]
+
+
+def clear_write_flag(path: str | Path) -> bool:
+    """Clear the "open for writing" flag a killed writer leaves (what h5clear -s does).
+
+    Superblock versions 2 and 3 keep the file-consistency flags in byte 11 and end with
+    a Jenkins lookup3 checksum of the superblock, which is recomputed. Returns True if
+    the flag was set and is now cleared.
+    """
+    path = Path(path)
+    with open(path, "r+b") as handle:
+        header = handle.read(8)
+        if header != b"\x89HDF\r\n\x1a\n":
+            raise InputError(f"{path}: not an HDF5 file (no superblock signature at offset 0)")
+        version = handle.read(1)[0]
+        if version < 2:
+            return False
+        offsets, _lengths, flags = handle.read(3)
+        size = 12 + 4 * offsets  # base, extension, EOF, root object header addresses
+        handle.seek(0)
+        superblock = bytearray(handle.read(size))
+        if flags == 0:
+            return False
+        superblock[11] = 0
+        handle.seek(0)
+        handle.write(bytes(superblock))
+        handle.write(lookup3(bytes(superblock)).to_bytes(4, "little"))
+    return True
+
+
+def lookup3(data: bytes, initval: int = 0) -> int:
+    """Bob Jenkins' lookup3 ``hashlittle``, the checksum HDF5 uses for metadata."""
+    mask = 0xFFFFFFFF
+
+    def rot(x: int, k: int) -> int:
+        return ((x << k) | (x >> (32 - k))) & mask
+
+    length = len(data)
+    a = b = c = (0xDEADBEEF + length + initval) & mask
+    offset = 0
+    while length > 12:
+        a = (a + int.from_bytes(data[offset : offset + 4], "little")) & mask
+        b = (b + int.from_bytes(data[offset + 4 : offset + 8], "little")) & mask
+        c = (c + int.from_bytes(data[offset + 8 : offset + 12], "little")) & mask
+        a, b, c = _mix(a, b, c, rot)
+        offset += 12
+        length -= 12
+    if length == 0:
+        return c
+    tail = data[offset:] + b"\x00" * (12 - length)
+    a = (a + int.from_bytes(tail[0:4], "little")) & mask
+    b = (b + int.from_bytes(tail[4:8], "little")) & mask
+    c = (c + int.from_bytes(tail[8:12], "little")) & mask
+    return _final(a, b, c, rot)
+
+
+def _mix(a: int, b: int, c: int, rot) -> tuple[int, int, int]:
+    mask = 0xFFFFFFFF
+    a = (a - c) & mask
+    a ^= rot(c, 4)
+    c = (c + b) & mask
+    b = (b - a) & mask
+    b ^= rot(a, 6)
+    a = (a + c) & mask
+    c = (c - b) & mask
+    c ^= rot(b, 8)
+    b = (b + a) & mask
+    a = (a - c) & mask
+    a ^= rot(c, 16)
+    c = (c + b) & mask
+    b = (b - a) & mask
+    b ^= rot(a, 19)
+    a = (a + c) & mask
+    c = (c - b) & mask
+    c ^= rot(b, 4)
+    b = (b + a) & mask
+    return a, b, c
+
+
+def _final(a: int, b: int, c: int, rot) -> int:
+    mask = 0xFFFFFFFF
+    c ^= b
+    c = (c - rot(b, 14)) & mask
+    a ^= c
+    a = (a - rot(c, 11)) & mask
+    b ^= a
+    b = (b - rot(a, 25)) & mask
+    c ^= b
+    c = (c - rot(b, 16)) & mask
+    a ^= c
+    a = (a - rot(c, 4)) & mask
+    b ^= a
+    b = (b - rot(a, 14)) & mask
+    c ^= b
+    c = (c - rot(b, 24)) & mask
+    return c
+
+
+def decode(value) -> str:
+    """A fixed-size byte string from the file, as text."""
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+__all__: Sequence[str] = (
+    "LogSeries",
+    "RunWriter",
+    "clear_write_flag",
+    "open_run",
+    "read_log",
+    "repetition_statuses",
+)

@@ -1,0 +1,232 @@
+"""The simulated specimen: n segments filled by the pump, exchanging fluid.
+
+Each segment hangs off a common inlet manifold through a small flow resistance R
+(kPa s/mL, equal up to a seeded 0.1 % spread); the manifold itself holds no volume. With
+the pump supplying Q and equal resistances, the flow into segment i is
+Q/n + (mean_j p_j - p_i)/R, so the total volume always equals the pump's and, at a
+snap-through, fluid flows from the higher- to the lower-pressure segments over a finite
+time (about R/|slope|: ~1 s for water with the default R) — the overdamped energy
+descent the model uses to decide where a snap ends. In the slow limit (Q R << the
+pressure differences that matter) the plant follows the model's quasi-static path. The
+sensor sits on the manifold and reads mean p + R Q / n.
+
+Time steps are backward Euler with Newton iterations (the stiffening wall makes the
+system stiff) and an adaptive step that never lets one step move more than
+``max_step_volume_ml`` or outrun the instability rate of a softening branch: a backward
+Euler step longer than 1/rate would damp an unstable state into a false equilibrium.
+
+The plant is advanced lazily to the latest time anyone asks about and keeps a history,
+so the DAQ can ask for 1,000 sample times per second and the camera for a frame time in
+any order within ``history_s``. Thread-safe.
+"""
+
+from __future__ import annotations
+
+import bisect
+import threading
+from collections.abc import Callable, Sequence
+
+import numpy as np
+from scipy.interpolate import PchipInterpolator
+
+from labrig.model.segment import SegmentCurve
+
+
+class _ScalarCurve:
+    """p(v), dp/dv and l(v) of one segment for one volume at a time, in plain floats.
+
+    The same PCHIP interpolant as SegmentCurve, evaluated with bisect and Horner's rule:
+    the plant takes tens of thousands of tiny steps per run, and numpy's per-call
+    overhead would dominate them.
+    """
+
+    def __init__(self, curve: SegmentCurve) -> None:
+        pressure = PchipInterpolator(curve.v_ml, curve.p_kpa)
+        length = PchipInterpolator(curve.v_ml, curve.l_mm)
+        self.x = curve.v_ml.tolist()
+        self.p_coef = pressure.c.T.tolist()
+        self.l_coef = length.c.T.tolist()
+        self.v_end = self.x[-1]
+        self.p_end = float(curve.p_kpa[-1])
+        self.slope_end = float(pressure.derivative()(self.v_end))
+        self.l_end = float(curve.l_mm[-1])
+
+    def _interval(self, v: float) -> int:
+        return min(max(bisect.bisect_right(self.x, v) - 1, 0), len(self.x) - 2)
+
+    def pressure_and_slope(self, v: float) -> tuple[float, float]:
+        if v > self.v_end:
+            return self.p_end + self.slope_end * (v - self.v_end), self.slope_end
+        i = self._interval(v)
+        a, b, c, d = self.p_coef[i]
+        h = v - self.x[i]
+        return ((a * h + b) * h + c) * h + d, (3 * a * h + 2 * b) * h + c
+
+    def length(self, v: float) -> float:
+        if v > self.v_end:
+            return self.l_end
+        i = self._interval(v)
+        a, b, c, d = self.l_coef[i]
+        h = v - self.x[i]
+        return ((a * h + b) * h + c) * h + d
+
+
+class Plant:
+    """The specimen's state as a function of the pump's volume history."""
+
+    def __init__(
+        self,
+        segments: Sequence[SegmentCurve],
+        volume_ml_at: Callable[[float], float],
+        *,
+        t0_s: float = 0.0,
+        resistance_kpa_s_per_ml: float = 1.0,
+        fittings_length_mm: float = 0.0,
+        max_step_s: float = 0.05,
+        max_step_volume_ml: float = 0.02,
+        history_s: float = 600.0,
+        seed: int = 0,
+        resistance_spread: float = 1e-3,
+    ) -> None:
+        if not segments:
+            raise ValueError("a plant needs at least one segment")
+        if resistance_kpa_s_per_ml <= 0:
+            raise ValueError("the flow resistance must be > 0")
+        self.segments = tuple(segments)
+        self.volume_ml_at = volume_ml_at
+        self.resistance = float(resistance_kpa_s_per_ml)
+        self.fittings_length_mm = float(fittings_length_mm)
+        self.max_step_s = float(max_step_s)
+        self.max_step_volume_ml = float(max_step_volume_ml)
+        self.history_s = float(history_s)
+        self._lock = threading.RLock()
+        self._curves = [_ScalarCurve(curve) for curve in self.segments]
+        n = len(self.segments)
+        # Tiny seeded differences between the connections break the symmetry of
+        # identical segments the way a real rig does, deterministically for a seed.
+        spread = np.random.default_rng(seed).normal(0.0, resistance_spread, n)
+        self._conductances = (1.0 / (self.resistance * (1.0 + spread))).tolist()
+        self._total_conductance = sum(self._conductances)
+        self._t = float(t0_s)
+        self._supplied_ml = float(volume_ml_at(t0_s))
+        self._w = [self._supplied_ml / n] * n
+        self._history_t: list[float] = []
+        self._history_p: list[float] = []
+        self._history_l: list[float] = []
+        self._history_w: list[list[float]] = []
+        self._record(0.0)
+
+    # --- state ---------------------------------------------------------------------
+    @property
+    def n(self) -> int:
+        return len(self.segments)
+
+    @property
+    def t_s(self) -> float:
+        return self._t
+
+    @property
+    def volumes_ml(self) -> np.ndarray:
+        """Current volume supplied to each segment."""
+        with self._lock:
+            return np.array(self._w)
+
+    def _length(self, w: list[float]) -> float:
+        return sum(c.length(wi) for c, wi in zip(self._curves, w, strict=True)) + (
+            self.fittings_length_mm
+        )
+
+    def _record(self, flow_ml_s: float) -> None:
+        p = [cv.pressure_and_slope(wi)[0] for cv, wi in zip(self._curves, self._w, strict=True)]
+        weighted = sum(ci * pi for ci, pi in zip(self._conductances, p, strict=True))
+        inlet = (flow_ml_s + weighted) / self._total_conductance
+        self._history_t.append(self._t)
+        self._history_p.append(inlet)
+        self._history_l.append(self._length(self._w))
+        self._history_w.append(list(self._w))
+        if self._t - self._history_t[0] > 1.5 * self.history_s:
+            cut = bisect.bisect_left(self._history_t, self._t - self.history_s)
+            del self._history_t[:cut], self._history_p[:cut]
+            del self._history_l[:cut], self._history_w[:cut]
+
+    # --- dynamics ------------------------------------------------------------------
+    def advance_to(self, t_s: float) -> None:
+        """Integrate the plant up to time ``t_s`` (no-op for a time already passed)."""
+        with self._lock:
+            while self._t < t_s - 1e-12:
+                self._step(min(self.max_step_s, t_s - self._t))
+
+    def _step(self, dt: float) -> None:
+        while True:
+            supplied_next = float(self.volume_ml_at(self._t + dt))
+            d_supplied = supplied_next - self._supplied_ml
+            w_next = self._solve_step(dt, d_supplied)
+            if w_next is not None:
+                moved = max(abs(a - b) for a, b in zip(w_next, self._w, strict=True))
+                if moved <= self.max_step_volume_ml or dt < 1e-4:
+                    break
+            dt /= 2
+        self._t += dt
+        self._supplied_ml = supplied_next
+        self._w = w_next
+        self._record(d_supplied / dt)
+
+    def _solve_step(self, dt: float, d_supplied: float) -> list[float] | None:
+        """One backward Euler step, or None when it must be shorter.
+
+        With conductances c_i = 1/R_i, C = sum c_i, the manifold pressure is
+        p_m = (Q + sum c_j p_j) / C and segment i fills at c_i (p_m - p_i). Newton on
+        r_i = w_i - w_i,old - dt c_i (p_m - p_i), whose Jacobian
+        diag(1 + dt c_i k_i) - (dt c_i / C) (c k)^T is solved by Sherman-Morrison.
+        """
+        curves, c, old = self._curves, self._conductances, self._w
+        total_c = self._total_conductance
+        flow = d_supplied / dt
+        slopes_old = [cv.pressure_and_slope(wi)[1] for cv, wi in zip(curves, old, strict=True)]
+        # an unstable (softening) mode grows at rate ~ -c k; a backward Euler step longer
+        # than ~1/rate would damp it into a false equilibrium
+        if dt * max(max(0.0, -k) * ci for k, ci in zip(slopes_old, c, strict=True)) > 0.5:
+            return None
+        w = [wi + d_supplied * ci / total_c for wi, ci in zip(old, c, strict=True)]
+        for _ in range(30):
+            evaluated = [cv.pressure_and_slope(wi) for cv, wi in zip(curves, w, strict=True)]
+            p_m = (flow + sum(ci * p for ci, (p, _) in zip(c, evaluated, strict=True))) / total_c
+            residual = [
+                wi - oi - dt * ci * (p_m - p)
+                for wi, oi, ci, (p, _) in zip(w, old, c, evaluated, strict=True)
+            ]
+            if max(abs(r) for r in residual) < 1e-11:
+                return w
+            diagonal = [1.0 + dt * ci * k for ci, (_, k) in zip(c, evaluated, strict=True)]
+            if min(abs(d) for d in diagonal) < 1e-12:
+                return None
+            d_inv_r = [r / d for r, d in zip(residual, diagonal, strict=True)]
+            d_inv_u = [dt * ci / total_c / d for ci, d in zip(c, diagonal, strict=True)]
+            ck = [ci * k for ci, (_, k) in zip(c, evaluated, strict=True)]
+            denominator = 1.0 - sum(a * b for a, b in zip(ck, d_inv_u, strict=True))
+            if abs(denominator) < 1e-12:
+                return None
+            factor = sum(a * b for a, b in zip(ck, d_inv_r, strict=True)) / denominator
+            w = [wi - (x + y * factor) for wi, x, y in zip(w, d_inv_r, d_inv_u, strict=True)]
+        return None
+
+    # --- queries -------------------------------------------------------------------
+    def pressure_kpa_at(self, t_s) -> np.ndarray:
+        """Inlet (sensor) pressure at the given times, advancing as needed."""
+        return self._interpolate(t_s, self._history_p)
+
+    def length_mm_at(self, t_s) -> np.ndarray:
+        """Specimen length (segments plus fittings) at the given times."""
+        return self._interpolate(t_s, self._history_l)
+
+    def _interpolate(self, t_s, series: list[float]) -> np.ndarray:
+        t = np.asarray(t_s, dtype=float)
+        with self._lock:
+            if t.size:
+                self.advance_to(float(t.max()))
+            earliest = self._history_t[0]
+            if t.size and t.min() < earliest - 1e-9:
+                raise ValueError(
+                    f"plant history starts at {earliest:.3f} s; asked for {t.min():.3f} s"
+                )
+            return np.interp(t, self._history_t, series)

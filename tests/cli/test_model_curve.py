@@ -1,0 +1,78 @@
+"""``labrig model curve`` through the real entry point: summary, JSON, plot, bad input."""
+
+import json
+
+import numpy as np
+import pytest
+
+from labrig.cli import main
+from labrig.model.library import analytical_segment
+from labrig.model.measured import write_csv
+
+
+def run(argv, capsys):
+    with pytest.raises(SystemExit) as exited:
+        main(argv)
+    out, err = capsys.readouterr()
+    return exited.value.code, out, err
+
+
+def test_summary_names_peak_valley_and_contact(capsys):
+    code, out, _ = run(["model", "curve", "B46-T20"], capsys)
+    assert code == 0
+    assert "peak     39.55 kPa at 5.358 mL" in out
+    assert "valley   32.99 kPa at 19.780 mL" in out
+    assert "contact  19.780 mL" in out
+    assert "V0       2.534 mL" in out
+
+
+def test_json_is_the_table_with_its_extrema(capsys):
+    code, out, _ = run(["model", "curve", "b46-t22", "--json"], capsys)
+    assert code == 0
+    doc = json.loads(out)
+    assert list(doc) == ["name", "V0_ml", "peak", "valley", "v_ml", "p_kpa", "l_mm"]
+    assert doc["name"] == "B46-T22"
+    curve = analytical_segment("B46-T22")
+    np.testing.assert_array_equal(doc["p_kpa"], curve.p_kpa)
+    k = doc["v_ml"].index(doc["peak"]["v_ml"])  # the peak is a sample of the table
+    assert doc["p_kpa"][k] == doc["peak"]["p_kpa"] == max(doc["p_kpa"][: k + 10])
+    assert doc["valley"]["v_ml"] > doc["peak"]["v_ml"]
+
+
+def test_json_has_null_extrema_when_contact_comes_first(capsys):
+    code, out, _ = run(["model", "curve", "B40-T30", "--json"], capsys)
+    assert code == 0
+    doc = json.loads(out)
+    assert doc["peak"] is None and doc["valley"] is None
+
+
+def test_plot_and_csv_input(tmp_path, capsys):
+    write_csv(analytical_segment("B50-T20"), tmp_path / "b50.csv")
+    png = tmp_path / "b50.png"
+    code, out, _ = run(["model", "curve", str(tmp_path / "b50.csv"), "--plot", str(png)], capsys)
+    assert code == 0
+    assert out.startswith("b50: measured curve")
+    assert "contact" not in out  # only analytical segments know their contact
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["model", "curve", "B47-T20"], "unknown segment 'B47-T20'"),
+        (["model", "curve", "missing.csv"], "missing.csv: no such file"),
+        (["model", "curve", "B46-T20", "--plot", "/no/such/dir/x.png"], "does not exist"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(argv, message, capsys):
+    code, out, err = run(argv, capsys)
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and message in err and "Traceback" not in err
+
+
+def test_bad_csv_is_one_line_and_exit_2(tmp_path, capsys):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("volume_ml,pressure_kpa,length_mm\n0,0,20\n0.1,x,20\n")
+    code, _, err = run(["model", "curve", str(bad)], capsys)
+    assert code == 2
+    assert err.strip() == f"error: {bad}: line 3, column pressure_kpa: 'x' is not a number"

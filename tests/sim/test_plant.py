@@ -1,0 +1,146 @@
+"""The simulated specimen against independent computations: volume conservation, the
+quasi-static equilibrium found by root-finding, and snap-throughs that end in a stable
+equilibrium after a time set by the flow resistance."""
+
+import threading
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from labrig.model.segment import SegmentCurve
+from labrig.sim.plant import Plant
+
+V = np.linspace(0.0, 80.0, 1601)
+
+
+def cubic_curve(name="cubic", scale=1.0):
+    """Rise to a peak at v=5.9, fall to a valley at v=14.1, then stiffen."""
+    v = V / scale
+    return SegmentCurve(name, V, 10 * v - 1.2 * v**2 + 0.04 * v**3, 20 + V / 4, V0_ml=3.0)
+
+
+def monotone_curve(name, stiffness):
+    return SegmentCurve(name, V, stiffness * V + 0.05 * V**2, 30 - V / 10, V0_ml=2.0)
+
+
+def ramp(rate_ml_s, v_max_ml):
+    return lambda t: min(rate_ml_s * t, v_max_ml)
+
+
+def test_total_volume_always_equals_the_pumps():
+    pump = ramp(0.5, 30.0)
+    plant = Plant([cubic_curve("a"), cubic_curve("b", 1.1)], pump)
+    for t in np.linspace(0, 80, 41):
+        plant.advance_to(t)
+        assert plant.volumes_ml.sum() == pytest.approx(pump(t), abs=1e-9)
+
+
+def test_slow_inflation_follows_the_equilibrium_found_by_root_finding():
+    a, b = monotone_curve("a", 1.0), monotone_curve("b", 3.0)
+    rate = 20 / 60
+    plant = Plant([a, b], ramp(rate, 40.0), resistance_kpa_s_per_ml=0.5)
+    for target_ml in (5.0, 15.0, 30.0):
+        t = target_ml / rate
+        inlet = float(plant.pressure_kpa_at(t))
+
+        def excess(p, target=target_ml):
+            va = brentq(lambda v: float(a.pressure_kpa(v)) - p, 0, 80)
+            vb = brentq(lambda v: float(b.pressure_kpa(v)) - p, 0, 80)
+            return va + vb - target
+
+        p_equilibrium = brentq(excess, 1e-9, 300)
+        # First order in the flow: the inflow splits as the compliances 1/k_i, each
+        # segment lags the manifold by R q_i, and the sensor on the manifold reads
+        # p_eq + R Q sum(1/k^2) / (sum 1/k)^2.
+        va = brentq(lambda v, p=p_equilibrium: float(a.pressure_kpa(v)) - p, 0, 80)
+        vb = brentq(lambda v, p=p_equilibrium: float(b.pressure_kpa(v)) - p, 0, 80)
+        compliance = np.array([1 / a.slope_kpa_per_ml(va), 1 / b.slope_kpa_per_ml(vb)])
+        q = rate * compliance / compliance.sum()
+        lag = 0.5 * rate * np.sum(compliance**2) / compliance.sum() ** 2
+        assert inlet == pytest.approx(p_equilibrium + lag, abs=0.005)
+        w = plant.volumes_ml
+        p_a, p_b = float(a.pressure_kpa(w[0])), float(b.pressure_kpa(w[1]))
+        assert p_a - p_b == pytest.approx(0.5 * (q[1] - q[0]), abs=0.005)
+
+
+def settle(curves, v_hold_ml, resistance=1.0, seed=0):
+    """Inflate to v_hold quickly enough to pass a peak, then hold until settled."""
+    plant = Plant(curves, ramp(0.5, v_hold_ml), resistance_kpa_s_per_ml=resistance, seed=seed)
+    plant.advance_to(v_hold_ml / 0.5 + 60.0)
+    return plant
+
+
+def test_identical_segments_snap_to_a_stable_asymmetric_equilibrium():
+    a, b = cubic_curve("a"), cubic_curve("b")
+    plant = settle([a, b], 16.0)
+    w = plant.volumes_ml
+    p = [float(a.pressure_kpa(w[0])), float(b.pressure_kpa(w[1]))]
+    k = [float(a.slope_kpa_per_ml(w[0])), float(b.slope_kpa_per_ml(w[1]))]
+    assert p[0] == pytest.approx(p[1], abs=1e-6)  # equilibrium: Eq. 7
+    assert k[0] + k[1] > 0  # stability for n = 2: Eq. 10
+    assert abs(w[0] - w[1]) > 5.0  # the symmetric state was unstable and was left
+    assert sum(w) == pytest.approx(16.0, abs=1e-9)
+
+
+def test_the_same_seed_gives_the_same_run_and_the_seed_picks_the_branch():
+    curves = [cubic_curve("a"), cubic_curve("b")]
+    first, again = settle(curves, 16.0, seed=3), settle(curves, 16.0, seed=3)
+    np.testing.assert_array_equal(first.volumes_ml, again.volumes_ml)
+    winners = {int(np.argmax(settle(curves, 16.0, seed=s).volumes_ml)) for s in range(6)}
+    assert winners == {0, 1}
+
+
+def snap_duration_s(resistance):
+    """Time for the internal flow of a snap at constant volume to do 10..90 % of its work."""
+    curves = [cubic_curve("a"), cubic_curve("b", 1.05)]
+    plant = Plant(curves, ramp(2.0, 13.0), resistance_kpa_s_per_ml=resistance)
+    plant.advance_to(60.0)
+    t = np.array(plant._history_t)
+    w0 = np.array([w[0] for w in plant._history_w])
+    hold = t > 13.0 / 2.0
+    moved = np.abs(w0[hold] - w0[hold][0])
+    total = moved[-1]
+    return t[hold][np.argmax(moved > 0.9 * total)] - t[hold][np.argmax(moved > 0.1 * total)]
+
+
+def test_snap_takes_a_finite_time_proportional_to_the_resistance():
+    short, long = snap_duration_s(0.5), snap_duration_s(1.0)
+    assert 0.1 < short < 5.0
+    assert long / short == pytest.approx(2.0, rel=0.15)
+
+
+def test_queries_in_any_order_from_several_threads():
+    plant = Plant([cubic_curve("a"), cubic_curve("b", 1.1)], ramp(0.3, 20.0))
+    times = np.linspace(0.0, 50.0, 5001)
+    reference = plant.pressure_kpa_at(times).copy()
+    results = []
+
+    def query(order):
+        results.append(np.array([plant.pressure_kpa_at(times[i]) for i in order]))
+
+    orders = [np.arange(0, 5001, 7), np.arange(5000, -1, -11)]
+    threads = [threading.Thread(target=query, args=(o,)) for o in orders]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert len(results) == 2
+    for order in orders:
+        assert any(len(r) == len(order) and np.allclose(r, reference[order]) for r in results)
+
+
+def test_history_that_was_dropped_is_an_error():
+    plant = Plant([cubic_curve()], ramp(0.1, 5.0), history_s=10.0)
+    plant.advance_to(100.0)
+    with pytest.raises(ValueError, match="history starts"):
+        plant.pressure_kpa_at(1.0)
+
+
+def test_length_is_the_sum_of_segments_plus_fittings():
+    a, b = monotone_curve("a", 1.0), monotone_curve("b", 2.0)
+    plant = Plant([a, b], ramp(1.0, 10.0), fittings_length_mm=12.0)
+    plant.advance_to(20.0)
+    w = plant.volumes_ml
+    expected = float(a.length_mm(w[0]) + b.length_mm(w[1])) + 12.0
+    assert float(plant.length_mm_at(20.0)) == pytest.approx(expected, abs=1e-9)
