@@ -136,6 +136,11 @@ class CurveKernel:
         t = v - self.x[j]
         return ((self.lc3[j] * t + self.lc2[j]) * t + self.lc1[j]) * t + self.lc0[j]
 
+    def spacing_near(self, v: float) -> float:
+        """Width of the table interval around v (the resolution of the curve there)."""
+        j = self._piece(v)
+        return self.x[j + 1] - self.x[j]
+
     # --- branches --------------------------------------------------------------------
     def branch_of(self, v: float) -> int:
         """Branch a volume lies on (a shared extremum sample belongs to the earlier)."""
@@ -185,4 +190,6 @@ class CurveKernel:
                 break
             t = step
         d = (3.0 * c3 * t + 2.0 * c2) * t + c1
-        return self.x[j] + t, d
+        # at a branch's extremum the slope is 0 up to rounding; never let rounding give
+        # it the sign of the neighbouring branch
+        return self.x[j] + t, max(d, 0.0) if b.rising else min(d, 0.0)

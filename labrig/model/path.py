@@ -232,53 +232,82 @@ class _Tracer:
     # --- folds -------------------------------------------------------------------------
     def _find_fold(self, state: State, m: int, p_stop: float, direction: int) -> State | None:
         """First fold on the way from ``state`` to ``p_stop``; segment m is the one past
-        its peak. The scan is uniform in m's volume, which resolves both ends of its
-        falling branch (where v varies like the square root of p)."""
+        its peak. The scan runs over m's volume, (1 - cos) spaced so that it is dense at
+        both ends of m's falling branch, where v varies like the square root of p and
+        where a fold close to a branch end hides."""
         kern = self.kernels[m]
-        b = state.branches
         vm0 = state.v_i_ml[m]
         if math.isfinite(p_stop):
-            vm1 = kern.volume_on_branch(b[m], p_stop)[0]
+            vm1 = kern.volume_on_branch(state.branches[m], p_stop)[0]
         else:  # a falling last branch continued linearly: look one table length on
             vm1 = kern.v_last + (kern.v_last - kern.v_first)
-        return self._scan(state, vm0, vm1, p_stop, m, direction, depth=0)
+        s_start = self.inverse_sum(state)
+        if math.isnan(s_start):
+            # two segments at branch ends at once (+inf - inf): start just inside the
+            # piece, which the crossing checked to be stable there
+            state = self.at(state.branches, kern.pressure(vm0 + 1e-9 * (vm1 - vm0)))
+            s_start = self.inverse_sum(state)
+        fractions = [
+            0.5 * (1.0 - math.cos(math.pi * j / self.scan_points))
+            for j in range(1, self.scan_points + 1)
+        ]
+        return self._scan(state, s_start, vm0, vm1, fractions, p_stop, m, direction)
 
-    def _scan(self, state, vm0, vm1, p_last, m, direction, depth):
+    def _scan(self, prev, s_prev, vm0, vm1, fractions, p_last, m, direction):
+        """Walk the grid; where sum 1/k reaches 0, or v turns back (a pair of folds
+        between two points), look closer until the bracket spans about two samples of
+        m's table, so that the first fold is found, not any later one."""
         kern = self.kernels[m]
-        b = state.branches
-        prev, s_prev = state, self.inverse_sum(state)
-        count = self.scan_points if depth == 0 else 8
-        for j in range(1, count + 1):
+        b = prev.branches
+        for j, fraction in enumerate(fractions):
+            last = j == len(fractions) - 1
             p = (
                 p_last
-                if j == count and depth == 0
-                else kern.pressure(vm0 + (vm1 - vm0) * j / count)
+                if last and p_last is not None
+                else kern.pressure(vm0 + (vm1 - vm0) * fraction)
             )
             if not math.isfinite(p):
                 return None
             cur = self.at(b, p)
             s_cur = self.inverse_sum(cur)
-            if s_cur >= 0:
-                return self._fold_between(prev, cur, s_prev, s_cur)
-            if direction * (cur.v_ml - prev.v_ml) < 0 and depth < 4:
-                # v turned back although sum 1/k < 0 at both points: a fold pair lies
-                # between them; look closer
-                found = self._scan(
-                    prev, prev.v_i_ml[m], cur.v_i_ml[m], cur.p_kpa, m, direction, depth + 1
-                )
-                if found is not None:
-                    return found
+            turned = direction * (cur.v_ml - prev.v_ml) < 0
+            if s_cur >= 0 or turned:
+                a_m, c_m = prev.v_i_ml[m], cur.v_i_ml[m]
+                if abs(c_m - a_m) > 2.0 * kern.spacing_near(a_m):
+                    inner = [k / 8 for k in range(1, 9)]
+                    found = self._scan(prev, s_prev, a_m, c_m, inner, cur.p_kpa, m, direction)
+                    if found is not None:
+                        return found
+                if s_cur >= 0:
+                    return self._fold_between(prev, cur, s_prev, s_cur)
             prev, s_prev = cur, s_cur
         return None
 
     def _fold_between(self, a: State, c: State, s_a: float, s_c: float) -> State:
+        """The first root of sum 1/k between a (negative) and c (not): Brent's root,
+        then a look at 16 points before it for an earlier sign change (on a curve's
+        sample scale sum 1/k can cross zero more than once)."""
         b = a.branches
 
         def inverse_sum_at(p: float) -> float:
             return self.inverse_sum(self.at(b, p))
 
-        p = bracketed_root(inverse_sum_at, a.p_kpa, c.p_kpa, s_a, s_c, xtol=1e-11)
-        return self.at(b, p)
+        lo, s_lo, hi, s_hi = a.p_kpa, s_a, c.p_kpa, s_c
+        for _ in range(6):
+            root = bracketed_root(inverse_sum_at, lo, hi, s_lo, s_hi, xtol=1e-11)
+            earlier = None
+            for k in range(1, 16):
+                q = lo + (root - lo) * k / 16
+                s_q = inverse_sum_at(q)
+                if s_q >= 0:
+                    earlier = q, s_q
+                    break
+                lo_next, s_lo_next = q, s_q
+            if earlier is None:
+                return self.at(b, root)
+            lo, s_lo = (lo_next, s_lo_next) if k > 1 else (lo, s_lo)
+            hi, s_hi = earlier
+        return self.at(b, root)
 
     # --- snaps -------------------------------------------------------------------------
     def _snap_from_fold(self, fold: State, s_p: int) -> State:
@@ -448,6 +477,7 @@ def sample_path(path: Path, dv_ml: float = 0.05) -> SampledPath:
         count = math.ceil(1.6 * abs(piece.v_to_ml - piece.v_from_ml) / dv_ml) + 16
         s = 0.5 * (1.0 - np.cos(np.linspace(0.0, math.pi, count)))
         p = piece.p_from_kpa + (piece.p_to_kpa - piece.p_from_kpa) * s
+        p = np.clip(p, *sorted((piece.p_from_kpa, piece.p_to_kpa)))  # no rounding past an end
         v_i = np.array(
             [seg.volume_on_branch(b, p)[0] for seg, b in zip(segments, piece.branches, strict=True)]
         )
@@ -455,9 +485,10 @@ def sample_path(path: Path, dv_ml: float = 0.05) -> SampledPath:
     p = np.concatenate([c[0] for c in chunks])
     v_i = np.concatenate([c[1] for c in chunks], axis=1)
     direction = np.concatenate([c[2] for c in chunks])
-    # consecutive pieces share their end point except across a snap
+    # consecutive pieces share their end point (also where inflation turns into
+    # deflation), except across a snap
     keep = np.ones(len(p), dtype=bool)
-    keep[1:] = np.any(np.abs(np.diff(v_i, axis=1)) > 1e-12, axis=0) | (np.diff(direction) != 0)
+    keep[1:] = np.any(np.abs(np.diff(v_i, axis=1)) > 1e-12, axis=0)
     p, v_i, direction = p[keep], v_i[:, keep], direction[keep]
     l_mm = sum(seg.length_mm(v) for seg, v in zip(segments, v_i, strict=True))
     return SampledPath(v_i.sum(axis=0), p, np.asarray(l_mm), v_i, direction)

@@ -5,8 +5,10 @@ E~(v_1..v_{n-1}) (Eq. 4, v_n from Eq. 2) starting from the previous state, as th
 did in Matlab. It shares only the segment curves with ``labrig.model.path``: no
 branches, no folds, no flow. Two of the model-notes' traps are avoided as the notes say:
 
-- the initial simplex has the size of the volume increment (trap 2): the default 5 %
-  simplex hops over a shrinking barrier and predicts snaps early;
+- the initial simplex is a tenth of the volume increment (trap 2): the default 5 %
+  simplex hops over a shrinking barrier and predicts snaps early, and even a simplex
+  the size of the increment hops, at coincident peaks (B46-T20 + B46-T22), from the
+  stable branch the state is on to a disconnected one (trap 1);
 - the energy minimised is the difference from the previous state, integrated piece by
   piece from small terms (trap 3): absolute energies (~10^3 mJ) would hide the
   differences below 1e-9 mJ that decide a minimum near a peak.
@@ -54,6 +56,7 @@ def reference_path(
     dv_ml: float = 0.01,
     deflate: bool = False,
     jump_ml: float | None = None,
+    simplex_fraction: float = 0.1,
 ) -> ReferencePath:
     """Inflate in steps of ``dv_ml`` to ``v_end_ml`` (then back to 0 if ``deflate``),
     minimising locally at each step.
@@ -90,7 +93,7 @@ def reference_path(
             return total + kernels[-1].energy_between(previous[-1], last)
 
         x0 = np.array(previous[:-1])
-        simplex = np.vstack([x0, x0 + dv_ml * np.eye(n - 1)])
+        simplex = np.vstack([x0, x0 + simplex_fraction * dv_ml * np.eye(n - 1)])
         result = minimize(
             energy_change,
             x0,

@@ -311,6 +311,8 @@ class SegmentCurve:
             if np.all(done):
                 break
         slope = (3 * coef[0] * t + 2 * coef[1]) * t + coef[2]
+        # at an extremum the slope is 0 up to rounding: keep the branch's sign
+        slope = np.maximum(slope, 0.0) if b.rising else np.minimum(slope, 0.0)
         return x0 + t, slope
 
     def volumes_at_pressure(self, p_kpa) -> tuple[np.ndarray, np.ndarray]:
