@@ -232,7 +232,13 @@ def _build_sim_rig(protocol: Protocol, config: RigConfig) -> Rig:
             daq_tasks.append(task)
             return task
 
-        factories = {"task_factory": new_task, "reader_factory": SimAnalogMultiChannelReader}
+        factories = {
+            "task_factory": new_task,
+            "reader_factory": SimAnalogMultiChannelReader,
+            # the buffer must hold the same host time as on the bench (a loop delayed
+            # by the host is delayed speed times longer in rig time)
+            "buffer_s": max(10.0, 2.0 * sim.speed),
+        }
         pressure = _pressure_driver(NiDaqPressure, clock, config, protocol, factories)
         length = camera = None
         if protocol.acquisition.camera_fps > 0:

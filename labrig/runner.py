@@ -190,7 +190,7 @@ class Runner:
     def _execute(self) -> None:
         self._check_start(None)
         target_ml = 0.0
-        for location, step, repetition in iter_plan(self.protocol.steps):
+        for _, step, repetition in iter_plan(self.protocol.steps):
             if self.monitor.tripped:
                 return
             if isinstance(step, ZeroPressureStep):
@@ -200,14 +200,14 @@ class Runner:
             self._enter_repetition(repetition)
             if isinstance(step, InfuseStep):
                 target_ml += step.infuse.volume_ml
-                self._step_label = f"infuse {step.infuse.volume_ml:g} mL ({location})"
+                self._step_label = f"infuse {step.infuse.volume_ml:g} mL"
                 self._flow(+1, step.infuse.rate_ml_min, target_ml)
             elif isinstance(step, WithdrawStep):
                 target_ml -= step.withdraw.volume_ml
-                self._step_label = f"withdraw {step.withdraw.volume_ml:g} mL ({location})"
+                self._step_label = f"withdraw {step.withdraw.volume_ml:g} mL"
                 self._flow(-1, step.withdraw.rate_ml_min, target_ml)
             elif isinstance(step, HoldStep):
-                self._step_label = f"hold {step.hold.seconds:g} s ({location})"
+                self._step_label = f"hold {step.hold.seconds:g} s"
                 self._hold(step.hold.seconds)
         if not self.monitor.tripped:
             self._leave_repetition("complete")

@@ -22,6 +22,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "model": ("labrig.cli.model", "model"),
     "protocol": ("labrig.cli.protocol", "protocol"),
     "pump": ("labrig.cli.pump", "pump"),
+    "run": ("labrig.cli.run", "run"),
     "track": ("labrig.cli.track", "track"),
 }
 
