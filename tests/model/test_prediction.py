@@ -24,7 +24,8 @@ def test_actuator_peak_is_below_the_largest_segment_peak_before_the_wall():
     v, p, _ = predicted_inflation([a, b], 30.0)
     assert v.max() == pytest.approx(30.0)
     assert np.all(np.diff(v) >= -1e-9)  # inflation only: volume never decreases
-    peak, _ = predicted_peak_pressure_kpa([a, b], 30.0)
+    peak, at = predicted_peak_pressure_kpa([a, b], 30.0)
+    assert p[0] == 0.0 and p.max() == peak and at == v[np.argmax(p)]
     # before any segment reaches its stiffening wall, the shared pressure can never
     # exceed the highest single-segment peak
     assert peak <= max(a.peak.p_kpa, b.peak.p_kpa) + 1e-6
