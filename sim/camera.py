@@ -186,10 +186,8 @@ class SimCamera:
             return False, None
         k = max(math.ceil(self.clock.now() * self.fps), self._last_frame + 1)
         self._last_frame = k
-        self.clock.sleep(k / self.fps - self.clock.now())
-        # the exposure happens when the wait ends, which a busy host makes a little
-        # later than k / fps: render the scene of that moment, as a camera would
-        t_s = max(k / self.fps, self.clock.now())
+        t_s = k / self.fps
+        self.clock.sleep(t_s - self.clock.now())
         self._pos_msec = 1000.0 * t_s
         return True, self.render(t_s)
 
