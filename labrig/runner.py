@@ -359,9 +359,17 @@ class Runner:
 
     def _camera_loop(self) -> None:
         period_s = 1.0 / self.protocol.acquisition.camera_fps
-        self._device_loop("camera", period_s, self._read_length)
+        # wake a quarter period early: a camera delivers its next frame when it is
+        # exposed, and a reader that arrives just after that moment gets the one after
+        self._device_loop("camera", period_s, self._read_length, early_s=0.25 * period_s)
 
-    def _device_loop(self, device: str, period_s: float, read_once: Callable[[], None]) -> None:
+    def _device_loop(
+        self,
+        device: str,
+        period_s: float,
+        read_once: Callable[[], None],
+        early_s: float = 0.0,
+    ) -> None:
         """Read one device every ``period_s`` (paced by deadlines, so a slow read does
         not stretch the period); a device error is a fault of the run."""
         next_s = self.clock.now()
@@ -372,7 +380,7 @@ class Runner:
                 self.monitor.trip(f"{device}: {exc}", "faulted")
                 return
             next_s = max(next_s + period_s, self.clock.now() - period_s)
-            self._pause(next_s - self.clock.now())
+            self._pause(next_s - early_s - self.clock.now())
 
     def _read_pressure(self) -> None:
         block = self.rig.pressure.read()

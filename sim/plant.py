@@ -222,11 +222,18 @@ class Plant:
     def _interpolate(self, t_s, series: list[float]) -> np.ndarray:
         t = np.asarray(t_s, dtype=float)
         with self._lock:
-            if t.size:
-                self.advance_to(float(t.max()))
-            earliest = self._history_t[0]
-            if t.size and t.min() < earliest - 1e-9:
+            if t.size == 0:
+                return np.empty_like(t)
+            t_lo, t_hi = float(t.min()), float(t.max())
+            self.advance_to(t_hi)
+            history_t = self._history_t
+            if t_lo < history_t[0] - 1e-9:
                 raise ValueError(
-                    f"plant history starts at {earliest:.3f} s; asked for {t.min():.3f} s"
+                    f"plant history starts at {history_t[0]:.3f} s; asked for {t_lo:.3f} s"
                 )
-            return np.interp(t, self._history_t, series)
+            # only the stretch of history the query spans: the history holds tens of
+            # thousands of steps and the DAQ, the camera and the pump ask many times a
+            # second
+            first = max(bisect.bisect_right(history_t, t_lo) - 1, 0)
+            last = min(bisect.bisect_left(history_t, t_hi) + 1, len(history_t))
+            return np.interp(t, history_t[first:last], series[first:last])
