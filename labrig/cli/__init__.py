@@ -19,8 +19,14 @@ from labrig.errors import LabrigError
 # name -> "module:attribute" of a click command or group. Only what is built is listed:
 # the CLI never shows a command that would pretend.
 COMMANDS: dict[str, tuple[str, str]] = {
+    "compare": ("labrig.cli.review", "compare_command"),
+    "export": ("labrig.cli.review", "export"),
+    "library": ("labrig.cli.library", "library"),
     "model": ("labrig.cli.model", "model"),
+    "plot": ("labrig.cli.review", "plot"),
     "protocol": ("labrig.cli.protocol", "protocol"),
+    "recover": ("labrig.cli.review", "recover"),
+    "show": ("labrig.cli.review", "show"),
 }
 
 
