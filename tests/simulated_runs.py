@@ -14,7 +14,12 @@ internal flow (fluid moving between the segments rather than in from the pump).
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
 import textwrap
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -232,3 +237,84 @@ def _true_snaps(rep, t, w, pump) -> list[TrueSnap]:
             t_peak += 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2) * TRUTH_STEP_S
         out.append(TrueSnap(rep, pump.direction(t_peak), t_peak, pump(t_peak), float(internal[k])))
     return out
+
+
+# --- small files for damage and recovery tests ---------------------------------------
+PROTOCOL = textwrap.dedent(
+    """\
+    name: tiny
+    specimen: {segments: [B46-T20]}
+    limits: {max_pressure_kpa: 90, max_volume_ml: 5}
+    steps:
+      - repeat: {times: 2, steps: [{infuse: {rate_ml_min: 60, volume_ml: 2}},
+                                   {withdraw: {rate_ml_min: 60, volume_ml: 2}}]}
+    analysis: {average_last: 2, compare_model: false}
+    """
+)
+
+
+def tiny_run(path, repetitions=2):
+    """A small, complete run: p = 5 v, l = 30 + v, infusing then withdrawing 2 mL."""
+    writer = RunWriter(
+        path,
+        title="tiny",
+        protocol_text=PROTOCOL,
+        protocol_path="tiny.yaml",
+        rig_config_text="",
+        repetitions=repetitions,
+        with_length=True,
+    )
+    for rep in range(1, repetitions + 1):
+        t0 = (rep - 1) * 4.0
+        t = t0 + np.arange(0, 4.0, 0.001)
+        v = np.where(t - t0 < 2.0, t - t0, 4.0 - (t - t0))
+        writer.append_pressure(rep, t, 5.0 * v, np.zeros(len(t), bool))
+        tp = t0 + np.arange(0, 4.0, 0.1)
+        vp = np.where(tp - t0 < 2.0, tp - t0, 4.0 - (tp - t0))
+        writer.append_pump(rep, tp, vp, vp, 0 * vp, ["infusing"] * len(tp))
+        tl = t0 + np.arange(0, 4.0, 0.5)
+        vl = np.where(tl - t0 < 2.0, tl - t0, 4.0 - (tl - t0))
+        ones = np.ones(len(tl))
+        writer.append_length(rep, tl, 30.0 + vl, ones, ones, ones, ones, ones.astype(bool))
+        writer.set_repetition_status(rep, "complete", t_start_s=t0, t_end_s=t0 + 4.0)
+    writer.finalise("complete")
+    return path
+
+
+KILLED_WRITER = textwrap.dedent(
+    """
+    import sys, time
+    import numpy as np
+    from labrig.storage import RunWriter
+    protocol = open(sys.argv[2]).read()
+    writer = RunWriter(sys.argv[1], title="killed", protocol_text=protocol,
+                       protocol_path="tiny.yaml", rig_config_text="", repetitions=2,
+                       with_length=False, flush_interval_s=0.2)
+    writer.set_repetition_status(1, "running", t_start_s=0.0)
+    print("ready", flush=True)
+    k = 0
+    while True:
+        t = k * 0.1 + np.arange(100) * 1e-3
+        writer.append_pressure(1, t, 50.0 * t, np.zeros(100, bool))
+        writer.append_pump(1, k * 0.1, 10.0 * k * 0.1, 10.0 * k * 0.1, 0.0, "infusing")
+        k += 1
+        time.sleep(0.01)
+    """
+)
+
+
+def killed_run(directory: Path) -> Path:
+    """A run file whose writing process was SIGKILLed mid-repetition (for real)."""
+    path = directory / "killed.h5"
+    protocol = directory / "tiny.yaml"
+    protocol.write_text(PROTOCOL)
+    process = subprocess.Popen(
+        [sys.executable, "-c", KILLED_WRITER, str(path), str(protocol)],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert process.stdout.readline().strip() == "ready"
+    time.sleep(1.0)
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait()
+    return path

@@ -48,7 +48,7 @@ class PredictedTransition:
 
     @property
     def type(self) -> str:
-        return f"({self.alpha},{self.beta}) {'stable' if self.stable else 'snap'}"
+        return f"{'stable' if self.stable else 'snap'} ({self.alpha},{self.beta})"
 
 
 @dataclass(frozen=True)

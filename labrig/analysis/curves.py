@@ -59,8 +59,9 @@ def resample(v_ml: np.ndarray, y: np.ndarray, grid_ml: np.ndarray, max_gap_ml: f
     """y(v) on the grid from scattered samples (see the module docstring).
 
     A grid point gets the line through the neighbouring bin means around it, provided
-    those are at most ``max_gap_ml`` apart; a grid point just outside the data's volume
-    range (its bin holds samples, but all on one side of it) gets its bin's mean.
+    those are at most ``max_gap_ml`` apart. A grid point at either end of the data (its
+    bin holds samples, all on one side of it) gets the line through the two outermost
+    bin means continued to it, or its own bin's mean if there is no close neighbour.
     """
     out = np.full(len(grid_ml), np.nan)
     keep = np.isfinite(v_ml) & np.isfinite(y)
@@ -87,13 +88,18 @@ def resample(v_ml: np.ndarray, y: np.ndarray, grid_ml: np.ndarray, max_gap_ml: f
     values = y_mean[li] + weight * (y_mean[ri] - y_mean[li])
     values[gap > max_gap_ml] = np.nan
     out[between] = values
-    # exactly on a bin mean (also the only one): that mean
-    exact = np.isin(grid_ml, v_mean)
-    out[exact] = y_mean[np.searchsorted(v_mean, grid_ml[exact])]
-    # outside the range of the bin means but in a bin with samples
-    edge = ~between & ~exact
-    edge_bins = np.flatnonzero(edge & (counts > 0))
-    out[edge_bins] = y_mean[np.searchsorted(filled, edge_bins)]
+    # the first and last grid points with samples in their bins may lie just outside
+    # the bin means: continue the line through the two outermost means (if they are
+    # close enough), else take the bin's own mean
+    for edge, inner in ((0, 1), (len(v_mean) - 1, len(v_mean) - 2)):
+        k = filled[edge]
+        if np.isfinite(out[k]):
+            continue
+        if 0 <= inner < len(v_mean) and abs(v_mean[inner] - v_mean[edge]) <= max_gap_ml:
+            slope = (y_mean[inner] - y_mean[edge]) / (v_mean[inner] - v_mean[edge])
+            out[k] = y_mean[edge] + slope * (grid_ml[k] - v_mean[edge])
+        else:
+            out[k] = y_mean[edge]
     return out
 
 

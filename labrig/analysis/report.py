@@ -9,6 +9,7 @@ from __future__ import annotations
 import io
 import math
 
+from rich import box
 from rich.console import Console, Group, RenderableType
 from rich.table import Table
 
@@ -18,6 +19,21 @@ from labrig.analysis.runfile import RunRecord
 from labrig.protocol import plan
 
 DIRECTION = {INFLATE: "inflate", DEFLATE: "deflate"}
+
+
+def _table(title: str, columns, right: tuple[str, ...] = ()) -> Table:
+    """A compact table (no vertical rules, so it stays legible in 80 columns and logs)."""
+    table = Table(
+        title=title,
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+        collapse_padding=True,
+        min_width=60,
+    )
+    for name in columns:
+        table.add_column(name, justify="right" if name in right else "left", no_wrap=True)
+    return table
 
 
 def _num(value: float, fmt: str = ".2f", unit: str = "") -> str:
@@ -30,8 +46,8 @@ def run_table(record: RunRecord) -> Table:
     """Metadata and protocol of a run, as a two-column table."""
     protocol = record.protocol
     summary = plan(protocol)
-    table = Table(title=f"{record.path}", show_header=False, title_justify="left")
-    table.add_column(style="bold")
+    table = Table(title=f"{record.path}", show_header=False, title_justify="left", box=box.SIMPLE)
+    table.add_column(style="bold", no_wrap=True)
     table.add_column()
     status = record.status + (f" ({record.reason})" if record.reason else "")
     rows = [
@@ -61,9 +77,8 @@ def run_table(record: RunRecord) -> Table:
 
 def steps_table(record: RunRecord) -> Table:
     """The protocol's steps, repeats unrolled once (``times`` shown)."""
-    table = Table(title="protocol steps", title_justify="left")
-    for name in ("#", "step", "parameters"):
-        table.add_column(name)
+    table = _table("protocol steps", ("#", "step", "parameters"))
+    table.columns[2].no_wrap = False
     for index, step in enumerate(record.protocol.steps):
         kind, params = next(iter(step.model_dump().items()))
         if kind == "repeat":
@@ -81,42 +96,55 @@ def _params(params: dict) -> str:
 
 
 def repetitions_table(result: AnalysisResult) -> Table:
-    table = Table(title="repetitions", title_justify="left")
-    columns = ["#", "status", "mean", "time (s)", "samples", "v max (mL)", "p max (kPa)"]
+    columns = ["#", "status", "mean", "time", "samples", "v max", "p max"]
     if result.with_length:
-        columns.append("l (mm)")
-    columns.append("transitions (mL)")
-    for name in columns:
-        table.add_column(name, justify="right" if name not in ("status",) else "left")
+        columns.append("l min-max")
+    columns.append("transitions")
+    units = "time s, v mL, p kPa" + (", l mm" if result.with_length else "")
+    table = _table(f"repetitions ({units}; transitions at v)", columns, right=columns[3:7])
     for rep in result.repetitions:
-        status = rep.status + (f": {rep.reason}" if rep.reason else "")
-        samples = f"{rep.n_pressure}" + (
-            f" ({rep.n_out_of_range} out of range)" if rep.n_out_of_range else ""
-        )
         row = [
             str(rep.index),
-            status,
+            rep.status,
             "yes" if rep.used_in_mean else "",
             _num(rep.duration_s, ".1f"),
-            samples,
+            str(rep.n_pressure),
             _num(rep.v_max_ml),
             _num(rep.p_max_kpa),
         ]
         if result.with_length:
-            row.append(f"{_num(rep.l_min_mm, '.1f')} to {_num(rep.l_max_mm, '.1f')}")
+            row.append(f"{_num(rep.l_min_mm, '.1f')}-{_num(rep.l_max_mm, '.1f')}")
         row.append(
-            ", ".join(f"{'+' if t.direction > 0 else '-'}{t.v_ml:.2f}" for t in rep.transitions)
+            " ".join(f"{'+' if t.direction > 0 else '-'}{t.v_ml:.2f}" for t in rep.transitions)
             or "-"
         )
         table.add_row(*row)
     return table
 
 
-def transitions_table(result: AnalysisResult) -> Table:
+def repetition_reasons(result: AnalysisResult) -> list[str]:
+    """Why repetitions ended as they did, and pressure samples beyond the range."""
+    lines = [
+        f"repetition {rep.index} {rep.status}: {rep.reason}"
+        for rep in result.repetitions
+        if rep.reason
+    ]
+    lines += [
+        f"repetition {rep.index}: {rep.n_out_of_range} pressure samples beyond the sensor's "
+        "range (left out)"
+        for rep in result.repetitions
+        if rep.n_out_of_range
+    ]
+    return lines
+
+
+def transitions_table(result: AnalysisResult) -> RenderableType:
     reps = ", ".join(str(i) for i in result.averaged) or "none"
-    table = Table(title=f"transitions in the averaged repetitions ({reps})", title_justify="left")
-    for name in ("phase", "v (mL)", "spread (mL)", "dp (kPa)", "dl (mm)", "seen in"):
-        table.add_column(name, justify="right")
+    title = f"transitions in the averaged repetitions ({reps})"
+    if not result.transitions:
+        return f"{title}: none found"
+    columns = ("phase", "v", "spread", "dp", "dl", "seen in")
+    table = _table(f"{title} (v mL, dp kPa, dl mm)", columns, right=columns[1:5])
     for t in result.transitions:
         table.add_row(
             DIRECTION[t.direction],
@@ -126,49 +154,53 @@ def transitions_table(result: AnalysisResult) -> Table:
             _num(t.dl_mm, "+.2f"),
             f"{t.seen} of {t.of}",
         )
-    if not result.transitions:
-        table.add_row("none", "", "", "", "", "")
     return table
 
 
-def comparison_tables(result: AnalysisResult) -> list[RenderableType]:
+def rmse_table(result: AnalysisResult) -> RenderableType | None:
     comparison = result.comparison
     if comparison is None:
-        return []
-    prediction = comparison.prediction
-    fit = Table(
-        title=f"model: {' + '.join(prediction.segments)} (RMSE against the mean)",
-        title_justify="left",
-    )
-    for name in ("phase", "pressure (kPa)", "length (mm)"):
-        fit.add_column(name, justify="right")
+        return None
+    segments = " + ".join(comparison.prediction.segments)
+    columns = ("phase", "pressure (kPa)", "length (mm)")
+    table = _table(f"RMSE of the mean against the model ({segments})", columns, columns[1:])
     for phase, name in PHASES.items():
-        fit.add_row(
+        table.add_row(
             name,
             _num(comparison.rmse_p_kpa[phase], ".3f"),
             _num(comparison.rmse_l_mm[phase], ".3f"),
         )
-    table = Table(title="transitions: predicted against measured", title_justify="left")
-    columns = ("phase", "type", "v model", "v meas.", "dv", "dp model", "dp meas.",
-               "dl model", "dl meas.")  # fmt: skip
-    for name in columns:
-        table.add_column(name, justify="right")
+    return table
+
+
+def matches_table(result: AnalysisResult) -> RenderableType | None:
+    comparison = result.comparison
+    if comparison is None:
+        return None
+    title = "transitions: predicted against measured"
+    if not comparison.matches:
+        return f"{title}: none predicted, none measured"
+    columns = ("phase", "type", "v", "v meas", "dv", "dp", "dp meas", "dl", "dl meas")
+    table = _table(f"{title} (v mL, dp kPa, dl mm)", columns, right=columns[2:])
     for match in comparison.matches:
         p, m = match.predicted, match.measured
+        smooth = p is not None and p.stable
         table.add_row(
             DIRECTION[match.direction],
             p.type if p is not None else "not predicted",
             _num(p.v_ml) if p else "-",
-            _num(m.v_ml) if m else ("-" if p is None or p.stable else "not seen"),
+            _num(m.v_ml) if m else ("-" if smooth else "not seen"),
             _num(match.dv_ml, "+.2f"),
-            _num(p.dp_kpa, "+.2f") if p else "-",
+            "-" if smooth or p is None else _num(p.dp_kpa, "+.2f"),
             _num(m.dp_kpa, "+.2f") if m else "-",
-            _num(p.dl_mm, "+.2f") if p else "-",
+            "-" if smooth or p is None else _num(p.dl_mm, "+.2f"),
             _num(m.dl_mm, "+.2f") if m else "-",
         )
-    if not comparison.matches:
-        table.add_row("none", "", "", "", "", "", "", "", "")
-    return [fit, table]
+    return table
+
+
+def comparison_tables(result: AnalysisResult) -> list[RenderableType]:
+    return [t for t in (rmse_table(result), matches_table(result)) if t is not None]
 
 
 def notes(result: AnalysisResult) -> list[str]:
@@ -179,6 +211,7 @@ def analysis_renderables(result: AnalysisResult) -> list[RenderableType]:
     """Repetitions, transitions, comparison and notes of an analysis."""
     return [
         repetitions_table(result),
+        *repetition_reasons(result),
         transitions_table(result),
         *comparison_tables(result),
         *notes(result),

@@ -68,6 +68,10 @@ class RepetitionAnalysis:
     l_mm: dict[int, np.ndarray] | None
     transitions: tuple[MeasuredTransition, ...]
 
+    @property
+    def name(self) -> str:
+        return repetition_name(self.index)
+
 
 @dataclass(frozen=True)
 class AnalysisResult:

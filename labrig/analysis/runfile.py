@@ -178,6 +178,10 @@ def _text(entry: h5py.Group, name: str, where: str) -> str:
 def load_run(path: str | Path) -> RunRecord:
     """Read a run file for analysis; InputError (one line) for anything missing."""
     path = Path(path)
+    facts = superblock_facts(path) if path.is_file() else None
+    if facts is not None and facts[2] > path.stat().st_size:
+        # SWMR read mode would open it, and fail somewhere in the middle of the data
+        raise _diagnose_unopenable(path, InputError(f"{path}: truncated"))
     try:
         run = open_run(path)
     except InputError as exc:
@@ -185,7 +189,6 @@ def load_run(path: str | Path) -> RunRecord:
             raise _diagnose_unopenable(path, exc) from None
         raise
     where = str(path)
-    facts = superblock_facts(path)
     with run:
         if "entry" not in run:
             found = ", ".join(sorted(run)) or "nothing"
@@ -195,7 +198,7 @@ def load_run(path: str | Path) -> RunRecord:
         entry = run["entry"]
         protocol_text = _text(entry, "protocol", where)
         if not protocol_text:
-            raise InputError(f"{where}: missing /entry/protocol (the protocol as run)")
+            raise InputError(f"{where}: missing /entry/protocol")
         protocol = parse_protocol(protocol_text, f"{where}:/entry/protocol")
         versions = {}
         if "versions" in entry:

@@ -17,8 +17,12 @@ and stop, where the inlet's flow-resistance offset steps, are left out):
   kink where the braids touch, a ramp into it) passes from one side's trend to the other
   and stays between them, or follows a line that predicts it;
 - a transition is a run of excess above its threshold (extended while above half of
-  it), in the pressure or the length or both. Its time is when the steepness, rising
-  into the bump, crosses half-way from its level before to the bump's extreme
+  it), in the pressure or the length or both. The threshold is a floor in kPa/mL
+  (mm/mL) or ``noise_factor`` standard deviations of the steepness' noise, whichever is
+  larger; that noise follows from the samples' own scatter (second differences), so a
+  noisy sensor raises it and a quiet one lets small snaps through;
+- its time is when the steepness (from a shorter window, for sharpness), rising into
+  the bump, crosses half-way from its level before to the bump's extreme
   (constant-fraction timing): the internal flow peaks near that point, while the
   pressure's own fastest change lags it (the segments stiffen as the fluid moves). Its
   volume is the supplied volume then. Its size dp, dl is the step between lines fitted
@@ -45,15 +49,17 @@ class DetectionSettings:
     """Thresholds and windows of the detector (stored with every analysis)."""
 
     step_s: float = 0.05  # resolution of the steepness series
-    pressure_window_s: float = 0.5  # least-squares window of dp/dt
+    pressure_window_s: float = 1.0  # least-squares window of dp/dt for detection
     length_window_frames: float = 2.5  # window of dl/dt, in camera frame intervals
     trend_gap_s: float = 1.5  # left out on each side for the transition itself
     trend_s: float = 6.0  # stretch of the trend on each side
-    pressure_excess_kpa_per_ml: float = 1.5  # dp/dv beyond the trends that marks a snap
-    length_excess_mm_per_ml: float = 3.0  # dl/dv beyond the trends that marks a snap
+    pressure_excess_kpa_per_ml: float = 0.75  # least dp/dv beyond the trends of a snap
+    length_excess_mm_per_ml: float = 1.5  # least dl/dv beyond the trends of a snap
+    noise_factor: float = 6.0  # and at least this many standard deviations of its noise
     min_dp_kpa: float = 0.5
     min_dl_mm: float = 0.3
     timing_fraction: float = 0.5  # constant-fraction timing of a transition
+    timing_window_s: float = 0.5  # least-squares window of dp/dt for the timing
     step_fit_s: float = 2.0  # lines before/after a transition, for dp and dl
     cluster_ml: float = 1.0  # transitions of different repetitions closer than this agree
 
@@ -110,6 +116,19 @@ def local_lines(
         slope = np.where(ok, sxy / np.where(ok, sxx, 1.0), np.nan)
         value = np.where(ok, y_mean + slope * (xe - x_mean), np.nan)
     return value, slope
+
+
+def slope_noise(t: np.ndarray, y: np.ndarray, half_width_s: float) -> float:
+    """Standard deviation of a ``local_lines`` slope caused by white noise in y:
+    sigma / sqrt(sum (t - mean t)^2) over a window's samples. Sigma comes from the
+    second differences of the samples (median absolute deviation: robust, and a smooth
+    signal barely moves them)."""
+    if len(y) < 4 or np.ptp(t) <= 0:
+        return 0.0
+    second = np.diff(y, 2)
+    sigma = 1.4826 * np.median(np.abs(second - np.median(second))) / np.sqrt(6.0)
+    per_window = (len(t) - 1) / np.ptp(t) * 2.0 * half_width_s
+    return float(sigma / np.sqrt(max(per_window, 2.0) * (2.0 * half_width_s) ** 2 / 12.0))
 
 
 def _side_windows(a: np.ndarray, gap: int, span: int) -> tuple[np.ndarray, np.ndarray]:
@@ -265,7 +284,11 @@ def _detect_in_motion(
     _, p_rate = local_lines(pt[in_motion], p[in_motion], t_eval, half_p)
     steepness = {"p": direction * p_rate / rate_ml_s}
     excess = {"p": bump_excess(steepness["p"], gap, span)}
-    events = [(a, b, k, "p") for a, b, k in _events(excess["p"], s.pressure_excess_kpa_per_ml)]
+    threshold_p = max(
+        s.pressure_excess_kpa_per_ml,
+        s.noise_factor * slope_noise(pt[in_motion], p[in_motion], half_p) / rate_ml_s,
+    )
+    events = [(a, b, k, "p") for a, b, k in _events(excess["p"], threshold_p)]
 
     if lt is not None and len(lt) >= 3:
         in_motion_l = (lt >= t_lo) & (lt <= t_hi)
@@ -275,9 +298,11 @@ def _detect_in_motion(
             _, l_rate = local_lines(lt[in_motion_l], lv[in_motion_l], t_eval, half_l)
             steepness["l"] = direction * l_rate / rate_ml_s
             excess["l"] = bump_excess(steepness["l"], gap, span)
-            events += [
-                (a, b, k, "l") for a, b, k in _events(excess["l"], s.length_excess_mm_per_ml)
-            ]
+            threshold_l = max(
+                s.length_excess_mm_per_ml,
+                s.noise_factor * slope_noise(lt[in_motion_l], lv[in_motion_l], half_l) / rate_ml_s,
+            )
+            events += [(a, b, k, "l") for a, b, k in _events(excess["l"], threshold_l)]
 
     out = []
     for group in _merge(sorted(events), gap):
@@ -288,7 +313,11 @@ def _detect_in_motion(
         # the pressure (1 kHz) times an event better than the camera
         channel = "p" if by_p else "l"
         peak = max((e[2] for e in group if e[3] == channel), key=lambda k: excess[channel][k])
-        t_peak = _onset_time(t_eval, steepness[channel], peak, gap, span, s.timing_fraction)
+        timing = steepness[channel]
+        if channel == "p" and s.timing_window_s != s.pressure_window_s:
+            _, sharp = local_lines(pt[in_motion], p[in_motion], t_eval, 0.5 * s.timing_window_s)
+            timing = direction * sharp / rate_ml_s
+        t_peak = _onset_time(t_eval, timing, peak, gap, span, s.timing_fraction)
         t_from, t_to = float(t_eval[first]), float(t_eval[last])
         dp = _step(pt, p, t_from, t_to, t_peak, s.step_fit_s, t_lo, t_hi)
         dl = np.nan
