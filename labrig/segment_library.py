@@ -32,6 +32,7 @@ from labrig.errors import InputError
 ENV_VAR = "LABRIG_LIBRARY"
 DEFAULT_DIR = Path("library")
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
+LIBRARY_GRID_ML = 0.01
 
 
 def resolve_library_dir(explicit: str | Path | None = None) -> Path:
@@ -160,12 +161,13 @@ def add_from_run(
 ) -> MeasuredSegment:
     """``labrig library add``: the mean inflation curve of a single-segment run, stored
     as measured segment ``name`` (see the module docstring)."""
+    from dataclasses import replace as with_changes
+
     import labrig
     from labrig.analysis.analyse import analyse, settings_for
     from labrig.analysis.curves import INFLATE
-    from labrig.analysis.results import now_iso, read_analysis
+    from labrig.analysis.results import now_iso
     from labrig.analysis.runfile import load_run
-    from labrig.storage import open_run
 
     record = load_run(run_path)
     specimen = record.protocol.specimen.segments
@@ -175,13 +177,11 @@ def add_from_run(
             "a measured segment comes from a single-segment run"
         )
     check_new_name(name, resolve_library_dir(directory), replace)
-    with open_run(run_path) as run:
-        result = read_analysis(run_path, run)
-    if result is None:
-        from dataclasses import replace as with_changes
-
-        settings = with_changes(settings_for(record), compare_model=False)
-        result = analyse(run_path, record=record, settings=settings)
+    # a finer grid than the review's: the shape fit bins the table again, and its zero
+    # at v = 0 is extrapolated from the first bins, which must be narrow where the
+    # pressure rises steeply
+    settings = with_changes(settings_for(record), compare_model=False, grid_step_ml=LIBRARY_GRID_ML)
+    result = analyse(run_path, record=record, settings=settings)
     if result.mean_p is None:
         raise InputError(f"{run_path}: no repetition completed; nothing to average")
     if result.mean_l is None:

@@ -44,17 +44,17 @@ def load(path: Path, *, compare_model: bool = True):
     return record, analyse(path, record=record, settings=settings), False
 
 
-def _warn_open(console, record) -> None:
+def _warn_open(record) -> None:
     if record.writer_flag_set:
-        console.print(
+        click.echo(
             f"warning: {record.path} is still flagged open by its writer (the run was "
             f"killed?); shown as of its last flush. `labrig recover {record.path}` closes it."
         )
 
 
-def _computed_note(console, stored: bool) -> None:
+def _computed_note(stored: bool) -> None:
     if not stored:
-        console.print(
+        click.echo(
             "note: this file has no stored analysis; computed now, not stored "
             "(`labrig compare FILE --store` stores it)"
         )
@@ -69,12 +69,12 @@ def show(file: Path) -> None:
 
     console = _console()
     record, result, stored = load(file, compare_model=False)
-    _warn_open(console, record)
+    _warn_open(record)
     console.print(report.run_table(record))
     console.print(report.steps_table(record))
     for renderable in report.analysis_renderables(result):
         console.print(renderable)
-    _computed_note(console, stored)
+    _computed_note(stored)
 
 
 @click.command()
@@ -94,12 +94,11 @@ def plot(file: Path, out: Path) -> None:
 
     if not out.parent.is_dir():
         raise InputError(f"-o {out}: the folder {out.parent} does not exist")
-    console = _console()
     record, result, stored = load(file)
-    _warn_open(console, record)
+    _warn_open(record)
     plot_run(result, out)
-    console.print(f"{out}: p-v and l-v of {file} ({len(result.repetitions)} repetitions)")
-    _computed_note(console, stored)
+    click.echo(f"{out}: p-v and l-v of {file} ({len(result.repetitions)} repetitions)")
+    _computed_note(stored)
 
 
 @click.command()
@@ -118,12 +117,11 @@ def export(file: Path, directory: Path) -> None:
 
     if directory.exists() and not directory.is_dir():
         raise InputError(f"--csv {directory}: exists and is not a folder")
-    console = _console()
     record, result, stored = load(file)
-    _warn_open(console, record)
+    _warn_open(record)
     written = export_csv(record, result, directory)
-    console.print(f"{directory}: {len(written)} CSV files from {file}")
-    _computed_note(console, stored)
+    click.echo(f"{directory}: {len(written)} CSV files from {file}")
+    _computed_note(stored)
 
 
 @click.command("compare")
@@ -154,7 +152,7 @@ def compare_command(
 
     console = _console()
     record, result, stored = load(file)
-    _warn_open(console, record)
+    _warn_open(record)
     if segments or library is not None or store or result.comparison is None:
         # the specimen's own segments unless others are named; a segment that cannot be
         # loaded is an error here, not a note
@@ -170,8 +168,8 @@ def compare_command(
     for renderable in report.comparison_tables(result):
         console.print(renderable)
     if store:
-        console.print(f"stored in {file} (/entry/analysis)")
-    _computed_note(console, stored)
+        click.echo(f"stored in {file} (/entry/analysis)")
+    _computed_note(stored)
 
 
 @click.command()
@@ -182,6 +180,5 @@ def recover(file: Path, no_analysis: bool) -> None:
     flag, mark the unfinished run aborted, and store its analysis."""
     from labrig.analysis.recovery import recover_run
 
-    console = _console()
     for line in recover_run(file, analyse=not no_analysis):
-        console.print(line)
+        click.echo(line)
