@@ -136,8 +136,11 @@ class InterlockMonitor:
                 self.trip(reason, interlock.outcome)
                 return
 
-    def check_pump(self, status: PumpStatus) -> None:
-        volume_ml = self.specimen_volume_ml(status)
+    def check_pump(self, status: PumpStatus, volume_ml: float | None = None) -> None:
+        """``volume_ml``: the specimen volume computed together with ``status`` (under
+        the caller's lock), since the offset may change once that lock is released."""
+        if volume_ml is None:
+            volume_ml = self.specimen_volume_ml(status)
         for interlock in self.interlocks:
             reason = interlock.check_pump(status, volume_ml)
             if reason:

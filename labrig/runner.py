@@ -54,6 +54,9 @@ class Rig:
     length: LengthSource | None
     config_text: str
     close: Callable[[], None] = lambda: None
+    # The simulated specimen and emulators behind the drivers, when simulated: the
+    # truth that tests and benchmarks compare the recorded data with.
+    simulation: object | None = None
 
 
 @dataclass(frozen=True)
@@ -82,8 +85,8 @@ class Timing:
     """Loop periods in clock seconds, with a floor in host seconds so a fast simulated
     clock cannot turn a loop into a busy spin."""
 
-    pressure_period_s: float = 0.05
-    pump_period_s: float = 0.1
+    pressure_period_s: float = 0.2
+    pump_period_s: float = 0.2
     progress_period_s: float = 0.5
     real_floor_s: float = 0.002
     max_marker_loss_s: float = 10.0
@@ -97,6 +100,7 @@ class _Latest:
     volume_ml: float = 0.0
     pump_state: PumpState = PumpState.IDLE
     pump_t_s: float = float("-inf")
+    pump_seq: int = -1
     pressure_blocks: int = 0
     lock: threading.Condition = field(default_factory=threading.Condition)
 
@@ -138,6 +142,10 @@ class Runner:
         self._t_start = 0.0
         self._step_label = "starting"
         self._repetition_started = False
+        self._motion_seq = 0
+        self._shutting_down = False
+        self._interrupts = 0
+        self._hurry = False
         self._marker_lost_since: float | None = None
         self._last_progress_s = float("-inf")
         self.shutdown_errors: list[str] = []
@@ -182,7 +190,7 @@ class Runner:
     def _execute(self) -> None:
         self._check_start(None)
         target_ml = 0.0
-        for location, step, repetition in iter_plan(self.protocol.steps):
+        for _, step, repetition in iter_plan(self.protocol.steps):
             if self.monitor.tripped:
                 return
             if isinstance(step, ZeroPressureStep):
@@ -192,14 +200,14 @@ class Runner:
             self._enter_repetition(repetition)
             if isinstance(step, InfuseStep):
                 target_ml += step.infuse.volume_ml
-                self._step_label = f"infuse {step.infuse.volume_ml:g} mL ({location})"
+                self._step_label = f"infuse {step.infuse.volume_ml:g} mL"
                 self._flow(+1, step.infuse.rate_ml_min, target_ml)
             elif isinstance(step, WithdrawStep):
                 target_ml -= step.withdraw.volume_ml
-                self._step_label = f"withdraw {step.withdraw.volume_ml:g} mL ({location})"
+                self._step_label = f"withdraw {step.withdraw.volume_ml:g} mL"
                 self._flow(-1, step.withdraw.rate_ml_min, target_ml)
             elif isinstance(step, HoldStep):
-                self._step_label = f"hold {step.hold.seconds:g} s ({location})"
+                self._step_label = f"hold {step.hold.seconds:g} s"
                 self._hold(step.hold.seconds)
         if not self.monitor.tripped:
             self._leave_repetition("complete")
@@ -237,26 +245,42 @@ class Runner:
         else:
             pump.set_withdraw_rate(rate_ml_min)
         pump.set_target_volume(remaining_ml)
-        started_s = self.clock.now()
         if self.monitor.tripped:
             return
         pump.infuse() if direction > 0 else pump.withdraw()
+        with self.latest.lock:
+            # only a status requested after this point may say the motion has ended
+            self._motion_seq += 1
+            seq = self._motion_seq
         expected_s = 60.0 * remaining_ml / rate_ml_min
-        deadline_s = started_s + 1.2 * expected_s + self.timing.target_grace_s
-        self._wait_until_pump_stops(started_s, deadline_s)
+        deadline_s = self.clock.now() + 1.2 * expected_s + self.timing.target_grace_s
+        if self._wait_until_pump_stops(seq, deadline_s):
+            self._check_arrival(target_ml)
 
-    def _wait_until_pump_stops(self, started_s: float, deadline_s: float) -> None:
+    def _wait_until_pump_stops(self, seq: int, deadline_s: float) -> bool:
+        """True once a status newer than the run command shows the motor stopped."""
         latest = self.latest
         while not self.monitor.tripped:
             with latest.lock:
-                done = latest.pump_t_s > started_s and latest.pump_state not in MOVING
-            if done:
-                return
+                if latest.pump_seq >= seq and latest.pump_state not in MOVING:
+                    return True
             if self.clock.now() > deadline_s:
                 self.monitor.trip("the pump did not reach its target volume in time", "faulted")
-                return
+                return False
             self._pause(self.timing.pump_period_s)
             self._report_progress()
+        return False
+
+    def _check_arrival(self, target_ml: float) -> None:
+        """A pump that stopped short of its target (stopped at the pump, a lost step)
+        is a fault: the following steps would start from the wrong volume."""
+        with self._volume_lock:
+            volume_ml = self.monitor.specimen_volume_ml(self.rig.pump.status())
+        if abs(volume_ml - target_ml) > 0.05 + 0.01 * abs(target_ml):
+            self.monitor.trip(
+                f"the pump stopped at {volume_ml:.3f} mL instead of {target_ml:.3f} mL",
+                "faulted",
+            )
 
     def _hold(self, seconds: float) -> None:
         end_s = self.clock.now() + seconds
@@ -314,7 +338,7 @@ class Runner:
     def _stop_acquisition(self) -> None:
         self._stop_loops.set()
         for thread in self._threads:
-            thread.join(timeout=5.0)
+            thread.join(timeout=0.1 if self._hurry else 5.0)
         self._threads = []
         if self._acquiring:
             self._acquiring = False
@@ -338,14 +362,17 @@ class Runner:
         self._device_loop("camera", period_s, self._read_length)
 
     def _device_loop(self, device: str, period_s: float, read_once: Callable[[], None]) -> None:
-        """Read one device every ``period_s``; a device error is a fault of the run."""
+        """Read one device every ``period_s`` (paced by deadlines, so a slow read does
+        not stretch the period); a device error is a fault of the run."""
+        next_s = self.clock.now()
         while not self._stop_loops.is_set():
             try:
                 read_once()
             except (DeviceError, OSError) as exc:
                 self.monitor.trip(f"{device}: {exc}", "faulted")
                 return
-            self._pause(period_s)
+            next_s = max(next_s + period_s, self.clock.now() - period_s)
+            self._pause(next_s - self.clock.now())
 
     def _read_pressure(self) -> None:
         block = self.rig.pressure.read()
@@ -362,6 +389,8 @@ class Runner:
             latest.lock.notify_all()
 
     def _read_pump(self) -> None:
+        with self.latest.lock:
+            seq = self._motion_seq
         with self._volume_lock:
             status = self.rig.pump.status()
             volume_ml = self.monitor.specimen_volume_ml(status)
@@ -373,12 +402,13 @@ class Runner:
             status.withdrawn_ml,
             status.state.value,
         )
-        self.monitor.check_pump(status)
+        self.monitor.check_pump(status, volume_ml)
         latest = self.latest
         with latest.lock:
             latest.volume_ml = volume_ml
             latest.pump_state = status.state
             latest.pump_t_s = status.t_s
+            latest.pump_seq = seq
             latest.lock.notify_all()
 
     def _read_length(self) -> None:
@@ -441,19 +471,35 @@ class Runner:
         self.on_progress(snapshot)
 
     def _install_sigint(self) -> Callable[[], None]:
+        """First Ctrl-C: stop safely, like any interlock. Second: stop now — leave the
+        step loop at once and do not wait for the acquisition threads (the pump is
+        still sent a stop). The handler does no I/O itself: it runs in the main thread,
+        which may be inside a driver call holding the port's lock."""
         if threading.current_thread() is not threading.main_thread():
             return lambda: None
         previous = signal.getsignal(signal.SIGINT)
 
         def handler(signum, frame):
-            if not self.monitor.trip("stopped by the operator (Ctrl-C)", "aborted"):
+            self._interrupts += 1
+            if self._interrupts == 1:
+                threading.Thread(
+                    target=self.monitor.trip,
+                    args=("stopped by the operator (Ctrl-C)", "aborted"),
+                    name="ctrl-c",
+                    daemon=True,
+                ).start()
+                return
+            self._hurry = True
+            if not self._shutting_down:
                 raise _StopNow()
 
         signal.signal(signal.SIGINT, handler)
         return lambda: signal.signal(signal.SIGINT, previous)
 
     def _shutdown(self, status: str, reason: str) -> None:
-        """The one exit: pump stopped first, loops stopped, file finalised."""
+        """The one exit: pump stopped first, loops stopped, file finalised. Once here,
+        a further Ctrl-C changes nothing: this is already the fastest way out."""
+        self._shutting_down = True
         try:
             self.rig.pump.stop()
         except (LabrigError, OSError) as exc:

@@ -24,10 +24,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from labrig.sim.plant import Plant
 from scipy.signal import find_peaks
 
 from labrig.model.library import load_segment
+from labrig.sim.plant import Plant
 from labrig.storage import RunWriter
 
 PUMP_PERIOD_S = 0.1

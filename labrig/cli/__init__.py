@@ -25,8 +25,11 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "model": ("labrig.cli.model", "model"),
     "plot": ("labrig.cli.review", "plot"),
     "protocol": ("labrig.cli.protocol", "protocol"),
+    "pump": ("labrig.cli.pump", "pump"),
     "recover": ("labrig.cli.review", "recover"),
+    "run": ("labrig.cli.run", "run"),
     "show": ("labrig.cli.review", "show"),
+    "track": ("labrig.cli.track", "track"),
 }
 
 

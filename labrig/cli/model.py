@@ -9,6 +9,7 @@ from labrig.cli import LazyGroup
 # name -> ("module", "attribute"), imported on first use.
 MODEL_COMMANDS: dict[str, tuple[str, str]] = {
     "curve": ("labrig.cli.model_curve", "curve"),
+    "path": ("labrig.cli.model_path", "path"),
 }
 
 

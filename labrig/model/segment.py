@@ -9,7 +9,13 @@ and the elastic energy (Eq. 1) is the exact antiderivative of the interpolant.
 
 Past the last sample the curve continues linearly with its end slope, so that a state a
 little beyond the table is still defined; segment sources sample far enough that an
-actuator never needs it in normal use.
+actuator never needs it in normal use. Below v = 0 it continues linearly with its initial
+slope (a segment drained below its unpressurised volume has a negative gauge pressure), so
+that a minimiser or a flow probing v < 0 sees a smooth, convex energy rather than a flat one.
+
+The actuator model works branch by branch: ``branches`` lists the monotone runs of p(v)
+and ``volume_on_branch`` inverts one of them (all volumes at which a segment has a given
+pressure, the paper's operational method, Fig. S5A).
 """
 
 from __future__ import annotations
@@ -27,6 +33,26 @@ class Extremum:
 
     v_ml: float
     p_kpa: float
+
+
+@dataclass(frozen=True)
+class Branch:
+    """One monotone run of p(v), samples ``first``..``last``.
+
+    ``p_lo_kpa``..``p_hi_kpa`` is the pressure range over which the branch can be
+    inverted. It is the range of its samples, except that the last branch extends to
+    +inf (rising) or -inf (falling) with the table's linear continuation, so that an
+    actuator can always be inflated further.
+    """
+
+    index: int
+    first: int
+    last: int
+    rising: bool
+    v_lo_ml: float
+    v_hi_ml: float
+    p_lo_kpa: float
+    p_hi_kpa: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -88,30 +114,39 @@ class SegmentCurve:
     def _end_slope_kpa_per_ml(self) -> float:
         return float(self._dp(self.v_max_ml))
 
+    @cached_property
+    def _start_slope_kpa_per_ml(self) -> float:
+        return float(self._dp(self.v_ml[0]))
+
     def pressure_kpa(self, v_ml):
-        """p(v) in kPa; linear past the table's end."""
+        """p(v) in kPa; linear past both ends of the table."""
         v = np.asarray(v_ml, dtype=float)
-        inside = np.clip(v, 0.0, self.v_max_ml)
+        inside = np.clip(v, self.v_ml[0], self.v_max_ml)
         p = self._p(inside)
         beyond = v - self.v_max_ml
-        return np.where(beyond > 0, self.p_kpa[-1] + self._end_slope_kpa_per_ml * beyond, p)
+        before = v - self.v_ml[0]
+        p = np.where(beyond > 0, self.p_kpa[-1] + self._end_slope_kpa_per_ml * beyond, p)
+        return np.where(before < 0, self.p_kpa[0] + self._start_slope_kpa_per_ml * before, p)
 
     def slope_kpa_per_ml(self, v_ml):
-        """dp/dv in kPa/mL (continuous: PCHIP is C1)."""
+        """dp/dv in kPa/mL (continuous: PCHIP is C1, and so are the linear ends)."""
         v = np.asarray(v_ml, dtype=float)
-        inside = np.clip(v, 0.0, self.v_max_ml)
-        return np.where(v > self.v_max_ml, self._end_slope_kpa_per_ml, self._dp(inside))
+        inside = np.clip(v, self.v_ml[0], self.v_max_ml)
+        k = np.where(v > self.v_max_ml, self._end_slope_kpa_per_ml, self._dp(inside))
+        return np.where(v < self.v_ml[0], self._start_slope_kpa_per_ml, k)
 
     def energy_mj(self, v_ml):
         """Stored elastic energy E(v) = integral of p dv from 0 (Eq. 1), in mJ
         (kPa x mL = mJ)."""
         v = np.asarray(v_ml, dtype=float)
-        inside = np.clip(v, 0.0, self.v_max_ml)
+        inside = np.clip(v, self.v_ml[0], self.v_max_ml)
         e = self._energy(inside)
         beyond = np.maximum(v - self.v_max_ml, 0.0)
         e_end = float(self._energy(self.v_max_ml))
         e_beyond = e_end + self.p_kpa[-1] * beyond + 0.5 * self._end_slope_kpa_per_ml * beyond**2
-        return np.where(v > self.v_max_ml, e_beyond, e)
+        before = np.minimum(v - self.v_ml[0], 0.0)
+        e_before = self.p_kpa[0] * before + 0.5 * self._start_slope_kpa_per_ml * before**2
+        return np.where(v > self.v_max_ml, e_beyond, np.where(v < self.v_ml[0], e_before, e))
 
     def length_mm(self, v_ml):
         """Segment length l(v) in mm; constant past the table's end."""
@@ -170,3 +205,119 @@ class SegmentCurve:
             if self.v_ml[first] >= peak.v_ml and last < len(self.v_ml) - 1:
                 return Extremum(float(self.v_ml[last]), float(self.p_kpa[last]))
         return None
+
+    @cached_property
+    def branches(self) -> tuple[Branch, ...]:
+        """The monotone branches with their volume and invertible pressure ranges."""
+        out = []
+        bounds = self.branch_bounds
+        for index, (first, last) in enumerate(bounds):
+            rising = bool(self.p_kpa[last] > self.p_kpa[first])
+            p_lo = float(min(self.p_kpa[first], self.p_kpa[last]))
+            p_hi = float(max(self.p_kpa[first], self.p_kpa[last]))
+            if index == len(bounds) - 1:
+                if rising and self._end_slope_kpa_per_ml > 0:
+                    p_hi = np.inf
+                elif not rising and self._end_slope_kpa_per_ml < 0:
+                    p_lo = -np.inf
+            out.append(
+                Branch(
+                    index,
+                    first,
+                    last,
+                    rising,
+                    float(self.v_ml[first]),
+                    float(self.v_ml[last]),
+                    p_lo,
+                    p_hi,
+                )
+            )
+        return tuple(out)
+
+    @cached_property
+    def peak_branch(self) -> int | None:
+        """Index of the branch that starts at the pressure peak (the first falling
+        branch), or None for a curve without a peak. A segment is "right of its peak"
+        when it is on this branch or a later one."""
+        peak = self.peak
+        if peak is None:
+            return None
+        return next(b.index for b in self.branches if b.v_lo_ml >= peak.v_ml)
+
+    def branch_of_volume(self, v_ml):
+        """Index of the branch a volume lies on; a shared end sample (an extremum)
+        belongs to the earlier branch."""
+        ends = np.array([b.v_hi_ml for b in self.branches[:-1]])
+        return np.searchsorted(ends, np.asarray(v_ml, dtype=float), side="left")
+
+    def volume_on_branch(self, branch: int, p_kpa) -> tuple[np.ndarray, np.ndarray]:
+        """Volumes (mL) and slopes dp/dv (kPa/mL) at which the segment has pressure
+        ``p_kpa`` on one monotone branch; NaN outside the branch's pressure range.
+
+        Vectorised over pressures. On a branch the PCHIP interpolant is a monotone cubic
+        between samples, so each pressure has one volume: the interval is found by
+        bisection of the samples, the cubic is solved by Newton's method kept inside the
+        interval by bisection. The result is exact to ~1e-13 of the sample spacing.
+        """
+        b = self.branches[branch]
+        p = np.atleast_1d(np.asarray(p_kpa, dtype=float))
+        v_out = np.full(p.shape, np.nan)
+        k_out = np.full(p.shape, np.nan)
+        inside = (p >= b.p_lo_kpa) & (p <= b.p_hi_kpa)
+        p_end = self.p_kpa[b.last]
+        # the linear continuation past the table's last sample
+        past = inside & ((p > p_end) if b.rising else (p < p_end)) & (b.last == len(self.v_ml) - 1)
+        if np.any(past):
+            slope = self._end_slope_kpa_per_ml
+            v_out[past] = self.v_max_ml + (p[past] - p_end) / slope
+            k_out[past] = slope
+        table = inside & ~past
+        if np.any(table):
+            v_out[table], k_out[table] = self._invert_on_samples(b, p[table])
+        if np.ndim(p_kpa) == 0:
+            return v_out[0], k_out[0]
+        return v_out, k_out
+
+    def _invert_on_samples(self, b: Branch, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Solve p(v) = p on the sampled part of branch ``b`` (vectorised)."""
+        samples = self.p_kpa[b.first : b.last + 1]
+        ascending = samples if b.rising else samples[::-1]
+        position = np.searchsorted(ascending, p, side="right") - 1
+        position = np.clip(position, 0, b.last - b.first - 1)
+        interval = b.first + position if b.rising else b.last - 1 - position
+        coef = self._p.c[:, interval]
+        x0 = self._p.x[interval]
+        h = self._p.x[interval + 1] - x0
+        rhs = p - coef[3]
+        lo = np.zeros_like(h)
+        hi = h.copy()
+        dp_sample = self.p_kpa[interval + 1] - self.p_kpa[interval]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(dp_sample != 0, (p - self.p_kpa[interval]) / dp_sample * h, 0.5 * h)
+        t = np.clip(t, 0.0, h)
+        sign = 1.0 if b.rising else -1.0
+        for _ in range(100):
+            f = ((coef[0] * t + coef[1]) * t + coef[2]) * t - rhs
+            too_far = sign * f > 0
+            hi = np.where(too_far, t, hi)
+            lo = np.where(too_far, lo, t)
+            d = (3 * coef[0] * t + 2 * coef[1]) * t + coef[2]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                step = np.where(d != 0, t - f / d, np.nan)
+            newton_ok = np.isfinite(step) & (step > lo) & (step < hi)
+            t_new = np.where(newton_ok, step, 0.5 * (lo + hi))
+            done = (np.abs(t_new - t) <= 1e-13 * h) | (f == 0)
+            t = np.where(f == 0, t, t_new)
+            if np.all(done):
+                break
+        slope = (3 * coef[0] * t + 2 * coef[1]) * t + coef[2]
+        # at an extremum the slope is 0 up to rounding: keep the branch's sign
+        slope = np.maximum(slope, 0.0) if b.rising else np.minimum(slope, 0.0)
+        return x0 + t, slope
+
+    def volumes_at_pressure(self, p_kpa) -> tuple[np.ndarray, np.ndarray]:
+        """All volumes with pressure ``p_kpa``, one column per branch (NaN where a branch
+        does not reach that pressure), and the slopes there: the paper's Fig. S5A."""
+        p = np.atleast_1d(np.asarray(p_kpa, dtype=float))
+        pairs = [self.volume_on_branch(b.index, p) for b in self.branches]
+        return np.stack([v for v, _ in pairs], axis=-1), np.stack([k for _, k in pairs], axis=-1)

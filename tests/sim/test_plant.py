@@ -6,10 +6,10 @@ import threading
 
 import numpy as np
 import pytest
-from labrig.sim.plant import Plant
 from scipy.optimize import brentq
 
 from labrig.model.segment import SegmentCurve
+from labrig.sim.plant import Plant
 
 V = np.linspace(0.0, 80.0, 1601)
 

@@ -1,0 +1,302 @@
+"""Two-marker tracker: sub-pixel marker centres in camera frames, identity kept.
+
+Thresholds and connected components only *find* each marker; its centre comes from
+intensity-weighted moments of the background-subtracted grey levels in a circular
+window around it, which uses the anti-aliased edge pixels a binary mask throws away
+(hardware.md 4.2: about 0.03 px against 0.1 px for a binary contour centroid).
+
+Per frame it looks only inside a window around each marker's last position and searches
+the whole frame only when a marker is lost, so tracking costs well under a millisecond
+per frame while the markers are held. A marker that is lost, or two that merged into
+one blob, give NaN and ``ok=False``: a wrong length is worse than none.
+
+Pixel coordinates follow OpenCV: the centre of pixel (column i, row j) is at (i, j).
+This module knows nothing of cameras, files or clocks (``labrig.drivers.camera``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from labrig.errors import InputError
+
+# A marker's blob is round: it fills about pi/4 of its bounding box, which is about square.
+_MIN_FILL = 0.55
+_MAX_ASPECT = 1.6
+# Two touching markers make one blob of about twice a marker's area.
+_MERGED_AREA = (1.3, 2.8)
+
+
+@dataclass(frozen=True)
+class MarkerFix:
+    """The two markers in one frame, in px. NaN and ``ok=False`` unless both were found;
+    ``status`` says why not: "lost", "merged" (one blob, or two too close to measure
+    apart) or "ambiguous" (more than two look-alike blobs)."""
+
+    x1_px: float
+    y1_px: float
+    x2_px: float
+    y2_px: float
+    ok: bool
+    status: str
+
+    @property
+    def distance_px(self) -> float:
+        return math.hypot(self.x2_px - self.x1_px, self.y2_px - self.y1_px)
+
+
+@dataclass(frozen=True)
+class _Blob:
+    x: float  # coarse centre (the blob's binary centroid), frame px
+    y: float
+    area_px: float
+    round: bool
+
+
+def _failed(status: str) -> MarkerFix:
+    nan = float("nan")
+    return MarkerFix(nan, nan, nan, nan, ok=False, status=status)
+
+
+class MarkerTracker:
+    """Tracks two markers from frame to frame.
+
+    By default the markers are dark round dots on a lighter specimen, found below an
+    automatic (Otsu) grey threshold; ``threshold`` fixes the grey level instead, and
+    ``hsv_range=((h, s, v), (h, s, v))`` finds coloured markers with ``cv2.inRange``
+    (OpenCV hue runs 0-179) and centres them on their saturation. ``max_step_px`` is the
+    farthest a marker may move between two frames and still be found near its last
+    position.
+    """
+
+    def __init__(
+        self,
+        *,
+        threshold: int | None = None,
+        hsv_range: tuple[tuple[int, int, int], tuple[int, int, int]] | None = None,
+        min_area_px: float = 12.0,
+        max_area_px: float = 40_000.0,
+        max_step_px: float = 24.0,
+        min_contrast: float = 20.0,
+    ) -> None:
+        if threshold is not None and not 0 < threshold < 255:
+            raise InputError(f"marker threshold: a grey level 1-254, got {threshold}")
+        if hsv_range is not None:
+            lo, hi = (np.asarray(b, dtype=np.uint8) for b in hsv_range)
+            if lo.shape != (3,) or hi.shape != (3,):
+                raise InputError("marker hsv_range: two (h, s, v) triples, h 0-179, s and v 0-255")
+            self._hsv = (lo, hi)
+        else:
+            self._hsv = None
+        if not 0 < min_area_px < max_area_px:
+            raise InputError("marker area limits: need 0 < min_area_px < max_area_px")
+        self.threshold = threshold
+        self.min_area_px = float(min_area_px)
+        self.max_area_px = float(max_area_px)
+        self.max_step_px = float(max_step_px)
+        self.min_contrast = float(min_contrast)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the last positions: the next frame is searched whole."""
+        self._last: np.ndarray | None = None  # (2, 2) last good centres, marker order
+        self._area_px: float | None = None  # a marker's blob area in the last good frame
+        self.full_searches = 0
+
+    # -- the public step -------------------------------------------------------------------
+
+    def track(self, frame: np.ndarray) -> MarkerFix:
+        """Find both markers in a BGR (or grey) frame; keeps their identity between calls."""
+        if frame is None or frame.ndim not in (2, 3) or frame.size == 0:
+            raise InputError("marker tracking: the frame is empty or not an image")
+        if self._hsv is not None and frame.ndim != 3:
+            raise InputError("marker tracking: colour markers (hsv_range) need colour frames")
+        if self._last is not None:
+            fix = self._track_near_last(frame)
+            if fix is not None:
+                return fix
+        self.full_searches += 1
+        blobs = self._blobs(frame, 0, 0, frame.shape[1], frame.shape[0])
+        return self._accept(frame, blobs, near=None)
+
+    # -- searching ---------------------------------------------------------------------------
+
+    def _window_half_px(self) -> int:
+        radius = math.sqrt((self._area_px or 100.0) / math.pi)
+        return math.ceil(2.0 * radius + self.max_step_px + 4)
+
+    def _track_near_last(self, frame: np.ndarray) -> MarkerFix | None:
+        """Search windows around the last positions; None when that is not enough."""
+        h, w = frame.shape[:2]
+        half = self._window_half_px()
+        boxes = []
+        for x, y in self._last:
+            x0, y0 = max(int(x) - half, 0), max(int(y) - half, 0)
+            x1, y1 = min(int(x) + half + 1, w), min(int(y) + half + 1, h)
+            if x0 < x1 and y0 < y1:
+                boxes.append([x0, y0, x1, y1])
+        if len(boxes) == 2 and _overlap(*boxes):
+            (ax0, ay0, ax1, ay1), (bx0, by0, bx1, by1) = boxes
+            boxes = [[min(ax0, bx0), min(ay0, by0), max(ax1, bx1), max(ay1, by1)]]
+        blobs = [b for box in boxes for b in self._blobs(frame, *box)]
+        fix = self._accept(frame, blobs, near=half)
+        # A merged pair is seen best near the last positions; a lost marker may have moved
+        # anywhere, so only that sends the tracker to the whole frame.
+        return None if fix.status == "lost" else fix
+
+    def _blobs(self, frame: np.ndarray, x0: int, y0: int, x1: int, y1: int) -> list[_Blob]:
+        """Candidate blobs inside a box, in frame coordinates."""
+        mask = self._mask(frame[y0:y1, x0:x1])
+        n, _, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        blobs = []
+        for i in range(1, n):
+            bw, bh, area = stats[i, 2:5]  # CC_STAT_WIDTH, CC_STAT_HEIGHT, CC_STAT_AREA
+            if not self.min_area_px <= area <= self.max_area_px:
+                continue
+            aspect = max(bw, bh) / max(min(bw, bh), 1)
+            is_round = area >= _MIN_FILL * bw * bh and aspect <= _MAX_ASPECT
+            cx, cy = centroids[i]
+            blobs.append(_Blob(x0 + cx, y0 + cy, float(area), bool(is_round)))
+        return blobs
+
+    def _mask(self, region: np.ndarray) -> np.ndarray:
+        if self._hsv is not None:
+            return cv2.inRange(cv2.cvtColor(region, cv2.COLOR_BGR2HSV), *self._hsv)
+        grey = _grey(region)
+        if self.threshold is not None:
+            return cv2.threshold(grey, self.threshold, 255, cv2.THRESH_BINARY_INV)[1]
+        _, mask = cv2.threshold(grey, 0, 255, cv2.THRESH_BINARY_INV | cv2.THRESH_OTSU)
+        # Otsu always splits, even a region of plain specimen: demand real contrast.
+        if float(np.max(grey)) - float(np.min(grey)) < self.min_contrast:
+            mask[:] = 0
+        return mask
+
+    # -- choosing and measuring -----------------------------------------------------------------
+
+    def _accept(self, frame: np.ndarray, blobs: list[_Blob], near: int | None) -> MarkerFix:
+        """Pick the two markers among the candidates, refine them, keep their identity."""
+        blobs = _unique(blobs)
+        markers = [b for b in blobs if b.round]
+        if self._area_px is not None:
+            markers = [
+                b for b in markers if 0.4 * self._area_px <= b.area_px <= 2.5 * self._area_px
+            ]
+        if near is not None:
+            markers = self._nearest_to_last(markers, near)
+        if len(markers) != 2:
+            if len(markers) > 2:
+                markers.sort(key=lambda b: b.area_px, reverse=True)
+                if markers[2].area_px > 0.5 * markers[1].area_px:
+                    return _failed("ambiguous")
+                markers = markers[:2]
+            else:
+                return _failed("merged" if self._has_merged(blobs) else "lost")
+        first, second = markers
+        apart_px = math.hypot(first.x - second.x, first.y - second.y)
+        if apart_px < _window_radius_px(first) + _window_radius_px(second):
+            # Each centre's window would hold part of the other marker and be pulled
+            # towards it: too close to measure apart is as good as merged.
+            return _failed("merged")
+        centres = np.array([self._refine(frame, b) for b in markers])
+        if not np.all(np.isfinite(centres)):
+            return _failed("lost")
+        centres = self._in_identity_order(centres)
+        self._last = centres
+        self._area_px = 0.5 * (markers[0].area_px + markers[1].area_px)
+        (x1, y1), (x2, y2) = centres
+        return MarkerFix(float(x1), float(y1), float(x2), float(y2), ok=True, status="ok")
+
+    def _nearest_to_last(self, markers: list[_Blob], near: int) -> list[_Blob]:
+        """For each last position the nearest candidate within ``near`` px, or nothing."""
+        chosen = []
+        for x, y in self._last:
+            if not markers:
+                break
+            best = min(markers, key=lambda b: math.hypot(b.x - x, b.y - y))
+            if math.hypot(best.x - x, best.y - y) <= near and best not in chosen:
+                chosen.append(best)
+        return chosen
+
+    def _has_merged(self, blobs: list[_Blob]) -> bool:
+        if self._area_px is None:
+            return False
+        lo, hi = _MERGED_AREA
+        return any(lo * self._area_px <= b.area_px <= hi * self._area_px for b in blobs)
+
+    def _in_identity_order(self, centres: np.ndarray) -> np.ndarray:
+        """Nearest neighbour to the last positions; the first time, left to right."""
+        if self._last is None:
+            order = np.lexsort((centres[:, 1], centres[:, 0]))
+            return centres[order]
+        straight = np.hypot(*(centres - self._last).T).sum()
+        swapped = np.hypot(*(centres[::-1] - self._last).T).sum()
+        return centres if straight <= swapped else centres[::-1]
+
+    def _refine(self, frame: np.ndarray, blob: _Blob) -> tuple[float, float]:
+        """Sub-pixel centre: intensity-weighted moments in a circular window.
+
+        The window is centred on the coarse centre, so zero-mean noise and any error in the
+        background level pull the result only towards that centre, by a tiny fraction;
+        the background is the median of a ring just outside the window.
+        """
+        h, w = frame.shape[:2]
+        r_in = _window_radius_px(blob)
+        r_out = r_in + 3.0
+        half = math.ceil(r_out)
+        cx, cy = round(blob.x), round(blob.y)
+        x0, y0, x1, y1 = cx - half, cy - half, cx + half + 1, cy + half + 1
+        if x0 < 0 or y0 < 0 or x1 > w or y1 > h:
+            return (float("nan"), float("nan"))  # cut by the frame edge: not measurable
+        signal = self._signal(frame[y0:y1, x0:x1])
+        yy, xx = np.ogrid[-half : half + 1, -half : half + 1]
+        r2 = xx * xx + yy * yy
+        inside = r2 <= r_in * r_in
+        background = float(np.median(signal[~inside & (r2 <= r_out * r_out)]))
+        weights = np.where(inside, signal - background, 0.0).astype(np.float32)
+        m = cv2.moments(weights)
+        if m["m00"] <= 0:
+            return (float("nan"), float("nan"))
+        return (x0 + m["m10"] / m["m00"], y0 + m["m01"] / m["m00"])
+
+    def _signal(self, patch: np.ndarray) -> np.ndarray:
+        """What makes a marker stand out, as float: darkness, or saturation for colour."""
+        if self._hsv is not None:
+            return cv2.cvtColor(patch, cv2.COLOR_BGR2HSV)[:, :, 1].astype(np.float32)
+        return 255.0 - _grey(patch).astype(np.float32)
+
+
+def _window_radius_px(blob: _Blob) -> float:
+    """The centroid window: the blob's radius plus room for its blurred edge."""
+    return math.sqrt(blob.area_px / math.pi) + 4.0
+
+
+def _grey(image: np.ndarray) -> np.ndarray:
+    return image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+
+
+def _overlap(a: list[int], b: list[int]) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+def _unique(blobs: list[_Blob]) -> list[_Blob]:
+    """Drop a blob seen twice (two search windows over the same marker)."""
+    kept: list[_Blob] = []
+    for b in blobs:
+        if all(math.hypot(b.x - k.x, b.y - k.y) > 1.0 for k in kept):
+            kept.append(b)
+    return kept
+
+
+def mm_per_px_from_reference(fix: MarkerFix, reference_distance_mm: float) -> float:
+    """The scale from a frame whose markers are a known distance apart."""
+    if not reference_distance_mm > 0:
+        raise InputError(f"reference distance: must be > 0 mm, got {reference_distance_mm}")
+    if not fix.ok or not fix.distance_px > 0:
+        raise InputError(
+            f"reference frame: both markers must be visible and apart (they were {fix.status})"
+        )
+    return reference_distance_mm / fix.distance_px

@@ -1,0 +1,291 @@
+"""MPX5100 pressure through an NI USB-6009: the labrig PressureSource on nidaqmx.
+
+One analog-input voltage channel on the sensor's output (and optionally a second on
+its supply, since the sensor is ratiometric), hardware-timed continuous acquisition,
+blocks read into numpy through the stream reader and converted to kPa by
+``labrig.drivers.mpx5100``.
+
+The transport is a parameter: ``task_factory`` makes the task (default
+``nidaqmx.Task``) and ``reader_factory`` wraps its ``in_stream`` (default
+``nidaqmx.stream_readers.AnalogMultiChannelReader``). ``labrig.sim.daq`` supplies both
+for a simulated rig; nothing else differs. nidaqmx is imported only when a task is
+made, so importing this module is cheap and works without it.
+
+Timestamps: the sample clock is the device's, so sample k of an acquisition is taken at
+t_start + k/rate. t_start is read on the shared clock around ``task.start()`` (the
+midpoint of the clock just before and just after the call): it is uncertain by half the
+call's duration, a few ms on USB, and that error is the same for every sample of the run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from labrig.clock import Clock
+from labrig.devices import PressureBlock
+from labrig.drivers import mpx5100
+from labrig.errors import DeviceError, InputError
+
+# DAQmx error codes the driver explains (nidaqmx.error_codes.DAQmxErrors).
+SAMPLES_NOT_YET_AVAILABLE = -200284  # read timeout
+OVERFLOW_CODES = {
+    -200279: "SAMPLES_NO_LONGER_AVAILABLE",  # the host buffer was overwritten
+    -200010: "INPUT_FIFO_OVERFLOW",  # the device's own FIFO
+    -200621: "onboard device memory overflow",
+}
+TERMINALS = ("RSE", "DIFF")
+
+
+class DaqNotInstalledError(DeviceError):
+    """The NI-DAQmx driver (the C library nidaqmx calls) is missing on this machine."""
+
+
+class DaqConfigError(DeviceError):
+    """The device refused the channel, terminal configuration, range or rate."""
+
+
+class DaqTimeoutError(DeviceError):
+    """No samples arrived within the read timeout (DAQmx -200284)."""
+
+
+class DaqOverflowError(DeviceError):
+    """Samples were overwritten before they were read: the data has a gap."""
+
+
+class DaqDeviceError(DeviceError):
+    """Any other error DAQmx reported."""
+
+
+def _daq_error() -> type[Exception]:
+    """nidaqmx's DaqError, imported on first use."""
+    from nidaqmx.errors import DaqError
+
+    return DaqError
+
+
+def _first_line(exc: Exception) -> str:
+    return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+
+
+class NiDaqPressure:
+    """An MPX5100 on a USB-6009 analog input, read as hardware-timed blocks in kPa.
+
+    ``terminal`` is "RSE" (ai0-ai7, ±10 V only on this device) or "DIFF" (ai0-ai3,
+    ±1 to ±20 V); it is always passed to DAQmx explicitly, with ``min_v``/``max_v``,
+    because DAQmx's default on the USB-6009 is differential. ``supply_channel``, when
+    given, measures the sensor's supply for the ratiometric conversion; otherwise
+    ``supply_v`` is assumed.
+    """
+
+    def __init__(
+        self,
+        clock: Clock,
+        channel: str = "Dev1/ai0",
+        *,
+        terminal: str = "RSE",
+        min_v: float = -10.0,
+        max_v: float = 10.0,
+        supply_channel: str | None = None,
+        supply_v: float = mpx5100.NOMINAL_SUPPLY_V,
+        rate_hz: float = 1000.0,
+        buffer_s: float = 10.0,
+        read_timeout_s: float = 2.0,
+        task_factory: Callable[[], Any] | None = None,
+        reader_factory: Callable[[Any], Any] | None = None,
+    ) -> None:
+        terminal = str(terminal).upper()
+        if terminal not in TERMINALS:
+            raise InputError(f"pressure terminal: must be RSE or DIFF, got {terminal!r}")
+        if not min_v < max_v:
+            raise InputError(f"pressure input range: min_v {min_v} must be below max_v {max_v}")
+        if not supply_v > 0:
+            raise InputError(f"pressure supply_v: must be > 0 V, got {supply_v}")
+        if not buffer_s > 0 or not read_timeout_s > 0:
+            raise InputError("pressure buffer_s and read_timeout_s must be > 0 s")
+        self.clock = clock
+        self.channels = [channel] if supply_channel is None else [channel, supply_channel]
+        self.terminal = terminal
+        self.min_v = float(min_v)
+        self.max_v = float(max_v)
+        self.supply_v = float(supply_v)
+        self.rate_hz = self._check_rate(rate_hz)
+        self.buffer_s = float(buffer_s)
+        self.read_timeout_s = float(read_timeout_s)
+        self.offset_kpa = 0.0
+        self._task_factory = task_factory
+        self._reader_factory = reader_factory
+        self._task: Any = None
+        self._reader: Any = None
+        self._t_start_s = 0.0
+        self._n_read = 0  # samples per channel read since the acquisition started
+        self._unread: list[np.ndarray] = []  # read by zero() during a run, for read()
+
+    # -- PressureSource ------------------------------------------------------------------
+
+    def zero(self, duration_s: float = 1.0) -> float:
+        """Average the next ``duration_s`` of readings, taken at atmospheric pressure, into
+        the offset every later reading subtracts; returns it in kPa.
+
+        Before ``start`` it runs its own short acquisition. During one it uses the running
+        stream and keeps those samples for the next ``read``, so the record has no gap.
+        """
+        if not duration_s > 0:
+            raise InputError(f"zero duration_s: must be > 0 s, got {duration_s}")
+        n = max(1, round(duration_s * self.rate_hz))
+        timeout_s = duration_s + self.read_timeout_s
+        if self._task is not None:
+            data = self._read_samples(n, timeout_s)
+            self._unread.append(data)
+        else:
+            self._open(self.rate_hz)
+            try:
+                data = self._read_samples(n, timeout_s)
+            finally:
+                self.stop()
+        p_raw_kpa, adc_flags = self._to_raw_kpa(data)
+        self.offset_kpa = mpx5100.zero_offset(p_raw_kpa, adc_flags).offset_kpa
+        return self.offset_kpa
+
+    def start(self, rate_hz: float | None = None) -> None:
+        """Start continuous acquisition at ``rate_hz`` (default: the configured rate)."""
+        if self._task is not None:
+            raise RuntimeError("acquisition already running: stop() it first")
+        if rate_hz is not None:
+            self.rate_hz = self._check_rate(rate_hz)
+        self._open(self.rate_hz)
+
+    def read(self) -> PressureBlock:
+        """Every sample acquired since the last read, timestamped on the shared clock."""
+        if self._task is None:
+            raise RuntimeError("read() needs a running acquisition: call start() first")
+        try:
+            n = self._task.in_stream.avail_samp_per_chan
+        except _daq_error() as exc:
+            raise self._translate(exc, "reading the number of available samples") from exc
+        blocks, self._unread = self._unread, []
+        if n > 0:
+            blocks.append(self._read_samples(n, timeout_s=self.read_timeout_s))
+        if not blocks:
+            return self._block(np.empty((len(self.channels), 0)))
+        return self._block(np.concatenate(blocks, axis=1))
+
+    def stop(self) -> None:
+        """Stop and release the task; safe to call at any time."""
+        task, self._task, self._reader = self._task, None, None
+        if task is None:
+            return
+        try:
+            task.stop()
+        except _daq_error() as exc:
+            raise self._translate(exc, "stopping the acquisition") from exc
+        finally:
+            task.close()
+
+    # -- internals -----------------------------------------------------------------------
+
+    @staticmethod
+    def _check_rate(rate_hz: float) -> float:
+        if not rate_hz > 0:
+            raise InputError(f"pressure rate_hz: must be > 0 S/s, got {rate_hz}")
+        return float(rate_hz)
+
+    def _open(self, rate_hz: float) -> None:
+        """Make, configure and start the task; every DAQmx error becomes a DeviceError."""
+        import nidaqmx
+        from nidaqmx.constants import AcquisitionType, TerminalConfiguration
+        from nidaqmx.errors import DaqError, DaqNotFoundError, DaqNotSupportedError
+        from nidaqmx.stream_readers import AnalogMultiChannelReader
+
+        task_factory = self._task_factory or nidaqmx.Task
+        reader_factory = self._reader_factory or AnalogMultiChannelReader
+        try:
+            task = task_factory()
+        except (DaqNotFoundError, DaqNotSupportedError) as exc:
+            raise DaqNotInstalledError(
+                f"NI-DAQmx is not available ({_first_line(exc)}); install it with "
+                "`python -m nidaqmx installdriver`, or run without hardware with --sim"
+            ) from exc
+        started = False
+        try:
+            for channel in self.channels:
+                task.ai_channels.add_ai_voltage_chan(
+                    channel,
+                    terminal_config=TerminalConfiguration[self.terminal],
+                    min_val=self.min_v,
+                    max_val=self.max_v,
+                )
+            task.timing.cfg_samp_clk_timing(
+                rate_hz,
+                sample_mode=AcquisitionType.CONTINUOUS,
+                samps_per_chan=max(2, round(rate_hz * self.buffer_s)),
+            )
+            reader = reader_factory(task.in_stream)
+            before_s = self.clock.now()
+            task.start()
+            after_s = self.clock.now()
+            started = True
+        except DaqError as exc:
+            raise self._translate(exc, "configuring the acquisition", rate_hz) from exc
+        finally:
+            if not started:
+                task.close()
+        self._task, self._reader = task, reader
+        self._t_start_s = 0.5 * (before_s + after_s)
+        self._n_read = 0
+        self._unread = []
+
+    def _read_samples(self, n: int, timeout_s: float) -> np.ndarray:
+        """The next n samples per channel (channels x n volts), counted in ``_n_read``."""
+        data = np.empty((len(self.channels), n))
+        try:
+            n_got = self._reader.read_many_sample(
+                data, number_of_samples_per_channel=n, timeout=timeout_s
+            )
+        except _daq_error() as exc:
+            raise self._translate(exc, "reading samples") from exc
+        data = data[:, :n_got]
+        self._n_read += n_got
+        return data
+
+    def _to_raw_kpa(self, data: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Un-zeroed pressure from the volts, and where any channel was beyond the ADC."""
+        v_supply = data[1] if len(self.channels) == 2 else self.supply_v
+        adc_flags = np.any(mpx5100.beyond_adc_range(data, self.min_v, self.max_v), axis=0)
+        return mpx5100.pressure_kpa(data[0], v_supply), adc_flags
+
+    def _block(self, data: np.ndarray) -> PressureBlock:
+        n = data.shape[1]
+        k = np.arange(self._n_read - n, self._n_read)
+        p_raw_kpa, adc_flags = self._to_raw_kpa(data)
+        p_kpa = p_raw_kpa - self.offset_kpa
+        return PressureBlock(
+            t_s=self._t_start_s + k / self.rate_hz,
+            pressure_kpa=p_kpa,
+            out_of_range=adc_flags | mpx5100.beyond_sensor_range(p_kpa),
+        )
+
+    def _translate(self, exc: Exception, doing: str, rate_hz: float | None = None) -> DeviceError:
+        """A DAQmx error as a DeviceError that says what happened and what to do."""
+        code = exc.error_code
+        what = f"DAQmx error {code} while {doing}: {_first_line(exc)}"
+        if code == SAMPLES_NOT_YET_AVAILABLE:
+            return DaqTimeoutError(
+                f"{what}; no samples within {self.read_timeout_s:g} s: check the USB cable "
+                "and that no other program uses the device"
+            )
+        if code in OVERFLOW_CODES:
+            return DaqOverflowError(
+                f"{what}; samples were lost because they were not read in time: read more "
+                "often or enlarge buffer_s, then restart the acquisition"
+            )
+        if rate_hz is not None:
+            return DaqConfigError(
+                f"{what}; asked for {', '.join(self.channels)} in {self.terminal} at "
+                f"{self.min_v:g} to {self.max_v:g} V, {rate_hz:g} S/s: a USB-6009 takes "
+                "ai0-ai7 in RSE (±10 V only) or ai0-ai3 in DIFF (±1 to ±20 V), at most "
+                "48 kS/s in total"
+            )
+        return DaqDeviceError(what)

@@ -1,0 +1,509 @@
+"""Harvard Apparatus PHD ULTRA syringe pump over serial: the rig's only actuator.
+
+The driver implements ``labrig.devices.Pump`` in mL, mL/min and mm. It does exactly
+what it is told and checks that it happened: every setting is read back, every run
+command must show the matching prompt, every reply is parsed as value + unit and
+converted, and the pump's error texts become typed exceptions
+(``phd_ultra_errors``). The framing rules themselves are pure functions in
+``phd_ultra_protocol``; this module owns the port, the lock and the clocks.
+
+Safety rules, from the traps in hardware.md 1.2 and 1.6:
+
+- No call hangs: each reply has a deadline (``timeout_s``), the port is read in short
+  slices, a lost port raises ``PumpDisconnected`` at once.
+- ``stop()`` is safe from any thread at any time: one lock per port, and a pending stop
+  goes before any queued command, so it waits at most for the one reply in flight.
+- A reply that never came or could not be read leaves the pump's state unknown, so the
+  driver sends a stop before raising and says in the message whether it worked.
+- Bytes that arrive with no command pending (the unsolicited target-reached prompt,
+  line noise, the late reply of a timed-out command) are discarded before each command;
+  after a timeout the driver first waits one more deadline for the late reply.
+- Stalls send nothing by themselves: ``status()`` reports them and
+  ``wait_until_stopped()`` polls for them.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import threading
+import time
+from dataclasses import dataclass
+
+import serial
+
+from labrig.clock import Clock, RealClock
+from labrig.devices import PumpState, PumpStatus
+
+from .phd_ultra_errors import (
+    PumpCommandError,
+    PumpDisconnected,
+    PumpError,
+    PumpLimitError,
+    PumpPortError,
+    PumpProtocolError,
+    PumpStalled,
+    PumpTimeout,
+)
+from .phd_ultra_protocol import (
+    ADDRESS_FORMS,
+    Reply,
+    StatusLine,
+    check_refusal,
+    format_rate,
+    format_volume,
+    frame_command,
+    parse_diameter_mm,
+    parse_rate_limits,
+    parse_rate_ml_min,
+    parse_reply,
+    parse_status_line,
+    parse_target_ml,
+    parse_volume_ml,
+    prompts_in,
+)
+
+log = logging.getLogger(__name__)
+
+DEFAULT_BAUD = 115200
+# How long one read of the port may block: short, so a reply's deadline is honoured
+# within this much and a closing port is noticed quickly.
+READ_SLICE_S = 0.02
+# NVRAM writes off, in the order of the evidence: chembot on a real PHD ULTRA, then the
+# Pico Plus / Legato drivers of the same command family (hardware.md 1.3).
+NVRAM_OFF_COMMANDS = ("nvram off", "nvram none")
+# Readbacks agree with what was sent to within the 4-decimal formatting.
+READBACK_REL_TOL = 1e-3
+_RUNNING = (PumpState.INFUSING, PumpState.WITHDRAWING)
+
+
+@dataclass(frozen=True)
+class Syringe:
+    diameter_mm: float
+    volume_ml: float
+
+
+@dataclass(frozen=True)
+class RateLimits:
+    """What the pump accepts for the current syringe (``irate lim`` / ``wrate lim``)."""
+
+    infuse_ml_min: tuple[float, float]
+    withdraw_ml_min: tuple[float, float]
+
+
+class PhdUltra:
+    """A PHD ULTRA on a pyserial port (or any object with pyserial's read/write API).
+
+    Use ``PhdUltra.open(port)`` for a real port or URL; the constructor takes an already
+    open transport and sends nothing until ``connect()``.
+    """
+
+    def __init__(
+        self,
+        transport,
+        *,
+        address: int = 0,
+        address_form: str = "digits",
+        clock: Clock | None = None,
+        timeout_s: float = 0.5,
+        port_name: str | None = None,
+    ) -> None:
+        if not 0 <= address <= 99:
+            raise ValueError(f"pump address must be 0-99, got {address}")
+        if address_form not in ADDRESS_FORMS:
+            raise ValueError(f"address_form must be one of {ADDRESS_FORMS}, got {address_form!r}")
+        self.address = address
+        self.address_form = address_form
+        self.clock = clock or RealClock()
+        self.timeout_s = timeout_s
+        self.port_name = port_name or str(getattr(transport, "port", "the serial port"))
+        self.firmware = ""
+        self.syringe: Syringe | None = None
+        self._transport = transport
+        self._limits: RateLimits | None = None
+        self._lost: Exception | None = None
+        self._resync_due = False
+        self._io_lock = threading.Lock()
+        # Set while no stop is waiting: ordinary commands wait on it, so a stop never
+        # queues behind a stream of status polls.
+        self._no_stop_pending = threading.Event()
+        self._no_stop_pending.set()
+        self._stops_waiting = 0
+        self._stops_lock = threading.Lock()
+
+    # ---- opening and closing -------------------------------------------------------
+
+    @classmethod
+    def open(
+        cls,
+        port: str,
+        *,
+        baudrate: int = DEFAULT_BAUD,
+        address: int = 0,
+        address_form: str = "digits",
+        exclusive: bool = True,
+        clock: Clock | None = None,
+        timeout_s: float = 0.5,
+    ) -> PhdUltra:
+        """Open ``port`` (a device path or a pyserial URL) at 8N1, no flow control, and
+        connect. ``exclusive`` locks the port so a second program gets a clear error."""
+        try:
+            transport = serial.serial_for_url(
+                port,
+                baudrate=baudrate,
+                bytesize=serial.EIGHTBITS,
+                parity=serial.PARITY_NONE,
+                stopbits=serial.STOPBITS_ONE,
+                timeout=READ_SLICE_S,
+                write_timeout=timeout_s,
+                exclusive=exclusive,
+            )
+        except (serial.SerialException, ValueError, OSError) as exc:
+            if "exclusively lock" in str(exc):
+                raise PumpPortError(
+                    f"cannot open {port}: another program (another labrig?) is using it; "
+                    "close that one first"
+                ) from exc
+            raise PumpPortError(f"cannot open {port}: {exc}") from exc
+        pump = cls(
+            transport,
+            address=address,
+            address_form=address_form,
+            clock=clock,
+            timeout_s=timeout_s,
+            port_name=port,
+        )
+        try:
+            pump.connect()
+        except BaseException:
+            transport.close()
+            raise
+        return pump
+
+    def connect(self) -> None:
+        """Identify the pump, switch off NVRAM writes, read the syringe settings."""
+        self.firmware = self.identify()
+        self._switch_off_nvram()
+        self.syringe = self.read_syringe()
+        log.info("connected to %s at address %d on %s", self.firmware, self.address, self.port_name)
+
+    def close(self) -> None:
+        """Release the port. The pump keeps doing what it was doing."""
+        with self._io_lock:
+            self._transport.close()
+
+    def __enter__(self) -> PhdUltra:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+    # ---- identity and syringe ------------------------------------------------------
+
+    def identify(self) -> str:
+        """The short firmware string, e.g. ``'PHD ULTRA 3.0.5'``."""
+        return self._query("ver").text
+
+    def version_details(self) -> tuple[str, ...]:
+        """The long version: firmware, pump address, serial number (one per line)."""
+        return self._query("version").lines
+
+    def _switch_off_nvram(self) -> None:
+        refusals = []
+        for command in NVRAM_OFF_COMMANDS:
+            try:
+                self._command(command)
+                return
+            except PumpCommandError as exc:
+                refusals.append(f"{command!r}: {exc.pump_text}")
+        raise PumpCommandError(
+            " / ".join(NVRAM_OFF_COMMANDS),
+            "no way to switch off NVRAM writes was accepted (" + "; ".join(refusals) + ")",
+        )
+
+    def read_syringe(self) -> Syringe:
+        return Syringe(
+            diameter_mm=parse_diameter_mm(self._query("diameter").text),
+            volume_ml=parse_volume_ml(self._query("svolume").text),
+        )
+
+    def configure_syringe(self, diameter_mm: float, volume_ml: float) -> None:
+        """Set the syringe's inner diameter and nominal volume; the rate limits follow."""
+        self._limits = None
+        self._command(f"diameter {diameter_mm:.4f}")
+        self._command(f"svolume {format_volume(volume_ml, smallest='ul')}")
+        self.syringe = self.read_syringe()
+        self._verify("diameter", self.syringe.diameter_mm, diameter_mm, "mm")
+        self._verify("syringe volume", self.syringe.volume_ml, volume_ml, "mL")
+
+    def rate_limits(self) -> RateLimits:
+        """The rate range the pump accepts for the current syringe (asked once per syringe)."""
+        if self._limits is None:
+            self._limits = RateLimits(
+                infuse_ml_min=parse_rate_limits(self._query("irate lim").text),
+                withdraw_ml_min=parse_rate_limits(self._query("wrate lim").text),
+            )
+        return self._limits
+
+    # ---- rates, target, volumes ----------------------------------------------------
+
+    def set_infuse_rate(self, rate_ml_min: float) -> None:
+        self._set_rate("irate", "infuse", rate_ml_min, self.rate_limits().infuse_ml_min)
+
+    def set_withdraw_rate(self, rate_ml_min: float) -> None:
+        self._set_rate("wrate", "withdraw", rate_ml_min, self.rate_limits().withdraw_ml_min)
+
+    def _set_rate(self, command: str, name: str, rate_ml_min: float, limits) -> None:
+        low, high = limits
+        if not (math.isfinite(rate_ml_min) and low <= rate_ml_min <= high):
+            raise PumpLimitError(
+                f"{name} rate {rate_ml_min:g} mL/min is outside this syringe's limits "
+                f"{low:.6g} to {high:.6g} mL/min ({command} lim); nothing was sent"
+            )
+        self._command(f"{command} {format_rate(rate_ml_min)}")
+        self._verify(f"{name} rate", self._read_rate(command), rate_ml_min, "mL/min")
+
+    def _read_rate(self, command: str) -> float:
+        return parse_rate_ml_min(self._query(command).text)
+
+    def infuse_rate_ml_min(self) -> float:
+        return self._read_rate("irate")
+
+    def withdraw_rate_ml_min(self) -> float:
+        return self._read_rate("wrate")
+
+    def set_target_volume(self, volume_ml: float) -> None:
+        if not (math.isfinite(volume_ml) and volume_ml > 0):
+            raise PumpLimitError(f"target volume must be > 0 mL, got {volume_ml:g}")
+        self._command(f"tvolume {format_volume(volume_ml)}")
+        self._verify("target volume", self.target_volume_ml(), volume_ml, "mL")
+
+    def target_volume_ml(self) -> float | None:
+        """The target volume, or None when none is set."""
+        return parse_target_ml(self._query("tvolume").text)
+
+    def clear_volumes(self) -> None:
+        """Zero the infused and withdrawn counters and clear the target."""
+        self._command("cvolume")
+        self._command("ctvolume")
+
+    def volumes_ml(self) -> tuple[float, float]:
+        """(infused, withdrawn) since the last clear."""
+        return (
+            parse_volume_ml(self._query("ivolume").text),
+            parse_volume_ml(self._query("wvolume").text),
+        )
+
+    def _verify(self, what: str, got: float | None, wanted: float, unit: str) -> None:
+        if got is None or not math.isclose(got, wanted, rel_tol=READBACK_REL_TOL):
+            raise PumpError(f"the pump reports {what} {got} {unit} after being set to {wanted:g}")
+
+    # ---- running -------------------------------------------------------------------
+
+    def infuse(self) -> None:
+        """Start infusing at the set infuse rate (until the target, if one is set)."""
+        self._run("irun", PumpState.INFUSING)
+
+    def withdraw(self) -> None:
+        """Start withdrawing at the set withdraw rate (until the target, if one is set)."""
+        self._run("wrun", PumpState.WITHDRAWING)
+
+    def _run(self, command: str, running: PumpState) -> None:
+        state = self._command(command).state
+        # A target already met is a run that ended at once, not a failure.
+        if state not in (running, PumpState.TARGET_REACHED):
+            raise PumpError(f"the pump did not start after {command!r}: it reports {state.value}")
+
+    def stop(self) -> None:
+        """Stop the motor (and silence a target or stall alarm). Safe from any thread."""
+        with self._stop_first(), self._io_lock:
+            state = self._exchange_locked("stop", expect_payload=False, stop_on_fault=False).state
+        if state in _RUNNING:
+            raise PumpError(f"the pump still reports {state.value} after 'stop'")
+
+    @contextlib.contextmanager
+    def _stop_first(self):
+        with self._stops_lock:
+            self._stops_waiting += 1
+            self._no_stop_pending.clear()
+        try:
+            yield
+        finally:
+            with self._stops_lock:
+                self._stops_waiting -= 1
+                if self._stops_waiting == 0:
+                    self._no_stop_pending.set()
+
+    # ---- state ---------------------------------------------------------------------
+
+    def read_status_line(self) -> tuple[StatusLine, PumpState]:
+        """The raw ``status`` line and the state from its prompt."""
+        reply = self._query("status")
+        return parse_status_line(reply.lines[-1]), reply.state
+
+    def status(self) -> PumpStatus:
+        """State (prompt and status flags) and volumes, stamped on the clock at the
+        middle of the query of the counter that is moving: the other one is constant,
+        so that is the moment the net volume describes (a stamp across both queries
+        would be late by a quarter of the exchange time, which a fast simulated clock
+        turns into hundredths of a mL)."""
+        line, prompt_state = self.read_status_line()
+        state = _state(line, prompt_state)
+        t0_s = self.clock.now()
+        infused_ml = parse_volume_ml(self._query("ivolume").text)
+        t1_s = self.clock.now()
+        withdrawn_ml = parse_volume_ml(self._query("wvolume").text)
+        t2_s = self.clock.now()
+        moving_query = (t1_s, t2_s) if state is PumpState.WITHDRAWING else (t0_s, t1_s)
+        return PumpStatus(
+            t_s=0.5 * sum(moving_query),
+            state=state,
+            infused_ml=infused_ml,
+            withdrawn_ml=withdrawn_ml,
+        )
+
+    def wait_until_stopped(
+        self, *, poll_s: float = 1.0, timeout_s: float | None = None, on_status=None
+    ) -> PumpStatus:
+        """Poll ``status()`` every ``poll_s`` (clock time) until the motor stops; return
+        the last status. Raises PumpStalled on a stall, PumpTimeout after ``timeout_s``.
+        ``on_status`` sees every status (for progress output)."""
+        start_s = self.clock.now()
+        while True:
+            status = self.status()
+            if on_status is not None:
+                on_status(status)
+            if status.state is PumpState.STALLED:
+                raise PumpStalled(
+                    f"the pump stalled (load above its force limit) at {status.infused_ml:.4f} mL "
+                    f"infused, {status.withdrawn_ml:.4f} mL withdrawn; 'stop' clears the alarm"
+                )
+            if status.state not in _RUNNING:
+                return status
+            if timeout_s is not None and self.clock.now() - start_s > timeout_s:
+                raise PumpTimeout(f"the pump is still {status.state.value} after {timeout_s:g} s")
+            self.clock.sleep(poll_s)
+
+    # ---- the exchange --------------------------------------------------------------
+
+    def _query(self, command: str) -> Reply:
+        return self._exchange(command, expect_payload=True)
+
+    def _command(self, command: str) -> Reply:
+        return self._exchange(command, expect_payload=False)
+
+    def _exchange(self, command: str, *, expect_payload: bool) -> Reply:
+        self._no_stop_pending.wait()
+        with self._io_lock:
+            return self._exchange_locked(command, expect_payload=expect_payload, stop_on_fault=True)
+
+    def _exchange_locked(self, command: str, *, expect_payload: bool, stop_on_fault: bool) -> Reply:
+        try:
+            reply = self._transfer(command, expect_payload)
+            check_refusal(reply, command)  # a clean refusal: the pump's state is known
+            if not expect_payload and reply.lines:
+                raise PumpProtocolError(f"unexpected reply to {command!r}: {reply.text!r}")
+        except (PumpTimeout, PumpProtocolError) as exc:
+            if not stop_on_fault:
+                raise
+            raise type(exc)(f"{exc}; {self._stop_after_fault()}") from exc
+        return reply
+
+    def _stop_after_fault(self) -> str:
+        try:
+            state = self._transfer("stop", expect_payload=False).state
+        except PumpDisconnected:
+            raise
+        except PumpTimeout:
+            return "the stop sent afterwards got no reply either: the pump may still be running"
+        except PumpError as exc:
+            return f"the stop sent afterwards failed too ({exc}): the pump may still be running"
+        if state in _RUNNING:
+            return f"the pump still reports {state.value} after a stop"
+        return "the pump was stopped"
+
+    def _transfer(self, command: str, expect_payload: bool) -> Reply:
+        """Send one command and read its reply (io lock held)."""
+        if self._lost is not None:
+            raise PumpDisconnected(f"the port {self.port_name} was lost earlier ({self._lost})")
+        if self._resync_due:
+            self._discard_for(self.timeout_s)
+            self._resync_due = False
+        self._discard_pending()
+        self._write(frame_command(command, address=self.address, address_form=self.address_form))
+        deadline = time.monotonic() + self.timeout_s
+        raw = b""
+        while True:
+            chunk = self._read_some()
+            if chunk:
+                raw += chunk
+                reply = parse_reply(raw, expect_payload=expect_payload, command=command)
+                if reply is not None:
+                    break
+            if time.monotonic() > deadline:
+                self._resync_due = True
+                got = f"got only {raw!r}" if raw else "check the address, baud rate and cable"
+                raise PumpTimeout(
+                    f"no complete reply from the pump at address {self.address} on "
+                    f"{self.port_name} to {command!r} within {self.timeout_s:g} s ({got})"
+                )
+        if reply.address is not None and reply.address != self.address:
+            raise PumpProtocolError(
+                f"the reply to {command!r} came from pump address {reply.address}, "
+                f"not {self.address}: check the address"
+            )
+        return reply
+
+    def _write(self, data: bytes) -> None:
+        try:
+            self._transport.write(data)
+        except serial.SerialTimeoutException as exc:
+            raise PumpTimeout(
+                f"could not send to {self.port_name} within {self.timeout_s:g} s"
+            ) from exc
+        except (serial.SerialException, OSError) as exc:
+            raise self._disconnected(exc) from exc
+
+    def _read_some(self) -> bytes:
+        try:
+            return self._transport.read(self._transport.in_waiting or 1)
+        except (serial.SerialException, OSError) as exc:
+            raise self._disconnected(exc) from exc
+
+    def _disconnected(self, exc: Exception) -> PumpDisconnected:
+        self._lost = exc
+        return PumpDisconnected(
+            f"lost the serial port {self.port_name} ({exc}); the pump may still be running: "
+            "press Stop on the pump"
+        )
+
+    def _discard_pending(self) -> None:
+        try:
+            waiting = self._transport.in_waiting
+            stray = self._transport.read(waiting) if waiting else b""
+        except (serial.SerialException, OSError) as exc:
+            raise self._disconnected(exc) from exc
+        if stray:
+            log.debug("discarded %r (prompts %s) before the next command", stray, prompts_in(stray))
+
+    def _discard_for(self, seconds: float) -> None:
+        """Read and drop everything for ``seconds``: the late reply of a timed-out command."""
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            if stray := self._read_some():
+                log.debug("discarded late bytes %r", stray)
+
+
+def _state(line: StatusLine, prompt_state: PumpState) -> PumpState:
+    """One state from the prompt and the status flags: a stall wins, then motion, then
+    the target flag (some firmware keeps a plain prompt after the target)."""
+    if line.stalled or prompt_state is PumpState.STALLED:
+        return PumpState.STALLED
+    if prompt_state in _RUNNING:
+        return prompt_state
+    if line.running:
+        return PumpState.INFUSING if line.direction == "i" else PumpState.WITHDRAWING
+    if prompt_state is PumpState.TARGET_REACHED or line.target_reached:
+        return PumpState.TARGET_REACHED
+    return PumpState.IDLE

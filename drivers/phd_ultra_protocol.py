@@ -1,0 +1,295 @@
+"""The PHD ULTRA's serial language as pure functions: how a command is framed, when a
+reply is complete, what its prompt means, and how each reply reads as a value in mL,
+mL/min or mm.
+
+Nothing here touches a port, so every rule is checked with message tables; the port,
+the lock and the timeouts live in ``phd_ultra.py``. The framing is the tolerant reading
+of hardware.md 1.1–1.2, because it varies between firmware versions:
+
+- a reply is ``LF payload CR`` lines, then ``LF prompt`` (no CR after the prompt);
+- the prompt is ``T?[:<>*]`` with an optional 1–2 digit address in front (bare at
+  address 0 on a PHD ULTRA, ``01:`` elsewhere);
+- some firmware repeats the prompt with its address at the start of each payload line
+  (``00:15.3 ml/min``), and a stray ``T*`` can leak into a line: both are dropped;
+- older firmware sends the ``status`` line after the prompt instead of before it;
+- anything before the first LF (an echo, a CR left from an earlier reply) is ignored.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from labrig.devices import PumpState
+
+from .phd_ultra_errors import (
+    PumpArgumentError,
+    PumpCommandError,
+    PumpProtocolError,
+    PumpRangeError,
+    PumpUnknownCommand,
+)
+
+# chembot drives a real PHD ULTRA with CR alone; a CR LF pair risks being read as two
+# lines (a command and an empty one) by firmware that ends a line at either byte.
+TERMINATOR = b"\r"
+
+ADDRESS_FORMS = ("digits", "colon", "none")
+
+_PROMPT = re.compile(r"^(?P<address>\d{1,2})?(?P<prompt>T?[:<>*])$")
+# A target prompt leaked into the start of a payload line (flowchem's observation).
+_LEAKED_TARGET = re.compile(r"^\d{0,2}T[:*]")
+_PROMPT_STATES = {
+    ":": PumpState.IDLE,
+    ">": PumpState.INFUSING,
+    "<": PumpState.WITHDRAWING,
+    "*": PumpState.STALLED,
+}
+
+# Unit factors: volumes to mL, time units to minutes.
+_VOLUME_ML = {"ml": 1.0, "ul": 1e-3, "µl": 1e-3, "nl": 1e-6, "pl": 1e-9}
+_TIME_MIN = {"min": 1.0, "hr": 60.0, "h": 60.0, "s": 1 / 60, "sec": 1 / 60}
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_QUANTITY = re.compile(rf"^\s*(?P<value>{_NUMBER})\s*(?P<unit>[^\s\d]\S*)\s*$")
+
+# The pump's refusals, most specific first: "Out of range" comes as the detail line of
+# an "Argument error", "Unknown command" as the detail of a "Command error".
+_REFUSALS: tuple[tuple[str, type[PumpCommandError]], ...] = (
+    ("out of range", PumpRangeError),
+    ("range error", PumpRangeError),
+    ("unknown command", PumpUnknownCommand),
+    ("argument error", PumpArgumentError),
+    ("command error", PumpCommandError),
+)
+
+FL_PER_ML = 1e12
+
+# Rate limits scale with the plunger area (the lead screw's speed range is fixed). The
+# reference pair is the `irate lim` reply chembot quotes from a real PHD ULTRA with its
+# 9.525 mm syringe.
+REFERENCE_DIAMETER_MM = 9.525
+REFERENCE_RATE_LIMITS_ML_MIN = (14.7792e-6, 15.3477)
+
+
+def rate_limits_ml_min(diameter_mm: float) -> tuple[float, float]:
+    """(min, max) rate a PHD ULTRA drives a syringe of this inner diameter at, in mL/min.
+
+    The emulator answers ``irate lim`` with it, and protocols are checked against it
+    before a run; on the bench the driver checks again against the pump's own answer.
+    """
+    scale = (diameter_mm / REFERENCE_DIAMETER_MM) ** 2
+    low, high = REFERENCE_RATE_LIMITS_ML_MIN
+    return low * scale, high * scale
+
+
+def frame_command(command: str, *, address: int, address_form: str = "digits") -> bytes:
+    """The bytes that send ``command`` to the pump at ``address``.
+
+    ``digits`` is ``00irate`` (BioCAT, flowchem), ``colon`` is ``0:irate`` (the manual's
+    ``12:irat``), ``none`` sends no address (chembot, a single pump). Which forms a given
+    firmware accepts is unverified, so the choice is the caller's.
+    """
+    if not 0 <= address <= 99:
+        raise ValueError(f"pump address must be 0-99, got {address}")
+    prefix = {"digits": f"{address:02d}", "colon": f"{address}:", "none": ""}[address_form]
+    return (prefix + command).encode("ascii") + TERMINATOR
+
+
+@dataclass(frozen=True)
+class Reply:
+    """One complete reply: its payload lines (prefixes dropped) and its final prompt."""
+
+    lines: tuple[str, ...]
+    prompt: str
+    address: int | None
+
+    @property
+    def state(self) -> PumpState:
+        if self.prompt.startswith("T"):
+            return PumpState.TARGET_REACHED
+        return _PROMPT_STATES[self.prompt]
+
+    @property
+    def text(self) -> str:
+        """The payload as one line, for values and messages."""
+        return " / ".join(self.lines)
+
+
+def prompts_in(raw: bytes) -> list[str]:
+    """Every prompt in bytes that arrived with no command pending (unsolicited events,
+    such as the target-reached prompt), in order."""
+    text = raw.decode("ascii", errors="replace")
+    return [m["prompt"] for part in text.split("\n") if (m := _PROMPT.match(part))]
+
+
+def parse_reply(raw: bytes, *, expect_payload: bool, command: str = "") -> Reply | None:
+    """The reply in ``raw`` if it is complete, else None (wait for more bytes).
+
+    Complete means: a prompt as the last thing received, or (older firmware) a prompt
+    followed by the payload line; and at least one payload line if ``expect_payload``.
+    A prompt that arrived earlier than the last one (an unsolicited target prompt just
+    before the reply) is superseded by the last. Raises PumpProtocolError when the
+    complete reply holds bytes that are not printable ASCII.
+    """
+    text = raw.decode("ascii", errors="replace")
+    elements = text.split("\n")[1:]  # what precedes the first LF is not part of a reply
+    if not elements:
+        return None
+    payload: list[str] = []
+    prompts: list[re.Match[str]] = []
+    for element in elements[:-1]:
+        if match := _PROMPT.match(element):
+            prompts.append(match)  # followed by more: status-after-prompt, or unsolicited
+        elif element.strip("\r"):
+            payload.append(element.rstrip("\r"))
+    last = elements[-1]
+    if match := _PROMPT.match(last):
+        prompts.append(match)
+    elif not (last == "" and prompts and payload and elements[-2].endswith("\r")):
+        return None
+    if not prompts or (expect_payload and not payload):
+        return None
+    prompt = prompts[-1]  # the latest state; an earlier one was an event before the reply
+    # Longest first, so '00T*' is not cut as if it were '00T'.
+    prefixes = sorted({match[0] for match in prompts}, key=len, reverse=True)
+    lines = tuple(_clean_line(line, prefixes) for line in payload)
+    if any(not ch.isascii() or not ch.isprintable() for ch in "".join(lines)):
+        raise PumpProtocolError(f"unreadable reply to {command!r}: {raw!r}")
+    address = prompt["address"]
+    return Reply(lines, prompt["prompt"], int(address) if address else None)
+
+
+def _clean_line(line: str, prefixes: list[str]) -> str:
+    """Drop what some firmware puts before a payload line: a prompt of the same reply
+    with its address (``00:15.3 ml/min``; the prompt may have changed by the end of
+    the reply, so any prompt received with it counts), or a leaked target prompt."""
+    for prefix in prefixes:
+        if line.startswith(prefix):
+            line = line[len(prefix) :]
+            break
+    return _LEAKED_TARGET.sub("", line, count=1).strip()
+
+
+def check_refusal(reply: Reply, command: str) -> None:
+    """Raise the typed exception for a reply that carries one of the pump's error texts."""
+    lowered = reply.text.lower()
+    for needle, error in _REFUSALS:
+        if needle in lowered:
+            raise error(command, reply.text)
+
+
+def _quantity(text: str, what: str) -> tuple[float, str]:
+    match = _QUANTITY.match(text)
+    if match is None:
+        raise PumpProtocolError(f"expected a {what} with its unit, got {text!r}")
+    return float(match["value"]), match["unit"].lower()
+
+
+def parse_volume_ml(text: str) -> float:
+    """``'1.234 ml'``, ``'0 ul'`` -> mL."""
+    value, unit = _quantity(text, "volume")
+    if unit not in _VOLUME_ML:
+        raise PumpProtocolError(f"unknown volume unit in {text!r}")
+    return value * _VOLUME_ML[unit]
+
+
+def parse_rate_ml_min(text: str) -> float:
+    """``'15.3477 ml/min'``, ``'14.7792 nl/min'``, ``'2 ul/hr'`` -> mL/min."""
+    value, unit = _quantity(text, "rate")
+    volume_unit, _, time_unit = unit.partition("/")
+    if volume_unit not in _VOLUME_ML or time_unit not in _TIME_MIN:
+        raise PumpProtocolError(f"unknown rate unit in {text!r}")
+    return value * _VOLUME_ML[volume_unit] / _TIME_MIN[time_unit]
+
+
+def parse_diameter_mm(text: str) -> float:
+    """``'9.5250 mm'`` -> mm."""
+    value, unit = _quantity(text, "diameter")
+    if unit != "mm":
+        raise PumpProtocolError(f"expected a diameter in mm, got {text!r}")
+    return value
+
+
+def parse_rate_limits(text: str) -> tuple[float, float]:
+    """``'14.7792 nl/min to 15.3477 ml/min'`` -> (min, max) in mL/min."""
+    low, sep, high = text.partition(" to ")
+    if not sep:
+        raise PumpProtocolError(f"expected rate limits 'A unit to B unit', got {text!r}")
+    limits = parse_rate_ml_min(low), parse_rate_ml_min(high)
+    if not 0 < limits[0] <= limits[1]:
+        raise PumpProtocolError(f"rate limits out of order: {text!r}")
+    return limits
+
+
+def parse_target_ml(text: str) -> float | None:
+    """``'5 ml'`` -> 5.0; ``'Target volume not set'`` -> None."""
+    if "not set" in text.lower():
+        return None
+    return parse_volume_ml(text)
+
+
+@dataclass(frozen=True)
+class StatusLine:
+    """The ``status`` reply: rate, time and volume for the current direction, and flags.
+
+    The time field is read as milliseconds (chembot and a second driver on real pumps;
+    the manual says seconds: unverified). Nothing in labrig relies on it.
+    """
+
+    rate_ml_min: float
+    time_ms: int
+    volume_ml: float
+    direction: str  # "i" or "w"
+    running: bool
+    stalled: bool
+    target_reached: bool
+
+
+_STATUS = re.compile(r"^(\d+)\s+(\d+)\s+(\d+)\s+([iIwW][.A-Za-z]{4,5})$")
+
+
+def parse_status_line(text: str) -> StatusLine:
+    """``'16666666667 1500 25000000000 I..TI.'`` -> StatusLine (fL/s, ms, fL, flags).
+
+    Flags (chembot's reading, hardware.md 1.2): direction (upper case while running),
+    limit switch, stall ``S``, trigger, direction port, and on newer firmware a sixth
+    flag ``T`` for target reached.
+    """
+    match = _STATUS.match(text.strip())
+    if match is None:
+        raise PumpProtocolError(f"expected 'rate time volume flags' from status, got {text!r}")
+    rate_fl_s, time_ms, volume_fl, flags = match.groups()
+    return StatusLine(
+        rate_ml_min=int(rate_fl_s) * 60 / FL_PER_ML,
+        time_ms=int(time_ms),
+        volume_ml=int(volume_fl) / FL_PER_ML,
+        direction=flags[0].lower(),
+        running=flags[0].isupper(),
+        stalled=flags[2] == "S",
+        target_reached=len(flags) == 6 and flags[5] == "T",
+    )
+
+
+def _scaled(value: float, units: tuple[tuple[str, float], ...]) -> tuple[float, str]:
+    """``value`` in the largest unit that keeps it >= 1 (the smallest unit otherwise)."""
+    for unit, factor in units:
+        if value >= factor:
+            return value / factor, unit
+    unit, factor = units[-1]
+    return value / factor, unit
+
+
+def format_rate(rate_ml_min: float) -> str:
+    """A rate argument: 4 decimals (as chembot sends to a real PHD ULTRA) in a unit that
+    keeps at least 5 significant digits: ``'10.0000 ml/min'``, ``'250.0000 ul/min'``."""
+    value, unit = _scaled(rate_ml_min, (("ml/min", 1.0), ("ul/min", 1e-3), ("nl/min", 1e-6)))
+    return f"{value:.4f} {unit}"
+
+
+def format_volume(volume_ml: float, *, smallest: str = "nl") -> str:
+    """A volume argument, ``'5.0000 ml'``; ``svolume`` takes only ml or ul, so callers
+    can stop the scale at ``smallest='ul'``."""
+    units = (("ml", 1.0), ("ul", 1e-3), ("nl", 1e-6))
+    cut = [name for name, _ in units].index(smallest) + 1
+    value, unit = _scaled(volume_ml, units[:cut])
+    return f"{value:.4f} {unit}"

@@ -1,0 +1,138 @@
+"""``labrig model path SEG SEG [SEG ...]``: the quasi-static path of a combined actuator
+and its transitions, as a table, JSON or a plot.
+
+With ``--deflate`` the path is inflation to the end volume followed by deflation back to
+zero (the rig withdraws between repetitions, so the hysteresis matters): the path arrays
+run up and then down in volume, and every transition says in which direction it
+happened. Without ``--v-end-ml`` inflation ends where no further transition is possible
+(``labrig.model.path.default_end_volume_ml``).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import click
+
+from labrig.errors import InputError
+
+
+def _round(values, digits: int = 6) -> list[float]:
+    return [round(float(x), digits) for x in values]
+
+
+def _significant(x: float) -> float:
+    return float(f"{x:.6g}")
+
+
+def path_document(names, sampled, found) -> dict:
+    """The JSON contract of DESIGN.md: segments, path arrays, transitions. Added:
+    each transition's ``direction`` ("inflate" or "deflate"). ``v_i_ml`` holds one list
+    per segment, parallel to ``v_ml``."""
+    return {
+        "segments": list(names),
+        "path": {
+            "v_ml": _round(sampled.v_ml),
+            "p_kpa": _round(sampled.p_kpa),
+            "l_mm": _round(sampled.l_mm),
+            "v_i_ml": [_round(v) for v in sampled.v_i_ml],
+        },
+        "transitions": [
+            {
+                "v_ml": round(t.v_ml, 6),
+                "alpha": t.alpha,
+                "beta": t.beta,
+                "stable": t.stable,
+                "dE": _significant(t.dE),
+                "dv": _significant(t.dv),
+                "dl": _significant(t.dl),
+                "dp": _significant(t.dp),
+                "direction": t.direction_name,
+            }
+            for t in found
+        ],
+    }
+
+
+def _table(names, found, v_end_ml: float, seconds: float) -> None:
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(
+        title=f"{' + '.join(names)}: transitions (inflation to {v_end_ml:.2f} mL)",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    for heading in ("direction", "v (mL)", "(α, β)", "kind", "dE", "dv", "dl", "dp"):
+        left = heading in ("direction", "kind")
+        table.add_column(heading, justify="left" if left else "right", no_wrap=True)
+    for t in found:
+        table.add_row(
+            t.direction_name,
+            f"{t.v_ml:.3f}",
+            f"({t.alpha}, {t.beta})",
+            "stable" if t.stable else "snap",
+            f"{t.dE:+.2e}",
+            f"{t.dv:+.3f}",
+            f"{t.dl:+.4f}",
+            f"{t.dp:+.4f}",
+        )
+    console = Console()
+    console.print(table)
+    console.print(f"{len(found)} transitions; path computed in {seconds * 1e3:.1f} ms")
+
+
+@click.command("path")
+@click.argument("segs", nargs=-1, metavar="SEG SEG [SEG ...]")
+@click.option("--deflate", is_flag=True, help="After inflating, deflate back to zero (hysteresis).")
+@click.option("--v-end-ml", type=float, default=None, help="End volume of inflation (mL).")
+@click.option(
+    "--json", "as_json", is_flag=True, help="Print the path and transitions as one JSON object."
+)
+@click.option(
+    "--plot",
+    "plot_png",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write p-v, l-v (and for two segments the v1-v2 plane) to this PNG.",
+)
+def path(
+    segs: tuple[str, ...],
+    deflate: bool,
+    v_end_ml: float | None,
+    as_json: bool,
+    plot_png: Path | None,
+) -> None:
+    """The quasi-static path of the actuator made of the segments SEG (library names
+    such as B46-T20, gent-a/b/c, or CSV files), with its transitions."""
+    if len(segs) < 2:
+        raise InputError(
+            f"model path needs at least two segments, got {len(segs)}: e.g. B46-T20 B46-T22"
+        )
+    if v_end_ml is not None and not v_end_ml > 0:
+        raise InputError(f"--v-end-ml {v_end_ml}: must be > 0")
+    if plot_png is not None and not plot_png.parent.is_dir():
+        raise InputError(f"--plot {plot_png}: the folder {plot_png.parent} does not exist")
+    from labrig.model.actuator import Actuator
+    from labrig.model.library import load_segment
+    from labrig.model.path import quasi_static_path, sample_path
+    from labrig.model.transitions import transitions
+
+    actuator = Actuator([load_segment(s) for s in segs])
+    started = time.perf_counter()
+    found_path = quasi_static_path(actuator, v_end_ml, deflate=deflate)
+    seconds = time.perf_counter() - started
+    found = transitions(found_path)
+    sampled = sample_path(found_path)
+    if plot_png is not None:
+        from labrig.model.plots import plot_path
+
+        plot_path(found_path, sampled, found, plot_png)
+    if as_json:
+        click.echo(json.dumps(path_document(actuator.names, sampled, found)))
+        return
+    _table(actuator.names, found, found_path.v_end_ml, seconds)
+    if plot_png is not None:
+        click.echo(f"plot: {plot_png}")

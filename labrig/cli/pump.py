@@ -1,0 +1,229 @@
+"""``labrig pump``: the technician's manual control of the PHD ULTRA, and its emulator.
+
+Each command opens the port, does one thing, reports what the pump says and releases
+the port; a run keeps going after the command returns (the pump runs by itself) unless
+``--wait`` follows it to the end. The driver and the emulator are imported inside the
+commands so that ``labrig --help`` stays instant.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+
+import click
+
+from labrig.errors import InputError
+
+BAUD_RATES = ("9600", "19200", "38400", "57600", "115200")
+POLL_S = 1.0  # how often --wait asks the pump (hardware.md 1.6: about once per second)
+
+
+@click.group()
+@click.option("--port", help="The pump's serial device or pyserial URL (/dev/ttyUSB0, COM3).")
+@click.option(
+    "--address", type=click.IntRange(0, 99), default=0, show_default=True, help="Pump address."
+)
+@click.option("--baud", type=click.Choice(BAUD_RATES), default="115200", show_default=True)
+@click.option(
+    "--address-form",
+    type=click.Choice(["digits", "colon", "none"]),
+    default="digits",
+    show_default=True,
+    help="How the address goes before each command: 00irate, 0:irate, or not at all.",
+)
+@click.pass_context
+def pump(ctx: click.Context, port: str | None, address: int, baud: str, address_form: str) -> None:
+    """Drive the PHD ULTRA syringe pump by hand, or emulate one."""
+    ctx.obj = {"port": port, "address": address, "baud": int(baud), "address_form": address_form}
+
+
+def _open(ctx: click.Context):
+    from labrig.drivers.phd_ultra import PhdUltra
+
+    settings = ctx.obj
+    if not settings["port"]:
+        raise InputError(
+            "labrig pump: --port is required (the pump's serial device, e.g. /dev/ttyUSB0, "
+            "or the path 'labrig pump emulate' printed)"
+        )
+    return PhdUltra.open(
+        settings["port"],
+        baudrate=settings["baud"],
+        address=settings["address"],
+        address_form=settings["address_form"],
+    )
+
+
+@pump.command()
+@click.pass_context
+def status(ctx: click.Context) -> None:
+    """State, volumes since the last clear, rates, target and syringe."""
+    with _open(ctx) as driver:
+        now = driver.status()
+        target_ml = driver.target_volume_ml()
+        rows = [
+            ("state", now.state.value),
+            ("infused", f"{now.infused_ml:.4f} mL"),
+            ("withdrawn", f"{now.withdrawn_ml:.4f} mL"),
+            ("infuse rate", f"{driver.infuse_rate_ml_min():.6g} mL/min"),
+            ("withdraw rate", f"{driver.withdraw_rate_ml_min():.6g} mL/min"),
+            ("target", "not set" if target_ml is None else f"{target_ml:.4f} mL"),
+            ("diameter", f"{driver.syringe.diameter_mm:.4f} mm"),
+            ("syringe", f"{driver.syringe.volume_ml:g} mL"),
+        ]
+    for name, value in rows:
+        click.echo(f"{name:<14} {value}")
+
+
+@pump.command()
+@click.pass_context
+def version(ctx: click.Context) -> None:
+    """Firmware, address and serial number."""
+    with _open(ctx) as driver:
+        click.echo(driver.firmware)
+        for line in driver.version_details():
+            click.echo(line)
+
+
+@pump.command()
+@click.pass_context
+def stop(ctx: click.Context) -> None:
+    """Stop the motor (also silences a target or stall alarm)."""
+    with _open(ctx) as driver:
+        driver.stop()
+        infused_ml, withdrawn_ml = driver.volumes_ml()
+    click.echo(f"stopped: infused {infused_ml:.4f} mL, withdrawn {withdrawn_ml:.4f} mL")
+
+
+def _run_options(command):
+    command = click.option(
+        "--wait",
+        is_flag=True,
+        help="Follow the run until it ends (Ctrl-C stops the pump); without it the "
+        "command returns while the pump keeps running.",
+    )(command)
+    command = click.option(
+        "--diameter-mm",
+        type=click.FloatRange(min=0, min_open=True),
+        help="Set the syringe's inner diameter first.",
+    )(command)
+    command = click.option(
+        "--volume-ml",
+        type=click.FloatRange(min=0, min_open=True),
+        help="Stop by itself after this volume; without it, run until stopped.",
+    )(command)
+    return click.option(
+        "--rate-ml-min",
+        type=click.FloatRange(min=0, min_open=True),
+        required=True,
+        help="Rate in mL/min, within the syringe's limits.",
+    )(command)
+
+
+@pump.command()
+@_run_options
+@click.pass_context
+def infuse(ctx: click.Context, **options) -> None:
+    """Infuse at a rate (to a volume); clears the counters."""
+    _run(ctx, "infuse", **options)
+
+
+@pump.command()
+@_run_options
+@click.pass_context
+def withdraw(ctx: click.Context, **options) -> None:
+    """Withdraw at a rate (to a volume); clears the counters."""
+    _run(ctx, "withdraw", **options)
+
+
+def _run(
+    ctx: click.Context,
+    direction: str,
+    *,
+    rate_ml_min: float,
+    volume_ml: float | None,
+    diameter_mm: float | None,
+    wait: bool,
+) -> None:
+    with _open(ctx) as driver:
+        if diameter_mm is not None:
+            driver.configure_syringe(diameter_mm, driver.syringe.volume_ml)
+        driver.clear_volumes()
+        if volume_ml is not None:
+            driver.set_target_volume(volume_ml)
+        if direction == "infuse":
+            driver.set_infuse_rate(rate_ml_min)
+            driver.infuse()
+        else:
+            driver.set_withdraw_rate(rate_ml_min)
+            driver.withdraw()
+        until = f"until {volume_ml:g} mL" if volume_ml is not None else "until stopped"
+        click.echo(f"{direction}: {rate_ml_min:g} mL/min {until}")
+        if wait:
+            _follow(driver)
+        elif volume_ml is None:
+            click.echo(f"stop it with: labrig pump --port {ctx.obj['port']} stop")
+
+
+def _follow(driver) -> None:
+    def progress(status) -> None:
+        click.echo(
+            f"{status.state.value:<14} infused {status.infused_ml:.4f} mL  "
+            f"withdrawn {status.withdrawn_ml:.4f} mL"
+        )
+
+    try:
+        driver.wait_until_stopped(poll_s=POLL_S, on_status=progress)
+    except KeyboardInterrupt:
+        driver.stop()
+        click.echo("stopped the pump", err=True)
+        raise click.exceptions.Abort() from None
+
+
+@pump.command()
+@click.option(
+    "--speed",
+    type=click.FloatRange(min=0, min_open=True),
+    default=1.0,
+    show_default=True,
+    help="Clock speed factor: 10 runs the plunger ten times faster than real time.",
+)
+@click.option(
+    "--address",
+    "emulated_address",
+    type=click.IntRange(0, 99),
+    help="The emulated pump's address [default: the group's --address].",
+)
+@click.option(
+    "--reply-style",
+    type=click.Choice(["plain", "prefixed"]),
+    default="plain",
+    show_default=True,
+    help="plain: PHD ULTRA lines; prefixed: each line starts with the prompt.",
+)
+@click.pass_context
+def emulate(
+    ctx: click.Context, speed: float, emulated_address: int | None, reply_style: str
+) -> None:
+    """Serve an emulated PHD ULTRA on a pseudo-terminal.
+
+    Prints the device path to connect to, then serves until Ctrl-C."""
+    from labrig.clock import RealClock, SimulatedClock
+    from labrig.sim.pump import PumpEmulator
+
+    address = ctx.obj["address"] if emulated_address is None else emulated_address
+    clock = RealClock() if speed == 1 else SimulatedClock(speed)
+    done = threading.Event()
+    signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
+    with PumpEmulator(clock, address=address, reply_style=reply_style) as emulator:
+        click.echo(emulator.port)
+        click.echo(
+            f"PHD ULTRA emulator at address {address}, clock x{speed:g}; Ctrl-C stops it", err=True
+        )
+        try:
+            while not done.wait(0.5):
+                pass
+        except KeyboardInterrupt:
+            pass
+    click.echo("emulator stopped", err=True)

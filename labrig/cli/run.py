@@ -1,0 +1,100 @@
+"""``labrig run``: the technician's main job — run a protocol, get one complete file."""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+import re
+from pathlib import Path
+
+import click
+
+
+def default_out_path(protocol_name: str) -> Path:
+    """runs/<date>_<time>_<protocol>.h5: sortable, unique per second, readable."""
+    slug = re.sub(r"[^A-Za-z0-9]+", "-", protocol_name).strip("-").lower() or "run"
+    stamp = dt.datetime.now().strftime("%Y%m%d_%H%M%S")
+    return Path("runs") / f"{stamp}_{slug}.h5"
+
+
+@click.command()
+@click.argument("protocol_file", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--sim", is_flag=True, help="Run on the simulated rig, whatever the protocol says.")
+@click.option(
+    "--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), help="Run file (.h5)."
+)
+@click.option(
+    "--speed",
+    type=click.FloatRange(min=0.0, min_open=True),
+    default=None,
+    help="Simulated rig only: clock speed factor (default: the rig config's, 50x).",
+)
+@click.option("--dry-run", is_flag=True, help="Check and summarise the protocol; move nothing.")
+def run(protocol_file: Path, sim: bool, out_path: Path | None, speed, dry_run: bool) -> None:
+    """Run PROTOCOL_FILE on the rig and record it in one HDF5 file."""
+    from labrig.dry_run import dry_run_report
+    from labrig.protocol import load_protocol
+    from labrig.rig import load_rig_config
+
+    loaded = load_protocol(protocol_file)
+    rig_config = load_rig_config(loaded, force_sim=sim, speed=speed)
+    report = dry_run_report(loaded.protocol, rig_config)
+    click.echo(report.text)
+    if not report.ok:
+        raise click.exceptions.Exit(2)
+    if dry_run:
+        return
+    _run(loaded, rig_config, out_path or default_out_path(loaded.protocol.name))
+
+
+def _run(loaded, rig_config, out_path: Path) -> None:
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn
+
+    from labrig.rig import build_rig
+    from labrig.runner import Runner
+
+    console = Console(stderr=True)
+    rig = build_rig(loaded.protocol, rig_config)
+    columns = (
+        TextColumn("rep {task.fields[rep]}"),
+        TextColumn("[bold]{task.fields[step]:<16}"),
+        BarColumn(bar_width=12),
+        TextColumn("{task.fields[volume]}"),
+        TextColumn("{task.fields[pressure]}"),
+        TextColumn("{task.fields[length]}"),
+        TextColumn("{task.fields[left]}"),
+    )
+    with Progress(*columns, console=console, transient=False) as progress:
+        task = progress.add_task(
+            "run",
+            total=None,
+            step="starting",
+            rep="-",
+            volume="",
+            pressure="",
+            length="",
+            left="",
+        )
+
+        def show(snapshot) -> None:
+            total = snapshot.elapsed_s + snapshot.remaining_s
+            progress.update(
+                task,
+                total=total,
+                completed=min(snapshot.elapsed_s, total),
+                step=snapshot.step,
+                rep=f"{snapshot.repetition}/{snapshot.repetitions}",
+                volume=f"{snapshot.volume_ml:5.2f} mL",
+                pressure=f"{snapshot.pressure_kpa:5.1f} kPa",
+                length=f"{snapshot.length_mm:5.1f} mm" if math.isfinite(snapshot.length_mm) else "",
+                left=f"{snapshot.remaining_s / 60:4.1f} min left",
+            )
+
+        result = Runner(loaded, rig, out_path, on_progress=show).run()
+    style = {"complete": "green", "aborted": "yellow", "faulted": "red"}[result.status]
+    console.print(f"[{style}]{result.status}[/]: {result.path}")
+    if result.reason:
+        console.print(f"reason: {result.reason}")
+    if result.status != "complete":
+        raise click.exceptions.Exit(1)

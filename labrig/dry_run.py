@@ -1,0 +1,83 @@
+"""The dry run: what a protocol will do on a rig, and whether it can, before anything moves.
+
+``labrig run`` prints it before every run and refuses to start on a problem;
+``labrig run --dry-run`` stops after it. It checks what needs the rig as well as the
+protocol (the syringe's rate range and capacity) and predicts, from the stability
+model, the peak pressure the specimen will reach against the pressure limit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from labrig.drivers.phd_ultra_protocol import rate_limits_ml_min
+from labrig.protocol import InfuseStep, Protocol, WithdrawStep, iter_plan, plan
+from labrig.rig import RigConfig
+
+
+@dataclass
+class DryRunReport:
+    lines: list[str] = field(default_factory=list)
+    problems: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems
+
+    @property
+    def text(self) -> str:
+        out = list(self.lines)
+        out += [f"warning: {w}" for w in self.warnings]
+        out += [f"error: {p}" for p in self.problems]
+        return "\n".join(out)
+
+
+def dry_run_report(protocol: Protocol, rig: RigConfig) -> DryRunReport:
+    report = DryRunReport()
+    summary = plan(protocol)
+    syringe = rig.pump.syringe
+    where = "simulated rig" if rig.sim is not None else f"pump on {rig.pump.port}"
+    report.lines += [
+        f"protocol {protocol.name!r} on the {where}",
+        f"  specimen    {' + '.join(protocol.specimen.segments)}",
+        f"  duration    {summary.duration_s / 60:.1f} min ({summary.repetitions} repetitions)",
+        f"  volume      {summary.infused_ml:g} mL infused, {summary.withdrawn_ml:g} mL "
+        f"withdrawn, at most {summary.max_volume_ml:g} mL in the specimen "
+        f"(limit {protocol.limits.max_volume_ml:g} mL)",
+    ]
+    low, high = rate_limits_ml_min(syringe.diameter_mm)
+    for location, step, _ in iter_plan(protocol.steps):
+        if isinstance(step, InfuseStep | WithdrawStep):
+            kind = "infuse" if isinstance(step, InfuseStep) else "withdraw"
+            rate = step.infuse.rate_ml_min if kind == "infuse" else step.withdraw.rate_ml_min
+            if not low <= rate <= high:
+                report.problems.append(
+                    f"{location}.{kind}.rate_ml_min = {rate:g}: a {syringe.diameter_mm:g} mm "
+                    f"syringe on a PHD ULTRA runs at {low:.3g} to {high:.4g} mL/min"
+                )
+    if summary.max_volume_ml > syringe.volume_ml:
+        report.problems.append(
+            f"the specimen needs {summary.max_volume_ml:g} mL but the syringe holds "
+            f"{syringe.volume_ml:g} mL"
+        )
+    _predict_pressure(protocol, summary.max_volume_ml, report)
+    return report
+
+
+def _predict_pressure(protocol: Protocol, volume_ml: float, report: DryRunReport) -> None:
+    """The model's peak pressure up to the largest volume, against the limit."""
+    from labrig.model.library import load_segment
+    from labrig.model.prediction import predicted_peak_pressure_kpa
+
+    segments = [load_segment(spec) for spec in protocol.specimen.segments]
+    peak_kpa, at_ml = predicted_peak_pressure_kpa(segments, volume_ml)
+    limit = protocol.limits.max_pressure_kpa
+    report.lines.append(
+        f"  pressure    model peak {peak_kpa:.1f} kPa at {at_ml:.2f} mL (limit {limit:g} kPa)"
+    )
+    if peak_kpa >= limit:
+        report.warnings.append(
+            f"the model predicts {peak_kpa:.1f} kPa at {at_ml:.2f} mL, at or above the "
+            f"pressure limit {limit:g} kPa: the run will stop there"
+        )

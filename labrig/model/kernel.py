@@ -1,0 +1,195 @@
+"""Scalar, pure-Python evaluation of a SegmentCurve for the path solver.
+
+The quasi-static path evaluates a handful of numbers at a time, thousands of times (a
+root search on a fold, one flow step, one energy difference). numpy's per-call overhead
+(about a microsecond per array operation, tens of microseconds per interpolant call)
+would dominate that work, so the PCHIP pieces are copied once into Python lists and
+evaluated with Horner's rule. The numbers are those of ``SegmentCurve`` (same cubic
+pieces, same linear continuation past both ends); ``SegmentCurve.volume_on_branch`` is
+the vectorised counterpart of ``volume_on_branch`` here and the tests hold them equal.
+"""
+
+from __future__ import annotations
+
+import math
+from bisect import bisect_right
+
+from labrig.model.segment import SegmentCurve
+
+# Newton on a branch's cubic piece stops when the step is below this fraction of the
+# sample spacing (the interpolant itself is only defined to rounding, ~1e-16).
+_T_TOL = 1e-13
+
+
+class CurveKernel:
+    """p(v), dp/dv, E(v), l(v) and the branch inverses of one segment, on floats."""
+
+    def __init__(self, curve: SegmentCurve) -> None:
+        self.name = curve.name
+        pp = curve._p
+        self.x = [float(x) for x in pp.x]
+        self.c3, self.c2, self.c1, self.c0 = (row.tolist() for row in pp.c)
+        self.samples = curve.p_kpa.tolist()
+        self.v_first = self.x[0]
+        self.v_last = self.x[-1]
+        self.p_first = self.samples[0]
+        self.p_last = self.samples[-1]
+        self.slope_first = float(curve._start_slope_kpa_per_ml)
+        self.slope_last = float(curve._end_slope_kpa_per_ml)
+        # exact integral of each cubic piece, so that energy differences are sums of
+        # small numbers rather than differences of large ones (model-notes, trap 3)
+        self.piece_energy = [
+            self._piece_integral(j, self.x[j + 1] - self.x[j]) for j in range(len(self.x) - 1)
+        ]
+        cumulative = [0.0]
+        for e in self.piece_energy:
+            cumulative.append(cumulative[-1] + e)
+        self.cumulative_energy = cumulative
+        lp = curve._l
+        self.lc3, self.lc2, self.lc1, self.lc0 = (row.tolist() for row in lp.c)
+        self.branches = curve.branches
+        self.n_branches = len(self.branches)
+        self.peak_branch = curve.peak_branch
+        self.extremum_volumes = [b.v_hi_ml for b in self.branches[:-1]]
+        # per branch: sample pressures in ascending order, for bisection
+        self._ascending = []
+        for b in self.branches:
+            run = self.samples[b.first : b.last + 1]
+            self._ascending.append(run if b.rising else run[::-1])
+
+    # --- forward evaluation ----------------------------------------------------------
+    def _piece(self, v: float) -> int:
+        j = bisect_right(self.x, v) - 1
+        return min(max(j, 0), len(self.x) - 2)
+
+    def _piece_integral(self, j: int, t: float) -> float:
+        return (
+            ((self.c3[j] * 0.25 * t + self.c2[j] / 3.0) * t + self.c1[j] * 0.5) * t + self.c0[j]
+        ) * t
+
+    def pressure(self, v: float) -> float:
+        if v > self.v_last:
+            return self.p_last + self.slope_last * (v - self.v_last)
+        if v < self.v_first:
+            return self.p_first + self.slope_first * (v - self.v_first)
+        j = self._piece(v)
+        t = v - self.x[j]
+        return ((self.c3[j] * t + self.c2[j]) * t + self.c1[j]) * t + self.c0[j]
+
+    def slope(self, v: float) -> float:
+        if v > self.v_last:
+            return self.slope_last
+        if v < self.v_first:
+            return self.slope_first
+        j = self._piece(v)
+        t = v - self.x[j]
+        return (3.0 * self.c3[j] * t + 2.0 * self.c2[j]) * t + self.c1[j]
+
+    def pressure_and_slope(self, v: float) -> tuple[float, float]:
+        if v > self.v_last:
+            return self.p_last + self.slope_last * (v - self.v_last), self.slope_last
+        if v < self.v_first:
+            return self.p_first + self.slope_first * (v - self.v_first), self.slope_first
+        j = self._piece(v)
+        t = v - self.x[j]
+        c3, c2, c1 = self.c3[j], self.c2[j], self.c1[j]
+        return ((c3 * t + c2) * t + c1) * t + self.c0[j], (3.0 * c3 * t + 2.0 * c2) * t + c1
+
+    def energy(self, v: float) -> float:
+        """E(v) = integral of p from 0 (Eq. 1), mJ."""
+        if v > self.v_last:
+            d = v - self.v_last
+            return self.cumulative_energy[-1] + self.p_last * d + 0.5 * self.slope_last * d * d
+        if v < self.v_first:
+            d = v - self.v_first
+            return self.p_first * d + 0.5 * self.slope_first * d * d
+        j = self._piece(v)
+        return self.cumulative_energy[j] + self._piece_integral(j, v - self.x[j])
+
+    def energy_between(self, v_from: float, v_to: float) -> float:
+        """E(v_to) - E(v_from), summed piece by piece from small terms (trap 3)."""
+        if v_to < v_from:
+            return -self.energy_between(v_to, v_from)
+        total = 0.0
+        if v_from < self.v_first:  # the linear continuation below the table
+            a, b = v_from - self.v_first, min(v_to, self.v_first) - self.v_first
+            total += self.p_first * (b - a) + 0.5 * self.slope_first * (b * b - a * a)
+        if v_to > self.v_last:  # the linear continuation past the table
+            a, b = max(v_from, self.v_last) - self.v_last, v_to - self.v_last
+            total += self.p_last * (b - a) + 0.5 * self.slope_last * (b * b - a * a)
+        lo, hi = max(v_from, self.v_first), min(v_to, self.v_last)
+        if hi > lo:
+            ja, jb = self._piece(lo), self._piece(hi)
+            head = self._piece_integral(ja, lo - self.x[ja])
+            if ja == jb:
+                total += self._piece_integral(ja, hi - self.x[ja]) - head
+            else:
+                total += self.piece_energy[ja] - head
+                total += math.fsum(self.piece_energy[ja + 1 : jb])
+                total += self._piece_integral(jb, hi - self.x[jb])
+        return total
+
+    def length(self, v: float) -> float:
+        """l(v) in mm; constant past the table's ends."""
+        v = min(max(v, self.v_first), self.v_last)
+        j = self._piece(v)
+        t = v - self.x[j]
+        return ((self.lc3[j] * t + self.lc2[j]) * t + self.lc1[j]) * t + self.lc0[j]
+
+    def spacing_near(self, v: float) -> float:
+        """Width of the table interval around v (the resolution of the curve there)."""
+        j = self._piece(v)
+        return self.x[j + 1] - self.x[j]
+
+    # --- branches --------------------------------------------------------------------
+    def branch_of(self, v: float) -> int:
+        """Branch a volume lies on (a shared extremum sample belongs to the earlier)."""
+        for index, v_end in enumerate(self.extremum_volumes):
+            if v <= v_end:
+                return index
+        return self.n_branches - 1
+
+    def right_of_peak(self, branch: int) -> bool:
+        """On the pressure peak's falling branch or later; never, without a peak."""
+        return self.peak_branch is not None and branch >= self.peak_branch
+
+    def volume_on_branch(self, branch: int, p: float) -> tuple[float, float]:
+        """(v, dp/dv) on ``branch`` at pressure ``p``; the caller keeps ``p`` within the
+        branch's pressure range (values outside are clamped to its ends)."""
+        b = self.branches[branch]
+        last_sample = len(self.x) - 1
+        if b.last == last_sample and ((p > self.p_last) if b.rising else (p < self.p_last)):
+            return self.v_last + (p - self.p_last) / self.slope_last, self.slope_last
+        ascending = self._ascending[branch]
+        position = bisect_right(ascending, p) - 1
+        position = min(max(position, 0), b.last - b.first - 1)
+        j = b.first + position if b.rising else b.last - 1 - position
+        c3, c2, c1, c0 = self.c3[j], self.c2[j], self.c1[j], self.c0[j]
+        h = self.x[j + 1] - self.x[j]
+        rhs = p - c0
+        p0, p1 = self.samples[j], self.samples[j + 1]
+        t = (p - p0) / (p1 - p0) * h if p1 != p0 else 0.5 * h
+        t = min(max(t, 0.0), h)
+        lo, hi = 0.0, h
+        sign = 1.0 if b.rising else -1.0
+        d = 0.0
+        for _ in range(100):
+            f = ((c3 * t + c2) * t + c1) * t - rhs
+            if f == 0.0:
+                break
+            if sign * f > 0:
+                hi = t
+            else:
+                lo = t
+            d = (3.0 * c3 * t + 2.0 * c2) * t + c1
+            step = t - f / d if d != 0.0 else -1.0
+            if not lo < step < hi:
+                step = 0.5 * (lo + hi)
+            if abs(step - t) <= _T_TOL * h:
+                t = step
+                break
+            t = step
+        d = (3.0 * c3 * t + 2.0 * c2) * t + c1
+        # at a branch's extremum the slope is 0 up to rounding; never let rounding give
+        # it the sign of the neighbouring branch
+        return self.x[j] + t, max(d, 0.0) if b.rising else min(d, 0.0)

@@ -1,0 +1,76 @@
+"""A bracketed scalar root on floats (Brent-Dekker), for the path solver's inner loops.
+
+scipy's ``brentq`` does the same in C but needs finite values at both ends and costs a
+few tens of microseconds per call in overhead; here an infinite end value (the slope
+term 1/k at a branch end where k = 0) is allowed and only its sign is used.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+
+def bracketed_root(
+    f: Callable[[float], float],
+    a: float,
+    b: float,
+    fa: float | None = None,
+    fb: float | None = None,
+    *,
+    xtol: float = 1e-12,
+    rtol: float = 4e-16,
+    max_iter: int = 200,
+) -> float:
+    """A root of ``f`` between ``a`` and ``b``, where f changes sign (or is zero).
+
+    ``xtol`` is an absolute tolerance on the root, added to ``rtol`` times its size.
+    """
+    fa = f(a) if fa is None else fa
+    fb = f(b) if fb is None else fb
+    if fa == 0.0:
+        return a
+    if fb == 0.0:
+        return b
+    if (fa > 0) == (fb > 0):
+        raise ValueError(f"no sign change between {a} and {b} ({fa}, {fb})")
+    c, fc = a, fa
+    d = e = b - a
+    for _ in range(max_iter):
+        if (fb > 0) == (fc > 0):
+            c, fc = a, fa
+            d = e = b - a
+        if abs(fc) < abs(fb) or math.isinf(fb):
+            a, b, c = b, c, b
+            fa, fb, fc = fb, fc, fb
+        tol = 2.0 * rtol * abs(b) + 0.5 * xtol
+        m = 0.5 * (c - b)
+        if abs(m) <= tol or fb == 0.0:
+            return b
+        interpolate = (
+            abs(e) >= tol and abs(fa) > abs(fb) and math.isfinite(fa) and math.isfinite(fc)
+        )
+        if interpolate:
+            s = fb / fa
+            if a == c:  # secant
+                p = 2.0 * m * s
+                q = 1.0 - s
+            else:  # inverse quadratic
+                q = fa / fc
+                r = fb / fc
+                p = s * (2.0 * m * q * (q - r) - (b - a) * (r - 1.0))
+                q = (q - 1.0) * (r - 1.0) * (s - 1.0)
+            if p > 0:
+                q = -q
+            else:
+                p = -p
+            if 2.0 * p < min(3.0 * m * q - abs(tol * q), abs(e * q)):
+                e, d = d, p / q
+            else:
+                d = e = m
+        else:
+            d = e = m
+        a, fa = b, fb
+        b += d if abs(d) > tol else math.copysign(tol, m)
+        fb = f(b)
+    return b

@@ -1,0 +1,276 @@
+"""Rig configuration and assembly: the one place that knows which devices a run uses.
+
+A rig YAML names the real devices (serial port, DAQ channel, camera, calibration); the
+word ``sim`` (in the protocol, or ``--sim``) gives the simulated rig instead. Either way
+the runner gets the same drivers: in simulation they are connected to the emulators —
+the PHD Ultra emulator on a pseudo-terminal, SimDaqTask behind the nidaqmx Task
+factory, SimCamera behind the capture — all fed by one plant on one simulated clock.
+Only configuration differs between the bench and CI.
+"""
+
+from __future__ import annotations
+
+import math
+from contextlib import ExitStack
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import yaml
+from pydantic import Field, model_validator
+
+from labrig.clock import RealClock, SimulatedClock
+from labrig.errors import InputError
+from labrig.protocol import LoadedProtocol, Protocol
+from labrig.runner import Rig
+from labrig.yamlmodel import Strict, parse_yaml_model
+
+# A 50 mL Hamilton 1000-series gastight syringe (the paper's), inner diameter in mm.
+DEFAULT_SYRINGE_DIAMETER_MM = 27.6
+DEFAULT_SYRINGE_VOLUME_ML = 50.0
+
+
+class SyringeConfig(Strict):
+    diameter_mm: float = Field(DEFAULT_SYRINGE_DIAMETER_MM, gt=0.1, le=50.0)
+    volume_ml: float = Field(DEFAULT_SYRINGE_VOLUME_ML, gt=0, le=140)
+
+
+class PumpConfig(Strict):
+    port: str = Field(description="Serial device (/dev/ttyUSB0, COM3) or pyserial URL")
+    address: int = Field(0, ge=0, le=99)
+    baud: Literal[9600, 19200, 38400, 57600, 115200] = 115200
+    syringe: SyringeConfig = SyringeConfig()
+
+
+class PressureConfig(Strict):
+    channel: str = "Dev1/ai0"
+    terminal: Literal["RSE", "DIFF"] = "RSE"
+    min_v: float = -10.0
+    max_v: float = 10.0
+    supply_channel: str | None = Field(
+        None, description="Channel measuring the sensor supply (the MPX5100 is ratiometric)"
+    )
+    supply_v: float = Field(5.0, gt=0, description="Assumed supply when none is measured")
+
+
+class CameraConfig(Strict):
+    source: int | str = Field(0, description="Camera index or video file")
+    mm_per_px: float | None = Field(None, gt=0)
+    reference_distance_mm: float | None = Field(None, gt=0)
+
+    @model_validator(mode="after")
+    def _one_scale(self) -> CameraConfig:
+        if (self.mm_per_px is None) == (self.reference_distance_mm is None):
+            raise ValueError("give exactly one of mm_per_px and reference_distance_mm")
+        return self
+
+
+class SimConfig(Strict):
+    speed: float = Field(50.0, gt=0, description="Simulated clock speed factor")
+    seed: int = 0
+    resistance_kpa_s_per_ml: float = Field(
+        1.0, gt=0, description="Flow resistance between segments (sets the snap time)"
+    )
+    noise_kpa: float = Field(0.05, ge=0, description="Pressure sensor white noise")
+    offset_error_kpa: float = Field(0.8, description="Sensor zero offset (removed by zeroing)")
+    mm_per_px: float | None = Field(
+        None, gt=0, description="Rendered camera scale; default fits the specimen"
+    )
+
+
+class RigConfig(Strict):
+    """The devices of a rig; ``sim`` present means the simulated rig."""
+
+    pump: PumpConfig
+    pressure: PressureConfig = PressureConfig()
+    camera: CameraConfig | None = None
+    sim: SimConfig | None = None
+
+
+def sim_rig_config(speed: float | None = None) -> RigConfig:
+    sim = SimConfig() if speed is None else SimConfig(speed=speed)
+    return RigConfig(pump=PumpConfig(port="emulator"), sim=sim)
+
+
+def load_rig_config(
+    loaded: LoadedProtocol, *, force_sim: bool = False, speed: float | None = None
+) -> RigConfig:
+    """The rig a protocol runs on: ``sim``, or a rig YAML relative to the protocol."""
+    spec = loaded.protocol.rig
+    if force_sim or spec == "sim":
+        if speed is not None:
+            return sim_rig_config(speed)
+        if spec not in ("sim", "") and force_sim:
+            # a real rig file run with --sim keeps nothing of the hardware but the syringe
+            return sim_rig_config().model_copy(
+                update={"pump": PumpConfig(port="emulator", syringe=_rig_file(loaded).pump.syringe)}
+            )
+        return sim_rig_config()
+    if speed is not None:
+        raise InputError("--speed applies to the simulated rig only (use --sim)")
+    return _rig_file(loaded)
+
+
+def _rig_file(loaded: LoadedProtocol) -> RigConfig:
+    path = Path(loaded.protocol.rig)
+    if not path.is_absolute():
+        path = loaded.path.parent / path
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"{loaded.path}: rig: cannot read rig file {path} ({exc})") from None
+    return parse_yaml_model(text, str(path), RigConfig, what="a rig configuration")
+
+
+def rig_config_text(config: RigConfig) -> str:
+    return yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False)
+
+
+def build_rig(protocol: Protocol, config: RigConfig) -> Rig:
+    """Connect the drivers of ``config``; the caller runs and the Rig closes them."""
+    if config.sim is not None:
+        return _build_sim_rig(protocol, config)
+    return _build_real_rig(protocol, config)
+
+
+def _build_real_rig(protocol: Protocol, config: RigConfig) -> Rig:
+    from labrig.drivers.camera import CameraLength, FrameSource
+    from labrig.drivers.ni_daq import NiDaqPressure
+    from labrig.drivers.phd_ultra import PhdUltra
+
+    clock = RealClock()
+    with ExitStack() as stack:
+        pump = PhdUltra.open(
+            config.pump.port, baudrate=config.pump.baud, address=config.pump.address, clock=clock
+        )
+        stack.callback(pump.close)
+        pump.configure_syringe(config.pump.syringe.diameter_mm, config.pump.syringe.volume_ml)
+        pressure = _pressure_driver(NiDaqPressure, clock, config, protocol, None)
+        length = None
+        if protocol.acquisition.camera_fps > 0:
+            if config.camera is None:
+                raise InputError("the protocol asks for camera frames but the rig has no camera")
+            frames = FrameSource.open(config.camera.source, clock)
+            stack.callback(frames.close)
+            length = CameraLength(
+                frames,
+                mm_per_px=config.camera.mm_per_px,
+                reference_distance_mm=config.camera.reference_distance_mm,
+            )
+        closer = stack.pop_all()
+    return Rig(clock, pump, pressure, length, rig_config_text(config), closer.close)
+
+
+def _pressure_driver(driver_class, clock, config: RigConfig, protocol: Protocol, factories):
+    kwargs = {} if factories is None else factories
+    p = config.pressure
+    return driver_class(
+        clock,
+        p.channel,
+        terminal=p.terminal,
+        min_v=p.min_v,
+        max_v=p.max_v,
+        supply_channel=p.supply_channel,
+        supply_v=p.supply_v,
+        rate_hz=protocol.acquisition.pressure_rate_hz,
+        **kwargs,
+    )
+
+
+def _build_sim_rig(protocol: Protocol, config: RigConfig) -> Rig:
+    from labrig.drivers.camera import CameraLength, FrameSource
+    from labrig.drivers.ni_daq import NiDaqPressure
+    from labrig.drivers.phd_ultra import PhdUltra
+    from labrig.model.library import load_segment
+    from labrig.sim.camera import SimCamera
+    from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
+    from labrig.sim.plant import Plant
+    from labrig.sim.pump import PumpEmulator
+
+    sim = config.sim
+    segments = [load_segment(spec) for spec in protocol.specimen.segments]
+    clock = SimulatedClock(speed=sim.speed)
+    syringe = config.pump.syringe
+    plant_box: list[Plant] = []
+    emulator = PumpEmulator(
+        clock,
+        address=config.pump.address,
+        diameter_mm=syringe.diameter_mm,
+        syringe_ml=syringe.volume_ml,
+        load_pressure_kpa=lambda t: float(plant_box[0].pressure_kpa_at(t)),
+        seed=sim.seed,
+    )
+    plant = Plant(
+        segments,
+        emulator.net_volume_ml,
+        t0_s=clock.now(),
+        resistance_kpa_s_per_ml=sim.resistance_kpa_s_per_ml,
+        fittings_length_mm=protocol.specimen.fittings_length_mm,
+        seed=sim.seed,
+    )
+    plant_box.append(plant)
+    with ExitStack() as stack:
+        emulator.start()
+        stack.callback(emulator.close)
+        pump = PhdUltra.open(emulator.port, address=config.pump.address, clock=clock)
+        stack.callback(pump.close)
+        pump.configure_syringe(syringe.diameter_mm, syringe.volume_ml)
+        p = config.pressure
+        daq_tasks: list[SimDaqTask] = []
+
+        def new_task() -> SimDaqTask:
+            task = SimDaqTask(
+                clock,
+                plant.pressure_kpa_at,
+                supply_v=p.supply_v,
+                noise_kpa=sim.noise_kpa,
+                offset_error_kpa=sim.offset_error_kpa,
+                seed=sim.seed + len(daq_tasks),
+                output_channel=p.channel,
+                supply_channel=p.supply_channel,
+            )
+            daq_tasks.append(task)
+            return task
+
+        factories = {
+            "task_factory": new_task,
+            "reader_factory": SimAnalogMultiChannelReader,
+            # the buffer must hold the same host time as on the bench (a loop delayed
+            # by the host is delayed speed times longer in rig time)
+            "buffer_s": max(10.0, 2.0 * sim.speed),
+        }
+        pressure = _pressure_driver(NiDaqPressure, clock, config, protocol, factories)
+        length = camera = None
+        if protocol.acquisition.camera_fps > 0:
+            mm_per_px = sim.mm_per_px or _fitting_scale_mm_per_px(segments, protocol)
+            camera = SimCamera(
+                clock,
+                plant.length_mm_at,
+                mm_per_px=mm_per_px,
+                fps=protocol.acquisition.camera_fps,
+                seed=sim.seed,
+            )
+            frames = FrameSource(
+                camera, clock=clock, name="simulated camera", exposure_timestamps=True
+            )
+            length = CameraLength(frames, mm_per_px=mm_per_px)
+        closer = stack.pop_all()
+    simulation = SimulatedParts(plant, emulator, camera, daq_tasks)
+    return Rig(clock, pump, pressure, length, rig_config_text(config), closer.close, simulation)
+
+
+@dataclass(frozen=True)
+class SimulatedParts:
+    """What stands behind the drivers of a simulated rig (the truth, for tests)."""
+
+    plant: object
+    emulator: object
+    camera: object | None
+    daq_tasks: list  # every SimDaqTask made so far; the last one is acquiring
+
+
+def _fitting_scale_mm_per_px(segments, protocol: Protocol) -> float:
+    """A scale at which the longest specimen fills at most 80 % of a 1280 px frame."""
+    longest_mm = sum(float(s.l_mm.max()) for s in segments)
+    longest_mm += protocol.specimen.fittings_length_mm
+    return max(0.02, math.ceil(longest_mm / (0.8 * 1280) * 1000) / 1000)

@@ -1,0 +1,439 @@
+"""A simulated NI USB-6009 running an analog-input task, wired to an MPX5100.
+
+``SimDaqTask`` implements the part of ``nidaqmx.Task`` that ``labrig.drivers.ni_daq``
+uses (``ai_channels.add_ai_voltage_chan``, ``timing.cfg_samp_clk_timing``, ``in_stream``,
+``start``/``stop``/``close``, the context manager) with the real signatures, enums and
+exceptions (``nidaqmx.errors.DaqError``/``DaqReadError`` with the real error codes), so
+the driver's own code runs unchanged against it. ``SimAnalogMultiChannelReader`` stands
+in for ``nidaqmx.stream_readers.AnalogMultiChannelReader``, whose real implementation
+talks to the DAQmx C library through private handles a simulator should not imitate.
+
+Behaviour copied from the device rather than replayed:
+- validation like the USB-6009: ai0-ai7 in RSE (±10 V only), ai0-ai3 in DIFF (±20 to
+  ±1 V), the default terminal configuration is DIFF, 48 kS/s in total over all channels;
+- hardware timing on the shared clock: sample k is taken at t_start + k/rate however late
+  it is read, so nothing is lost while the buffer has room, and like DAQmx the buffer
+  overflows (error -200279) when it is not read in time;
+- the MPX5100's output (ratiometric, with an offset error and noise) and the 14-bit
+  quantisation of the selected input range, saturating at the range's ends.
+
+This module imports nidaqmx (constants and exceptions only; no driver needed): it is
+loaded only when a simulated rig is built.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from nidaqmx.constants import (
+    READ_ALL_AVAILABLE,
+    AcquisitionType,
+    Edge,
+    TerminalConfiguration,
+    VoltageUnits,
+)
+from nidaqmx.error_codes import DAQmxErrors
+from nidaqmx.errors import DaqError, DaqReadError
+
+from labrig.clock import Clock
+from labrig.drivers import mpx5100
+
+ADC_BITS = 14
+N_AI_RSE = 8  # ai0-ai7 single-ended
+N_AI_DIFF = 4  # ai0/ai4 ... ai3/ai7
+RSE_RANGES_V = (10.0,)
+DIFF_RANGES_V = (1.0, 1.25, 2.0, 2.5, 4.0, 5.0, 10.0, 20.0)
+MAX_AGGREGATE_RATE_HZ = 48_000.0
+MIN_RATE_HZ = 0.1
+
+_CHANNEL_RE = re.compile(r"^/?(?P<dev>[A-Za-z]\w*)/ai(?P<first>\d+)(?::(?P<last>\d+))?$")
+
+
+def default_buffer_size(rate_hz: float) -> int:
+    """DAQmx's default continuous input buffer per channel for a sample rate (NI's
+    "How is buffer size determined" table); a larger ``samps_per_chan`` wins."""
+    if rate_hz <= 100:
+        return 1_000
+    if rate_hz <= 10_000:
+        return 10_000
+    if rate_hz <= 1_000_000:
+        return 100_000
+    return 1_000_000
+
+
+@dataclass(frozen=True)
+class _Channel:
+    """One configured input: where it is wired and the range the ADC digitises."""
+
+    physical: str
+    range_v: float  # the hardware range is ±range_v
+
+
+class SimAIChannelCollection:
+    """``task.ai_channels``: adds voltage channels, validated as the USB-6009 would."""
+
+    def __init__(self, task: SimDaqTask) -> None:
+        self._task = task
+        self._channels: list[_Channel] = []
+
+    def __len__(self) -> int:
+        return len(self._channels)
+
+    def add_ai_voltage_chan(
+        self,
+        physical_channel,
+        name_to_assign_to_channel="",
+        terminal_config=TerminalConfiguration.DEFAULT,
+        min_val=-5.0,
+        max_val=5.0,
+        units=VoltageUnits.VOLTS,
+        custom_scale_name="",
+    ):
+        task = self._task
+        task._check_open()
+        # On the USB-6009 DAQmx's default terminal configuration is differential.
+        terminal = (
+            TerminalConfiguration.DIFF
+            if terminal_config == TerminalConfiguration.DEFAULT
+            else terminal_config
+        )
+        indices = self._parse(physical_channel)
+        if terminal == TerminalConfiguration.RSE:
+            n_allowed, ranges = N_AI_RSE, RSE_RANGES_V
+        elif terminal == TerminalConfiguration.DIFF:
+            n_allowed, ranges = N_AI_DIFF, DIFF_RANGES_V
+        else:
+            raise task._error(
+                "Requested value is not a supported value for this property.\n"
+                f"Property: DAQmx_AI_TermCfg\nRequested Value: {terminal.name}\n"
+                "Possible Values: DAQmx_Val_RSE, DAQmx_Val_Diff",
+                DAQmxErrors.INVALID_ATTRIBUTE_VALUE,
+            )
+        if any(i >= n_allowed for i in indices):
+            raise task._error(
+                "Requested value is not a supported value for this property.\n"
+                f"Property: DAQmx_AI_TermCfg\nRequested Value: {terminal.name}\n"
+                f"Channel Name: {physical_channel}\n"
+                "In differential mode ai0-ai3 pair with ai4-ai7.",
+                DAQmxErrors.INVALID_ATTRIBUTE_VALUE,
+            )
+        # DAQmx picks the smallest hardware range holding [min_val, max_val].
+        fitting = [r for r in ranges if -r <= min_val and max_val <= r]
+        if not fitting or not min_val < max_val:
+            prop, value = (
+                ("DAQmx_AI_Min", min_val) if min_val < -ranges[-1] else ("DAQmx_AI_Max", max_val)
+            )
+            raise task._error(
+                "Requested value is not a supported value for this property.\n"
+                f"Property: {prop}\nRequested Value: {value}\n"
+                f"Possible Values: -{ranges[-1]} to {ranges[-1]} ({terminal.name})",
+                DAQmxErrors.INVALID_ATTRIBUTE_VALUE,
+            )
+        if units != VoltageUnits.VOLTS or custom_scale_name:
+            raise ValueError("SimDaqTask simulates voltage channels in volts only")
+        for i in indices:
+            self._channels.append(_Channel(f"{task.device}/ai{i}", min(fitting)))
+
+    def _parse(self, physical_channel: str) -> list[int]:
+        task = self._task
+        match = _CHANNEL_RE.match(str(physical_channel).strip())
+        if match is None:
+            raise task._error(
+                "Physical channel name is invalid.\n"
+                f"Physical Channel Name: {physical_channel}\n"
+                f"Use names like {task.device}/ai0 or {task.device}/ai0:1.",
+                DAQmxErrors.PHYSICAL_CHAN_DOES_NOT_EXIST,
+            )
+        if match["dev"].lower() != task.device.lower():
+            raise task._error(
+                f"Device identifier is invalid.\nDevice Specified: {match['dev']}\n"
+                f"Suggested Device(s): {task.device}",
+                DAQmxErrors.INVALID_DEVICE_ID,
+            )
+        first = int(match["first"])
+        last = int(match["last"]) if match["last"] is not None else first
+        step = 1 if last >= first else -1
+        indices = list(range(first, last + step, step))
+        if any(i >= N_AI_RSE for i in indices):
+            raise task._error(
+                "Physical channel specified does not exist on this device.\n"
+                f"Physical Channel Name: {physical_channel}\n"
+                f"Device: {task.device}\nAvailable: ai0 to ai{N_AI_RSE - 1}",
+                DAQmxErrors.PHYSICAL_CHAN_DOES_NOT_EXIST,
+            )
+        return indices
+
+
+class SimTiming:
+    """``task.timing``: the sample clock."""
+
+    def __init__(self, task: SimDaqTask) -> None:
+        self._task = task
+        self.samp_clk_rate = 1000.0
+        self.samp_quant_samp_per_chan = 1000
+
+    def cfg_samp_clk_timing(
+        self,
+        rate,
+        source="",
+        active_edge=Edge.RISING,
+        sample_mode=AcquisitionType.FINITE,
+        samps_per_chan=1000,
+    ):
+        self._task._check_open()
+        if sample_mode != AcquisitionType.CONTINUOUS or source:
+            raise ValueError(
+                "SimDaqTask simulates continuous acquisition on the internal sample clock only"
+            )
+        self.samp_clk_rate = float(rate)
+        self.samp_quant_samp_per_chan = int(samps_per_chan)
+
+
+class SimInStream:
+    """``task.in_stream``: what a read can see."""
+
+    def __init__(self, task: SimDaqTask) -> None:
+        self._task = task
+
+    @property
+    def num_chans(self) -> int:
+        return len(self._task.ai_channels)
+
+    @property
+    def avail_samp_per_chan(self) -> int:
+        task = self._task
+        task._check_open()
+        if not task._running:
+            return 0
+        return min(task._acquired() - task._read_pos, task._buffer_size)
+
+
+class SimAnalogMultiChannelReader:
+    """``AnalogMultiChannelReader`` over a ``SimDaqTask``'s in_stream, same signatures."""
+
+    def __init__(self, task_in_stream: SimInStream) -> None:
+        self._task = task_in_stream._task
+        self.verify_array_shape = True
+
+    def read_many_sample(
+        self, data, number_of_samples_per_channel=READ_ALL_AVAILABLE, timeout=10.0
+    ):
+        return self._task._read_into(data, number_of_samples_per_channel, timeout, self)
+
+
+class SimDaqTask:
+    """A USB-6009 analog-input task whose MPX5100 sees ``pressure_kpa_at(t_s)``.
+
+    ``pressure_kpa_at`` takes an array of sample times on ``clock`` (increasing from call
+    to call, never later than ``clock.now()``) and returns the true gauge pressure in kPa
+    at each. The sensor's output is wired to ``output_channel`` and its supply (measured
+    for ratiometric conversion) to ``supply_channel``; any other input reads 0 V plus
+    noise. ``noise_kpa`` is the electrical noise at the input, expressed in kPa of the
+    sensor's output; ``offset_error_kpa`` is the sensor's zero error that zeroing removes.
+    """
+
+    def __init__(
+        self,
+        clock: Clock,
+        pressure_kpa_at: Callable[[np.ndarray], np.ndarray],
+        *,
+        supply_v: float = 5.0,
+        noise_kpa: float = 0.05,
+        offset_error_kpa: float = 0.8,
+        seed: int | None = None,
+        device: str = "Dev1",
+        output_channel: str = "Dev1/ai0",
+        supply_channel: str | None = "Dev1/ai1",
+        new_task_name: str = "",
+    ) -> None:
+        self.clock = clock
+        self.pressure_kpa_at = pressure_kpa_at
+        self.supply_v = float(supply_v)
+        self.noise_kpa = float(noise_kpa)
+        self.offset_error_kpa = float(offset_error_kpa)
+        self.device = device
+        self.output_channel = output_channel.strip("/").lower()
+        self.supply_channel = supply_channel.strip("/").lower() if supply_channel else None
+        self._name = new_task_name or "_unnamedTask<0>"
+        self._rng = np.random.default_rng(seed)
+        self.ai_channels = SimAIChannelCollection(self)
+        self.timing = SimTiming(self)
+        self.in_stream = SimInStream(self)
+        self._closed = False
+        self._running = False
+        self._t_start_s = 0.0
+        self._read_pos = 0
+        self._buffer_size = 0
+        self._overflowed = False
+        self._timeout_pending = False
+
+    # -- the nidaqmx.Task surface -------------------------------------------------------
+
+    @property
+    def name(self) -> str:
+        return self._name
+
+    @property
+    def channel_names(self) -> list[str]:
+        return [c.physical for c in self.ai_channels._channels]
+
+    def start(self) -> None:
+        self._check_open()
+        if self._running:
+            return
+        n_chans = len(self.ai_channels)
+        if n_chans == 0:
+            raise self._error(
+                "Task contains no channels: add a channel before starting.",
+                DAQmxErrors.INVALID_TASK,
+            )
+        rate = self.timing.samp_clk_rate
+        if rate < MIN_RATE_HZ:
+            raise self._error(
+                "Requested value is not a supported value for this property.\n"
+                f"Property: DAQmx_SampClk_Rate\nRequested Value: {rate}\n"
+                f"Minimum: {MIN_RATE_HZ}",
+                DAQmxErrors.INVALID_ATTRIBUTE_VALUE,
+            )
+        if rate * n_chans > MAX_AGGREGATE_RATE_HZ:
+            raise self._error(
+                "Sample rate is too high for the number of channels specified.\n"
+                f"Sample Rate: {rate}\nNumber of Channels: {n_chans}\n"
+                f"Maximum Aggregate Rate: {MAX_AGGREGATE_RATE_HZ:g}",
+                DAQmxErrors.SAMPLE_RATE_NUM_CHANS_CONVERT_PERIOD_COMBO,
+            )
+        self._buffer_size = max(self.timing.samp_quant_samp_per_chan, default_buffer_size(rate))
+        self._read_pos = 0
+        self._overflowed = False
+        self._running = True
+        self._t_start_s = self.clock.now()
+
+    def stop(self) -> None:
+        self._check_open()
+        self._running = False
+
+    def close(self) -> None:
+        self._running = False
+        self._closed = True
+
+    def __enter__(self) -> SimDaqTask:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+    # -- fault injection ---------------------------------------------------------------
+
+    def inject_overflow(self) -> None:
+        """The next read fails as if the buffer had overflowed (DAQmx -200279)."""
+        self._overflowed = True
+
+    def inject_read_timeout(self) -> None:
+        """The next read gets no samples: it waits its timeout, then fails (-200284)."""
+        self._timeout_pending = True
+
+    # -- the simulation -----------------------------------------------------------------
+
+    def _acquired(self) -> int:
+        """Samples taken since start: sample k is taken at t_start + k/rate."""
+        elapsed_s = self.clock.now() - self._t_start_s
+        return int(np.floor(elapsed_s * self.timing.samp_clk_rate)) + 1
+
+    def _read_into(self, data, n_requested, timeout, reader) -> int:
+        self._check_open()
+        if not self._running:
+            self.start()  # DAQmx Read starts a task that was not started
+        n_chans = len(self.ai_channels)
+        if n_requested == READ_ALL_AVAILABLE:
+            n_requested = self.in_stream.avail_samp_per_chan
+        if reader.verify_array_shape and data.shape != (n_chans, n_requested):
+            raise self._error(
+                "Read cannot be performed because the NumPy array passed into this function "
+                "is not shaped correctly.\n\n"
+                f"Shape of NumPy Array provided: {data.shape}\n"
+                f"Shape of NumPy Array required: {(n_chans, n_requested)}",
+                DAQmxErrors.UNKNOWN,
+            )
+        if self._timeout_pending:
+            self._timeout_pending = False
+            self.clock.sleep(timeout)
+            raise self._read_timeout(timeout, 0)
+        self._check_overflow()
+        deadline_s = self.clock.now() + timeout
+        rate = self.timing.samp_clk_rate
+        while self._acquired() - self._read_pos < n_requested:
+            wait_s = (self._read_pos + n_requested) / rate - (self.clock.now() - self._t_start_s)
+            remaining_s = deadline_s - self.clock.now()
+            if remaining_s <= 0:
+                n_got = self._acquired() - self._read_pos
+                self._generate(data[:, :n_got], n_got)
+                raise self._read_timeout(timeout, n_got)
+            self.clock.sleep(min(max(wait_s, 1e-4), remaining_s))
+        self._check_overflow()
+        self._generate(data, n_requested)
+        return n_requested
+
+    def _check_overflow(self) -> None:
+        if self._overflowed or self._acquired() - self._read_pos > self._buffer_size:
+            self._overflowed = True  # like DAQmx, the task stays in error until restarted
+            raise DaqReadError(
+                "Attempted to read samples that are no longer available. The requested "
+                "sample was previously available, but has since been overwritten.\n"
+                "Increasing the buffer size, reading the data more frequently, or "
+                "specifying a fixed number of samples to read instead of reading all "
+                "available samples might correct the problem.",
+                DAQmxErrors.SAMPLES_NO_LONGER_AVAILABLE,
+                0,
+                task_name=self._name,
+            )
+
+    def _read_timeout(self, timeout: float, n_read: int) -> DaqReadError:
+        return DaqReadError(
+            "Some or all of the samples requested have not yet been acquired.\n"
+            "To wait for the samples to become available use a longer read timeout or read "
+            f"later in your program.\nTimeout: {timeout}",
+            DAQmxErrors.SAMPLES_NOT_YET_AVAILABLE,
+            n_read,
+            task_name=self._name,
+        )
+
+    def _generate(self, out: np.ndarray, n: int) -> None:
+        """Fill ``out`` (channels x n) with the next n samples and advance the read position."""
+        if n == 0:
+            return
+        k = np.arange(self._read_pos, self._read_pos + n)
+        t_s = self._t_start_s + k / self.timing.samp_clk_rate
+        p_kpa = np.asarray(self.pressure_kpa_at(t_s), dtype=float) + self.offset_error_kpa
+        noise_v = self.noise_kpa * mpx5100.SENSITIVITY_PER_KPA * self.supply_v
+        for row, channel in enumerate(self.ai_channels._channels):
+            name = channel.physical.lower()
+            if name == self.output_channel:
+                v = mpx5100.output_v(p_kpa, self.supply_v)
+            elif name == self.supply_channel:
+                v = np.full(n, self.supply_v)
+            else:
+                v = np.zeros(n)
+            v = v + self._rng.normal(0.0, noise_v, n) if noise_v > 0 else v
+            out[row, :n] = quantise(v, channel.range_v)
+        self._read_pos += n
+
+    # -- helpers ------------------------------------------------------------------------
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise self._error(
+                "Task specified is invalid or does not exist.", DAQmxErrors.INVALID_TASK
+            )
+
+    def _error(self, message: str, code: DAQmxErrors) -> DaqError:
+        return DaqError(message, code.value, task_name=self._name)
+
+
+def quantise(v: np.ndarray, range_v: float, bits: int = ADC_BITS) -> np.ndarray:
+    """What an n-bit ADC over ±range_v returns: the nearest code, saturating at the ends."""
+    step_v = 2 * range_v / 2**bits
+    codes = np.clip(np.rint((v + range_v) / step_v), 0, 2**bits - 1)
+    return codes * step_v - range_v

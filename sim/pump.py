@@ -1,0 +1,294 @@
+"""A PHD ULTRA on a pseudo-terminal, so the real driver opens a real serial device.
+
+``PumpEmulator`` serves a ``PumpFirmware`` (``sim.pump_firmware``: command set,
+settings, plunger on the shared clock) on the master side of an ``os.openpty`` pair
+and frames its answers as the pump does (hardware.md 1.1-1.2): ``LF payload CR`` lines
+then ``LF prompt``, the prompt bare at address 0 and ``AA`` + prompt elsewhere, an
+unsolicited prompt when the target is reached, nothing when it stalls.
+
+Firmware variants are options, so the driver's tolerance is tested against each: the
+reply style (plain lines, or each line prefixed with the prompt as on the Elite), the
+target prompt (``T*`` or ``T:``), and the status line after the prompt (older pumps).
+Faults are injected on demand: garbage, dropped or slow replies, a disconnect, a stall.
+One thread serves the port with ``select`` and a timeout, so it never blocks for long.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import os
+import random
+import select
+import threading
+import time
+import tty
+from collections.abc import Callable
+
+from labrig.clock import Clock
+from labrig.devices import PumpState
+
+from .pump_firmware import DEFAULT_DIAMETER_MM, DEFAULT_SYRINGE_ML, MAX_FORCE_N, PumpFirmware
+
+log = logging.getLogger(__name__)
+
+TICK_S = 0.002  # real seconds between motion checks while the plunger moves
+IDLE_WAIT_S = 0.1  # and while it does not (commands and faults wake the loop at once)
+_GARBAGE = bytes(range(0x80, 0x100)) + b"#%&~^|"
+_PROMPTS = {
+    PumpState.IDLE: ":",
+    PumpState.INFUSING: ">",
+    PumpState.WITHDRAWING: "<",
+    PumpState.STALLED: "*",
+}
+
+
+class PumpEmulator:
+    """A PHD ULTRA served on ``.port`` (a /dev/pts path) once started."""
+
+    def __init__(
+        self,
+        clock: Clock,
+        *,
+        address: int = 0,
+        reply_style: str = "plain",
+        target_prompt: str = "T*",
+        status_prompt_first: bool = False,
+        diameter_mm: float = DEFAULT_DIAMETER_MM,
+        syringe_ml: float = DEFAULT_SYRINGE_ML,
+        load_pressure_kpa: Callable[[float], float] | None = None,
+        stall_pressure_kpa: float | None = None,
+        max_force_n: float = MAX_FORCE_N,
+        reply_chunk_bytes: int | None = None,
+        chunk_gap_s: float = 0.001,
+        seed: int = 0,
+    ) -> None:
+        """The syringe, load and force options are the firmware's (``PumpFirmware``).
+        Replies are written ``reply_chunk_bytes`` at a time, ``chunk_gap_s`` apart, to
+        exercise the driver on partial lines; ``seed`` makes injected garbage repeatable."""
+        if reply_style not in ("plain", "prefixed"):
+            raise ValueError(f"reply_style must be 'plain' or 'prefixed', got {reply_style!r}")
+        if target_prompt not in ("T*", "T:"):
+            raise ValueError(f"target_prompt must be 'T*' or 'T:', got {target_prompt!r}")
+        self.clock = clock
+        self.firmware = PumpFirmware(
+            clock,
+            address=address,
+            diameter_mm=diameter_mm,
+            syringe_ml=syringe_ml,
+            load_pressure_kpa=load_pressure_kpa,
+            stall_pressure_kpa=stall_pressure_kpa,
+            max_force_n=max_force_n,
+            on_target_reached=self._announce_target,
+        )
+        self.reply_style = reply_style
+        self.target_prompt = target_prompt
+        self.status_prompt_first = status_prompt_first
+        self.received: collections.deque[str] = collections.deque(maxlen=10_000)
+        self._chunk_bytes = reply_chunk_bytes
+        self._chunk_gap_s = chunk_gap_s
+        self._rng = random.Random(seed)
+        # Guards what goes out (queue and faults). Taken after the firmware's lock when
+        # both are needed (the target announcement), never before it.
+        self._lock = threading.Lock()
+        self._outgoing: collections.deque[tuple[float, bytes]] = collections.deque()
+        self._drop = 0
+        self._garble = 0
+        self._delay_s = 0.0
+        self._port: str | None = None
+        self._master = self._slave = -1
+        self._wake_r = self._wake_w = -1
+        self._thread: threading.Thread | None = None
+        self._serving = False
+        self._inbuf = bytearray()
+        self._after_cr = False
+
+    # ---- lifecycle ---------------------------------------------------------------
+
+    @property
+    def port(self) -> str:
+        """The device path the driver opens."""
+        if self._port is None:
+            raise RuntimeError("the emulator is not started")
+        return self._port
+
+    def start(self) -> PumpEmulator:
+        self._master, self._slave = os.openpty()
+        # Raw at once: in the default cooked mode the line discipline would echo our own
+        # replies back to us until the driver opens the port and sets raw mode.
+        tty.setraw(self._slave)
+        os.set_blocking(self._master, False)
+        self._port = os.ttyname(self._slave)
+        self._wake_r, self._wake_w = os.pipe()
+        os.set_blocking(self._wake_w, False)
+        self._serving = True
+        self._thread = threading.Thread(target=self._serve, name="pump-emulator", daemon=True)
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        """Stop serving and release the pseudo-terminal."""
+        self._shut_down()
+
+    def __enter__(self) -> PumpEmulator:
+        return self.start()
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+    def _shut_down(self) -> None:
+        with self._lock:
+            self._serving = False
+        if self._thread is not None:
+            self._wake()
+            self._thread.join(timeout=5)
+            self._thread = None
+
+    def _wake(self) -> None:
+        try:
+            os.write(self._wake_w, b"x")
+        except BlockingIOError:
+            pass  # the loop has a wake-up pending already
+        except OSError:
+            log.debug("wake pipe already closed")
+
+    # ---- what the plant and tests read (the firmware's) ------------------------------
+
+    def net_volume_ml(self, t_s: float) -> float:
+        """Infused minus withdrawn at clock time ``t_s``: the physical volume in the
+        specimen, unaffected by clearing the pump's counters."""
+        return self.firmware.net_volume_ml(t_s)
+
+    @property
+    def state(self) -> PumpState:
+        return self.firmware.state
+
+    @property
+    def stall_pressure_kpa(self) -> float:
+        return self.firmware.stall_pressure_kpa
+
+    def stall(self) -> None:
+        """Stall now if the plunger moves, else at the next run."""
+        self.firmware.stall()
+
+    # ---- faults ------------------------------------------------------------------
+
+    def inject_garbage(self, n_bytes: int = 12, *, into_next_reply: bool = True) -> None:
+        """Corrupt the next reply with a line of ``n_bytes`` random bytes, or (with
+        ``into_next_reply=False``) send them now, as line noise between replies."""
+        with self._lock:
+            if into_next_reply:
+                self._garble += n_bytes
+            else:
+                self._queue(self._garbage(n_bytes))
+
+    def drop_next_replies(self, n: int) -> None:
+        """Execute the next ``n`` commands but send no reply to them."""
+        with self._lock:
+            self._drop = n
+
+    def slow_replies(self, delay_s: float) -> None:
+        """Delay every reply by ``delay_s`` real seconds (0 to stop)."""
+        with self._lock:
+            self._delay_s = delay_s
+
+    def disconnect(self) -> None:
+        """Pull the cable: the port disappears. The plunger keeps doing what it did."""
+        self._shut_down()
+
+    def _garbage(self, n_bytes: int) -> bytes:
+        return bytes(self._rng.choice(_GARBAGE) for _ in range(n_bytes))
+
+    # ---- serving -----------------------------------------------------------------
+
+    def _serve(self) -> None:
+        try:
+            while True:
+                wait = TICK_S if self.firmware.running else IDLE_WAIT_S
+                with self._lock:
+                    if not self._serving:
+                        break
+                    if self._outgoing:
+                        wait = min(wait, max(0.0, self._outgoing[0][0] - time.monotonic()))
+                readable, _, _ = select.select([self._master, self._wake_r], [], [], wait)
+                if self._wake_r in readable:
+                    os.read(self._wake_r, 4096)
+                if self._master in readable:
+                    self._receive(self._read_master())
+                self.firmware.tick(self.clock.now())
+                with self._lock:
+                    self._send_due()
+        finally:
+            for fd in (self._master, self._slave, self._wake_r, self._wake_w):
+                os.close(fd)
+            # Never touch a closed descriptor's number again: the OS reuses it.
+            self._master = self._slave = self._wake_r = self._wake_w = -1
+
+    def _read_master(self) -> bytes:
+        try:
+            return os.read(self._master, 4096)
+        except (BlockingIOError, InterruptedError):
+            return b""
+
+    def _receive(self, data: bytes) -> None:
+        """Split the input into command lines at CR, LF or CR LF."""
+        self._inbuf += data
+        while (
+            end := next((i for i, b in enumerate(self._inbuf) if b in b"\r\n"), None)
+        ) is not None:
+            line, separator = bytes(self._inbuf[:end]), self._inbuf[end]
+            del self._inbuf[: end + 1]
+            if separator == ord("\n") and self._after_cr and not line:
+                self._after_cr = False  # the LF of a CR LF pair
+                continue
+            self._after_cr = separator == ord("\r")
+            self._execute(line.decode("ascii", errors="replace"))
+
+    def _execute(self, line: str) -> None:
+        self.received.append(line)
+        answer = self.firmware.execute(line)
+        if answer is None:
+            return  # for another pump on the chain
+        prompt = self._prompt(answer.state)
+        prefix = prompt if self.reply_style == "prefixed" else ""
+        body = "".join(f"\n{prefix}{text}\r" for text in answer.lines)
+        prompt_first = answer.command == "status" and self.status_prompt_first
+        data = (f"\n{prompt}{body}\n" if prompt_first else f"{body}\n{prompt}").encode("ascii")
+        with self._lock:
+            if self._drop:
+                self._drop -= 1
+                return
+            if self._garble:
+                data = b"\n" + self._garbage(self._garble) + b"\r" + data
+                self._garble = 0
+            self._queue(data, self._delay_s)
+
+    def _prompt(self, state: PumpState) -> str:
+        prompt = self.target_prompt if state is PumpState.TARGET_REACHED else _PROMPTS[state]
+        if self.firmware.address or self.reply_style == "prefixed":
+            prompt = f"{self.firmware.address:02d}{prompt}"
+        return prompt
+
+    def _announce_target(self) -> None:
+        """The real pump sends its target prompt unsolicited (with poll mode off)."""
+        with self._lock:
+            self._queue(f"\n{self._prompt(PumpState.TARGET_REACHED)}".encode("ascii"))
+
+    def _queue(self, data: bytes, delay_s: float = 0.0) -> None:
+        """Schedule bytes for sending, in order (a serial line never reorders)."""
+        due = time.monotonic() + delay_s
+        if self._outgoing:
+            due = max(due, self._outgoing[-1][0])
+        size = self._chunk_bytes or len(data)
+        for k, i in enumerate(range(0, len(data), size)):
+            self._outgoing.append((due + k * self._chunk_gap_s, data[i : i + size]))
+        self._wake()
+
+    def _send_due(self) -> None:
+        now = time.monotonic()
+        while self._outgoing and self._outgoing[0][0] <= now:
+            _, data = self._outgoing.popleft()
+            try:
+                os.write(self._master, data)
+            except BlockingIOError:
+                log.warning("pty buffer full: nobody reads the pump, dropped %r", data)

@@ -1,0 +1,136 @@
+"""``labrig model path`` through the real entry point: the JSON contract, the table,
+deflation, the plot, CSV segments, and bad input as one line with exit code 2."""
+
+import json
+
+import numpy as np
+import pytest
+
+from labrig.cli import main
+from labrig.model.library import analytical_segment
+from labrig.model.measured import write_csv
+
+
+def run(argv, capsys):
+    with pytest.raises(SystemExit) as exited:
+        main(argv)
+    out, err = capsys.readouterr()
+    return exited.value.code, out, err
+
+
+def test_json_follows_the_design_contract(capsys):
+    code, out, err = run(["model", "path", "B48-T30", "B50-T20", "--json"], capsys)
+    assert code == 0 and err == ""
+    doc = json.loads(out)
+    assert list(doc) == ["segments", "path", "transitions"]
+    assert doc["segments"] == ["B48-T30", "B50-T20"]
+    path = doc["path"]
+    assert list(path) == ["v_ml", "p_kpa", "l_mm", "v_i_ml"]
+    n_points = len(path["v_ml"])
+    assert len(path["v_i_ml"]) == 2 and all(len(v) == n_points for v in path["v_i_ml"])
+    v_i = np.array(path["v_i_ml"])
+    np.testing.assert_allclose(v_i.sum(axis=0), path["v_ml"], atol=3e-6)
+    for name, v in zip(doc["segments"], v_i, strict=True):
+        np.testing.assert_allclose(
+            analytical_segment(name).pressure_kpa(v), path["p_kpa"], atol=1e-4
+        )
+    assert np.all(np.diff(path["v_ml"]) >= 0)  # inflation only
+    keys = ["v_ml", "alpha", "beta", "stable", "dE", "dv", "dl", "dp", "direction"]
+    assert all(list(t) == keys for t in doc["transitions"])
+    kinds = [(t["alpha"], t["beta"], t["stable"]) for t in doc["transitions"]]
+    assert kinds == [(0, 1, True), (1, 2, True), (2, 1, False), (1, 2, True)]
+    snap = doc["transitions"][2]
+    assert snap["direction"] == "inflate" and snap["dE"] < 0 and snap["dv"] > 0.3
+    # a snap is two points of the path at the same volume
+    jumps = np.flatnonzero(np.diff(path["v_ml"]) == 0)
+    assert len(jumps) == 1 and path["v_ml"][jumps[0]] == pytest.approx(snap["v_ml"], abs=1e-6)
+
+
+def test_deflate_adds_the_way_back_with_its_own_transitions(capsys):
+    code, out, _ = run(["model", "path", "B48-T30", "B50-T20", "--deflate", "--json"], capsys)
+    assert code == 0
+    doc = json.loads(out)
+    v = np.array(doc["path"]["v_ml"])
+    top = int(np.argmax(v))
+    assert np.all(np.diff(v[: top + 1]) >= 0) and np.all(np.diff(v[top:]) <= 0)
+    assert v[0] == 0 and v[-1] == pytest.approx(0, abs=1e-6)
+    directions = [t["direction"] for t in doc["transitions"]]
+    assert directions == ["inflate"] * 4 + ["deflate"] * 3
+    up = [t["v_ml"] for t in doc["transitions"] if not t["stable"] and t["direction"] == "inflate"]
+    down = [
+        t["v_ml"] for t in doc["transitions"] if not t["stable"] and t["direction"] == "deflate"
+    ]
+    assert down[0] < up[0] - 5  # hysteresis
+
+
+def test_the_table_lists_every_transition(capsys):
+    code, out, _ = run(["model", "path", "B44-T30", "B48-T26", "--deflate"], capsys)
+    assert code == 0
+    rows = [
+        line.split() for line in out.splitlines() if line.strip().startswith(("inflate", "deflate"))
+    ]
+    assert len(rows) == 8
+    assert rows[2][:5] == ["inflate", "18.894", "(2,", "1)", "snap"]
+    assert "8 transitions" in out
+
+
+def test_three_segments_and_a_plot(tmp_path, capsys):
+    png = tmp_path / "path.png"
+    code, out, _ = run(
+        ["model", "path", "B40-T28", "B44-T30", "B50-T24", "--plot", str(png)], capsys
+    )
+    assert code == 0 and f"plot: {png}" in out
+    import matplotlib.image
+
+    image = matplotlib.image.imread(png)
+    assert image.shape[0] > 400 and image.shape[1] > 900
+    assert image[..., :3].std() > 0.05  # something is drawn
+
+
+def test_pairs_plot_the_v1_v2_plane(tmp_path, capsys):
+    png = tmp_path / "pair.png"
+    code, _, _ = run(
+        ["model", "path", "B46-T20", "B46-T22", "--deflate", "--plot", str(png)], capsys
+    )
+    assert code == 0
+    import matplotlib.image
+
+    assert matplotlib.image.imread(png).shape[1] > 1500  # three panels
+
+
+def test_measured_csv_segments(tmp_path, capsys):
+    paths = []
+    for name in ("B44-T30", "B48-T26"):
+        paths.append(str(tmp_path / f"{name}.csv"))
+        write_csv(analytical_segment(name), paths[-1])
+    code, out, _ = run(["model", "path", *paths, "--json"], capsys)
+    assert code == 0
+    from_csv = json.loads(out)["transitions"]
+    _, out, _ = run(["model", "path", "B44-T30", "B48-T26", "--json"], capsys)
+    from_library = json.loads(out)["transitions"]
+    assert [(t["alpha"], t["beta"], t["stable"]) for t in from_csv] == [
+        (t["alpha"], t["beta"], t["stable"]) for t in from_library
+    ]
+    for a, b in zip(from_csv, from_library, strict=True):
+        assert a["v_ml"] == pytest.approx(b["v_ml"], abs=0.05)
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["B46-T20"], "at least two segments, got 1"),
+        ([], "at least two segments, got 0"),
+        (["B46-T20", "B99-T20"], "unknown segment 'B99-T20'"),
+        (["B46-T20", "B46-T22", "--v-end-ml", "-3"], "--v-end-ml -3.0: must be > 0"),
+        (["B46-T20", "B46-T22", "--plot", "/no/such/dir/x.png"], "--plot /no/such/dir/x.png"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(argv, message, capsys):
+    code, out, err = run(["model", "path", *argv], capsys)
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and message in err
+
+
+def test_the_model_group_lists_path(capsys):
+    code, out, _ = run(["model", "--help"], capsys)
+    assert code == 0 and "path" in out and "curve" in out

@@ -1,0 +1,187 @@
+"""``labrig pump``: the technician's commands against the emulator, in process, and the
+emulator command itself in a subprocess driven by the real driver and a second CLI."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import threading
+
+import pytest
+
+from labrig import cli as cli_module
+from labrig.cli import pump as pump_cli
+from labrig.clock import SimulatedClock
+from labrig.devices import PumpState
+from labrig.drivers.phd_ultra import PhdUltra
+from labrig.sim.pump import PumpEmulator
+
+
+def run_main(argv, capsys):
+    with pytest.raises(SystemExit) as exited:
+        cli_module.main(argv)
+    out, err = capsys.readouterr()
+    return exited.value.code, out, err
+
+
+def table(out: str) -> dict[str, str]:
+    """``status`` output as {name: value}: names and values are split by 2+ spaces."""
+    rows = {}
+    for line in out.splitlines():
+        name, _, value = line.partition("  ")
+        rows[name.strip()] = value.strip()
+    return rows
+
+
+@pytest.fixture
+def emulator():
+    with PumpEmulator(SimulatedClock(speed=100.0)) as emu:
+        yield emu
+
+
+@pytest.fixture(autouse=True)
+def fast_polls(monkeypatch):
+    monkeypatch.setattr(pump_cli, "POLL_S", 0.05)
+
+
+def test_infuse_to_a_volume_then_status(emulator, capsys):
+    code, out, _ = run_main(
+        ["pump", "--port", emulator.port, "infuse", "--rate-ml-min", "30", "--volume-ml", "0.5"],
+        capsys,
+    )
+    assert code == 0
+    assert out.strip() == "infuse: 30 mL/min until 0.5 mL"
+    code, out, _ = run_main(["pump", "--port", emulator.port, "status"], capsys)
+    assert code == 0
+    rows = table(out)
+    assert rows["state"] in ("infusing", "target reached")
+    assert rows["infuse rate"] == "30 mL/min"
+    assert rows["target"] == "0.5000 mL"
+    assert rows["diameter"] == "26.7000 mm"
+    assert rows["withdrawn"] == "0.0000 mL"
+    assert 0.0 <= float(rows["infused"].split()[0]) <= 0.5
+
+
+def test_infuse_wait_follows_the_run_to_its_target(emulator, capsys):
+    code, out, _ = run_main(
+        [
+            "pump",
+            "--port",
+            emulator.port,
+            "infuse",
+            "--rate-ml-min",
+            "30",
+            "--volume-ml",
+            "0.5",
+            "--wait",
+        ],
+        capsys,
+    )
+    assert code == 0
+    assert out.splitlines()[-1].split() == [
+        "target",
+        "reached",
+        "infused",
+        "0.5000",
+        "mL",
+        "withdrawn",
+        "0.0000",
+        "mL",
+    ]
+    assert emulator.state is PumpState.TARGET_REACHED
+
+
+def test_withdraw_with_a_new_diameter_until_stopped(emulator, capsys):
+    code, out, _ = run_main(
+        [
+            "pump",
+            "--port",
+            emulator.port,
+            "withdraw",
+            "--rate-ml-min",
+            "2",
+            "--diameter-mm",
+            "14.57",
+        ],
+        capsys,
+    )
+    assert code == 0
+    assert "withdraw: 2 mL/min until stopped" in out
+    assert f"labrig pump --port {emulator.port} stop" in out
+    assert emulator.state is PumpState.WITHDRAWING
+    code, out, _ = run_main(["pump", "--port", emulator.port, "status"], capsys)
+    assert table(out)["diameter"] == "14.5700 mm"
+    code, out, _ = run_main(["pump", "--port", emulator.port, "stop"], capsys)
+    assert code == 0
+    assert out.startswith("stopped: infused 0.0000 mL, withdrawn ")
+    assert emulator.state is PumpState.IDLE
+
+
+def test_version(emulator, capsys):
+    code, out, _ = run_main(["pump", "--port", emulator.port, "version"], capsys)
+    assert code == 0
+    assert out.splitlines()[0] == "PHD ULTRA 3.0.5"
+    assert "Serial number" in out
+
+
+def test_a_stall_while_waiting_exits_as_a_device_error(capsys):
+    clock = SimulatedClock(speed=100.0)
+    with PumpEmulator(clock, load_pressure_kpa=lambda t_s: 1e4) as emulator:
+        code, _, err = run_main(
+            ["pump", "--port", emulator.port, "infuse", "--rate-ml-min", "1", "--wait"], capsys
+        )
+    assert code == 3
+    assert err.startswith("error: the pump stalled")
+
+
+def test_bad_input_and_missing_devices_are_one_line_errors(emulator, capsys):
+    code, _, err = run_main(["pump", "status"], capsys)
+    assert (code, err.count("\n")) == (2, 1)
+    assert "--port is required" in err
+    code, _, err = run_main(
+        ["pump", "--port", emulator.port, "infuse", "--rate-ml-min", "500"], capsys
+    )
+    assert (code, err.count("\n")) == (2, 1)
+    assert "outside this syringe's limits" in err
+    assert not any(line.startswith("00irate 5") for line in emulator.received)
+    code, _, err = run_main(["pump", "--port", "/dev/no-such-pump", "status"], capsys)
+    assert (code, err.count("\n")) == (3, 1)
+    assert err.startswith("error: cannot open /dev/no-such-pump")
+    assert "Traceback" not in err
+
+
+def test_emulate_serves_the_driver_and_another_cli_process():
+    emulate = subprocess.Popen(
+        [sys.executable, "-m", "labrig", "pump", "emulate", "--speed", "50"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    watchdog = threading.Timer(20.0, emulate.kill)
+    watchdog.start()
+    try:
+        port = emulate.stdout.readline().strip()
+        assert port.startswith("/dev/")
+        with PhdUltra.open(port) as pump:
+            pump.clear_volumes()
+            pump.set_target_volume(1.0)
+            pump.set_infuse_rate(30.0)  # 2 s of emulated time: 40 ms at x50
+            pump.infuse()
+        status = subprocess.run(
+            [sys.executable, "-m", "labrig", "pump", "--port", port, "status"],
+            capture_output=True,
+            text=True,
+            timeout=20,
+        )
+        assert status.returncode == 0, status.stderr
+        rows = table(status.stdout)
+        assert rows["state"] == "target reached"
+        assert rows["infused"] == "1.0000 mL"
+        emulate.terminate()
+        _, err = emulate.communicate(timeout=10)
+        assert emulate.returncode == 0
+        assert "emulator stopped" in err
+    finally:
+        watchdog.cancel()
+        if emulate.poll() is None:
+            emulate.kill()

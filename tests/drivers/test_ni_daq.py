@@ -1,0 +1,277 @@
+"""NiDaqPressure, the real driver, against SimDaqTask: blocks, timestamps, zeroing, errors."""
+
+import ctypes.util
+import subprocess
+import sys
+
+import nidaqmx
+import nidaqmx.errors
+import nidaqmx.stream_readers
+import numpy as np
+import pytest
+
+from labrig.clock import SimulatedClock
+from labrig.devices import PressureSource
+from labrig.drivers.ni_daq import (
+    DaqConfigError,
+    DaqNotInstalledError,
+    DaqOverflowError,
+    DaqTimeoutError,
+    NiDaqPressure,
+)
+from labrig.errors import DeviceError, InputError
+from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask, quantise
+
+QUANTUM_KPA = 20.0 / 2**14 / (0.009 * 5.0)  # one ADC step on ±10 V, in kPa at Vs = 5 V
+
+
+def ramp_after(t_on_s, kpa_per_s):
+    """Atmospheric until t_on, then a steady ramp: easy to check sample times against."""
+    return lambda t: np.where(t > t_on_s, kpa_per_s * (t - t_on_s), 0.0)
+
+
+class Rig:
+    """The driver wired to simulated tasks; keeps each task it made for inspection."""
+
+    def __init__(self, truth, speed=50.0, sim=None, **driver):
+        # At 50x the 10 s DAQmx buffer lasts 0.2 s of real time: a busy machine's pauses
+        # must not overflow it.
+        self.clock = SimulatedClock(speed=speed)
+        self.truth = truth
+        self.tasks = []
+        sim = {"seed": 7, **(sim or {})}
+
+        def task_factory():
+            task = SimDaqTask(self.clock, truth, **sim)
+            self.tasks.append(task)
+            return task
+
+        self.daq = NiDaqPressure(
+            self.clock,
+            task_factory=task_factory,
+            reader_factory=SimAnalogMultiChannelReader,
+            **driver,
+        )
+
+    def collect(self, duration_s, every_s):
+        blocks = []
+        end = self.clock.now() + duration_s
+        while self.clock.now() < end:
+            self.clock.sleep(every_s)
+            self.last_read_s = [self.clock.now()]
+            blocks.append(self.daq.read())
+            self.last_read_s.append(self.clock.now())
+        t = np.concatenate([b.t_s for b in blocks])
+        p = np.concatenate([b.pressure_kpa for b in blocks])
+        flags = np.concatenate([b.out_of_range for b in blocks])
+        return blocks, t, p, flags
+
+
+def test_fits_the_pressure_source_contract():
+    assert isinstance(Rig(ramp_after(0, 0)).daq, PressureSource)
+
+
+def test_zero_then_continuous_blocks_match_the_truth():
+    rig = Rig(ramp_after(3.0, 4.0), sim={"offset_error_kpa": 1.3, "noise_kpa": 0.05})
+    offset = rig.daq.zero(1.0)
+    # The mean of 1000 noisy samples recovers the sensor's offset error below one step.
+    assert offset == pytest.approx(1.3, abs=QUANTUM_KPA)
+    assert rig.tasks[0]._closed  # zeroing releases its task
+    rig.daq.start(1000.0)
+    blocks, t, p, flags = rig.collect(8.0, every_s=0.37)
+    rig.daq.stop()
+    assert len(blocks) > 10 and all(len(b) > 0 for b in blocks)
+    np.testing.assert_allclose(np.diff(t), 1e-3, rtol=1e-6)  # contiguous, across blocks
+    error = p - rig.truth(t)
+    assert abs(np.mean(error)) < 2 * QUANTUM_KPA
+    assert np.std(error) == pytest.approx(0.05, rel=0.15)
+    assert not flags.any()
+
+
+def test_long_run_loses_no_sample_and_timestamps_follow_the_ramp():
+    rig = Rig(
+        ramp_after(0.0, 0.1),
+        speed=1000.0,
+        sim={"noise_kpa": 0.0, "offset_error_kpa": 0.0},
+        buffer_s=120.0,  # 0.12 s of real time: room for a busy test machine's hiccups
+    )
+    rig.daq.start(1000.0)
+    _, t, p, _ = rig.collect(900.0, every_s=2.0)  # 15 simulated minutes
+    rig.daq.stop()
+    # Every sample taken before the last read was delivered, and none twice.
+    before_s, after_s = rig.last_read_s
+    assert 1000.0 * (before_s - t[0]) - 5 <= t.size <= 1000.0 * (after_s - t[0]) + 5
+    np.testing.assert_allclose(np.diff(t), 1e-3, rtol=1e-6)
+    # The ramp moves 0.1 kPa per s: the readings would show any timestamp error beyond
+    # about one quantisation step's worth of time (~0.3 s) — and the start latency is far less.
+    assert np.max(np.abs(p - rig.truth(t))) <= QUANTUM_KPA
+
+
+def test_measured_supply_removes_the_ratiometric_error():
+    truth = ramp_after(2.0, 10.0)
+    sim = {"supply_v": 5.2, "noise_kpa": 0.0, "offset_error_kpa": 0.0}
+    slopes = {}
+    for supply_channel in (None, "Dev1/ai1"):
+        rig = Rig(truth, sim=sim, supply_channel=supply_channel)
+        rig.daq.zero(0.5)
+        rig.daq.start(500.0)
+        _, t, p, _ = rig.collect(6.0, every_s=0.5)
+        rig.daq.stop()
+        rising = truth(t) > 1.0
+        slopes[supply_channel] = np.polyfit(truth(t)[rising], p[rising], 1)[0]
+    # Assuming 5.0 V when the supply is 5.2 V scales every reading by 5.2/5.0.
+    assert slopes[None] == pytest.approx(5.2 / 5.0, abs=1e-3)
+    assert slopes["Dev1/ai1"] == pytest.approx(1.0, abs=1e-3)
+
+
+def test_readings_beyond_the_sensor_or_adc_are_flagged_not_clipped():
+    rig = Rig(lambda t: np.full(np.shape(t), 110.0), sim={"noise_kpa": 0.0})
+    rig.daq.start(200.0)
+    _, _, p, flags = rig.collect(1.0, every_s=0.25)
+    assert flags.all()
+    assert np.mean(p) == pytest.approx(110.8, abs=0.1)  # 110 kPa + the 0.8 kPa offset error
+    # On a ±1 V differential range the 0.2 V zero fits, 30 kPa (1.55 V) saturates the ADC.
+    rig = Rig(ramp_after(0.5, 60.0), sim={"noise_kpa": 0.0}, terminal="DIFF", min_v=-1, max_v=1)
+    rig.daq.start(200.0)
+    _, t, p, flags = rig.collect(1.5, every_s=0.25)
+    v_in = quantise(5.0 * (0.009 * (rig.truth(t) + 0.8) + 0.04), 1.0)
+    assert flags.any() and not flags.all()
+    np.testing.assert_array_equal(flags, v_in >= 1.0 - 2.0 / 2**14)
+
+
+def test_zero_refuses_a_pressurised_line():
+    rig = Rig(lambda t: np.full(np.shape(t), 15.0))
+    with pytest.raises(DeviceError, match="open the line to atmosphere"):
+        rig.daq.zero(0.2)
+    assert rig.daq.offset_kpa == 0.0
+
+
+def test_zero_during_a_run_leaves_no_gap_in_the_record():
+    # Pressurised for 2 s, vented at 2 s: the zero is taken while acquiring.
+    rig = Rig(lambda t: np.where(t < 2.0, 30.0, 0.0), sim={"offset_error_kpa": 1.5})
+    rig.daq.start(500.0)
+    _, t_before, p_before, _ = rig.collect(2.5, every_s=0.5)
+    assert np.mean(p_before[t_before < 1.9]) == pytest.approx(31.5, abs=0.05)
+    assert rig.daq.zero(0.5) == pytest.approx(1.5, abs=0.02)
+    _, t_after, p_after, _ = rig.collect(1.0, every_s=0.5)
+    t = np.concatenate([t_before, t_after])
+    np.testing.assert_allclose(np.diff(t), 1 / 500.0, rtol=1e-6)  # the zeroing samples too
+    assert np.mean(p_after) == pytest.approx(0.0, abs=0.02)
+
+
+def test_read_timeout_becomes_a_clear_device_error():
+    rig = Rig(ramp_after(0, 0), read_timeout_s=0.5)
+    rig.daq.start()
+    rig.clock.sleep(0.1)
+    rig.tasks[-1].inject_read_timeout()
+    with pytest.raises(DaqTimeoutError, match=r"-200284.*no samples within 0\.5 s.*USB cable"):
+        rig.daq.read()
+
+
+def test_zero_times_out_when_the_device_delivers_nothing():
+    rig = Rig(ramp_after(0, 0), read_timeout_s=0.2)
+    original = rig.daq._task_factory
+
+    def silent_task():
+        task = original()
+        task.inject_read_timeout()
+        return task
+
+    rig.daq._task_factory = silent_task
+    with pytest.raises(DaqTimeoutError, match="-200284"):
+        rig.daq.zero(0.1)
+    assert rig.tasks[-1]._closed
+
+
+def test_overflow_when_read_too_late_becomes_a_clear_device_error():
+    rig = Rig(ramp_after(0, 0), speed=1000.0, buffer_s=2.0)
+    rig.daq.start(1000.0)  # DAQmx's smallest buffer at 1 kS/s is 10 000 samples = 10 s
+    rig.clock.sleep(12.0)
+    with pytest.raises(DaqOverflowError, match=r"-200279.*samples were lost.*buffer_s"):
+        rig.daq.read()
+    rig.daq.stop()
+    rig.clock.set_speed(20.0)  # from here on, a pause must not overflow it again
+    rig.daq.start(1000.0)  # a restart recovers
+    rig.clock.sleep(0.1)
+    assert len(rig.daq.read()) > 0
+    rig.tasks[-1].inject_overflow()
+    with pytest.raises(DaqOverflowError):
+        rig.daq.read()
+
+
+@pytest.mark.parametrize(
+    ("driver", "code"),
+    [
+        ({"channel": "Dev1/ai9"}, "-200170"),
+        ({"channel": "Dev3/ai0"}, "-200220"),
+        ({"channel": "Dev1/ai5", "terminal": "DIFF"}, "-200077"),
+        ({"channel": "Dev1/ai0", "min_v": -20.0, "max_v": 20.0}, "-200077"),
+        ({"channel": "Dev1/ai0", "rate_hz": 60_000.0}, "-200081"),
+    ],
+)
+def test_bad_configuration_is_a_clear_error_and_releases_the_task(driver, code):
+    rig = Rig(ramp_after(0, 0), **driver)
+    with pytest.raises(DaqConfigError) as raised:
+        rig.daq.start()
+    message = str(raised.value)
+    assert code in message and "\n" not in message
+    assert "USB-6009 takes ai0-ai7 in RSE" in message
+    assert rig.tasks[-1]._closed
+    assert rig.daq._task is None
+
+
+def test_bad_parameters_are_input_errors():
+    clock = SimulatedClock()
+    with pytest.raises(InputError, match="RSE or DIFF"):
+        NiDaqPressure(clock, terminal="NRSE")
+    with pytest.raises(InputError, match="min_v"):
+        NiDaqPressure(clock, min_v=5.0, max_v=0.0)
+    with pytest.raises(InputError, match="rate_hz"):
+        NiDaqPressure(clock, rate_hz=0.0)
+
+
+def test_missing_ni_daqmx_is_one_line_naming_sim():
+    def no_driver():
+        raise nidaqmx.errors.DaqNotFoundError("Could not find an installation of NI-DAQmx.")
+
+    daq = NiDaqPressure(SimulatedClock(), task_factory=no_driver)
+    with pytest.raises(DaqNotInstalledError) as raised:
+        daq.start()
+    message = str(raised.value)
+    assert "--sim" in message and "installdriver" in message and "\n" not in message
+
+
+@pytest.mark.skipif(
+    ctypes.util.find_library("nidaqmx") is not None, reason="NI-DAQmx is installed here"
+)
+def test_the_real_nidaqmx_task_without_the_driver_gives_that_line():
+    with pytest.raises(DaqNotInstalledError, match="--sim"):
+        NiDaqPressure(SimulatedClock()).zero(0.1)
+
+
+def test_importing_the_driver_does_not_import_nidaqmx():
+    code = "import sys, labrig.drivers.ni_daq; print('nidaqmx' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_the_factories_are_what_differ(monkeypatch):
+    """With no factories given, the driver uses nidaqmx's own Task and reader."""
+    made = []
+
+    def fake_task(*args):
+        task = SimDaqTask(SimulatedClock(speed=100), ramp_after(0, 0), seed=0)
+        made.append(task)
+        return task
+
+    monkeypatch.setattr(nidaqmx, "Task", fake_task)
+    seen = []
+    monkeypatch.setattr(
+        nidaqmx.stream_readers,
+        "AnalogMultiChannelReader",
+        lambda stream: seen.append(stream) or SimAnalogMultiChannelReader(stream),
+    )
+    daq = NiDaqPressure(SimulatedClock(speed=100))
+    daq.start()
+    daq.stop()
+    assert len(made) == 1 and seen == [made[0].in_stream]

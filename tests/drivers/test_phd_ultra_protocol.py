@@ -1,0 +1,524 @@
+"""The PHD ULTRA's language as message tables: framing, parsing, conversions and the
+driver's exchanges, checked byte for byte with no port (after PyMeasure's
+``expected_protocol``). Behaviour against the emulator is in test_phd_ultra.py."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import time
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from labrig.devices import PumpState
+from labrig.drivers.phd_ultra import PhdUltra
+from labrig.drivers.phd_ultra_errors import (
+    PumpArgumentError,
+    PumpCommandError,
+    PumpError,
+    PumpLimitError,
+    PumpProtocolError,
+    PumpRangeError,
+    PumpTimeout,
+    PumpUnknownCommand,
+)
+from labrig.drivers.phd_ultra_protocol import (
+    check_refusal,
+    format_rate,
+    format_volume,
+    frame_command,
+    parse_diameter_mm,
+    parse_rate_limits,
+    parse_rate_ml_min,
+    parse_reply,
+    parse_status_line,
+    parse_target_ml,
+    parse_volume_ml,
+)
+
+
+class ScriptedPort:
+    """A pyserial stand-in that plays a table of (sent, received) byte pairs.
+
+    Every write must be the next ``sent``; its ``received`` bytes then become readable,
+    ``chunk`` bytes per read. A pair with ``sent=None`` is bytes the pump sends by
+    itself: they arrive once everything before them has been read.
+    """
+
+    port = "scripted"
+
+    def __init__(self, pairs, chunk: int | None = None) -> None:
+        self.pairs = list(pairs)
+        self.pending = bytearray()
+        self.chunk = chunk
+
+    def _release(self) -> None:
+        while not self.pending and self.pairs and self.pairs[0][0] is None:
+            self.pending += self.pairs.pop(0)[1]
+
+    def write(self, data: bytes) -> None:
+        self._release()
+        assert self.pairs, f"unexpected command {data!r}: the table is finished"
+        sent, received = self.pairs.pop(0)
+        assert data == sent, f"sent {data!r}, the table expects {sent!r}"
+        self.pending += received
+
+    @property
+    def in_waiting(self) -> int:
+        self._release()
+        return min(len(self.pending), self.chunk or len(self.pending))
+
+    def read(self, size: int) -> bytes:
+        self._release()
+        n = min(size, len(self.pending), self.chunk or size)
+        if n == 0:
+            time.sleep(0.001)  # a real port's read blocks for its timeout
+        out = bytes(self.pending[:n])
+        del self.pending[:n]
+        return out
+
+    def close(self) -> None:
+        pass
+
+
+@contextlib.contextmanager
+def expected_protocol(pairs, *, chunk=None, **driver_options):
+    """A driver on a ScriptedPort; on exit every pair must have been exchanged."""
+    port = ScriptedPort(pairs, chunk=chunk)
+    yield PhdUltra(port, **{"timeout_s": 0.05, **driver_options})
+    assert port.pairs == [], f"never exchanged: {port.pairs}"
+    assert not port.pending, f"never read: {bytes(port.pending)!r}"
+
+
+# ---- framing -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("command", "address", "form", "sent"),
+    [
+        ("irate", 0, "digits", b"00irate\r"),
+        ("irate 10.0000 ml/min", 7, "digits", b"07irate 10.0000 ml/min\r"),
+        ("irat 3.2 ul/min", 12, "colon", b"12:irat 3.2 ul/min\r"),
+        ("ver", 0, "colon", b"0:ver\r"),
+        ("ver", 0, "none", b"ver\r"),
+    ],
+)
+def test_frame_command(command, address, form, sent):
+    assert frame_command(command, address=address, address_form=form) == sent
+
+
+def test_frame_command_rejects_an_address_beyond_the_chain():
+    with pytest.raises(ValueError, match="0-99"):
+        frame_command("ver", address=100)
+
+
+@pytest.mark.parametrize(
+    ("raw", "expect_payload", "lines", "prompt", "address"),
+    [
+        # Real PHD ULTRA replies quoted by chembot (address 0, echo off).
+        (b"\n15.3477 ml/min\r\n:", True, ("15.3477 ml/min",), ":", None),
+        (b"\n0 ul\r\n:", True, ("0 ul",), ":", None),
+        (b"\n0 0 0 w..TI.\r\n:", True, ("0 0 0 w..TI.",), ":", None),
+        (b"\n:", False, (), ":", None),
+        # A non-zero address in front of the prompt; running and target prompts.
+        (b"\n12>", False, (), ">", 12),
+        (b"\n01T*", False, (), "T*", 1),
+        (b"\nT:", False, (), "T:", None),
+        # Each line prefixed with address and prompt (Elite-style firmware).
+        (b"\n00:9.5250 mm\r\n00:", True, ("9.5250 mm",), ":", 0),
+        (b"\n03<1.5 ml\r\n03<", True, ("1.5 ml",), "<", 3),
+        # Multi-line reply; an error with its indented detail line.
+        (
+            b"\nFirmware: v3.0.5\r\nPump address: 0\r\nSerial number: D401460\r\n:",
+            True,
+            ("Firmware: v3.0.5", "Pump address: 0", "Serial number: D401460"),
+            ":",
+            None,
+        ),
+        (
+            b"\nArgument error: [on]\r\n   Unknown argument\r\n:",
+            False,
+            ("Argument error: [on]", "Unknown argument"),
+            ":",
+            None,
+        ),
+        # Older firmware: the status line after its prompt.
+        (b"\n:\n0 0 0 w..TI.\r\n", True, ("0 0 0 w..TI.",), ":", None),
+        # An echo of the command before the first LF is not part of the reply.
+        (b"00ivolume\r\n1.234 ml\r\n:", True, ("1.234 ml",), ":", None),
+        # A target prompt leaked into the first line, and one received just before.
+        (b"\nT*1.000 ml\r\nT*", True, ("1.000 ml",), "T*", None),
+        (b"\nT*\n2.5 ml\r\n:", True, ("2.5 ml",), ":", None),
+        # The target was reached just after the line was sent: its own prefix is '00>'.
+        (b"\n00>0 994 4968 I..TI.\r\n00>\n00T*", True, ("0 994 4968 I..TI.",), "T*", 0),
+        # A payload line that looks like time with the address in front stays whole.
+        (b"\n00:00:01:40\r\n00:", True, ("00:01:40",), ":", 0),
+    ],
+)
+def test_parse_complete_replies(raw, expect_payload, lines, prompt, address):
+    reply = parse_reply(raw, expect_payload=expect_payload)
+    assert reply is not None
+    assert (reply.lines, reply.prompt, reply.address) == (lines, prompt, address)
+
+
+@pytest.mark.parametrize(
+    ("raw", "expect_payload"),
+    [
+        (b"", True),
+        (b"\n15.34", True),  # a line still arriving
+        (b"\n15.3477 ml/min\r", True),
+        (b"\n15.3477 ml/min\r\n", True),  # the prompt is missing
+        (b"\n:", True),  # a value was asked for and only the prompt came
+        (b"\nT", False),  # half a target prompt
+        (b"\n0", False),  # half an address
+        (b"00ver\r", False),  # only the echo
+    ],
+)
+def test_incomplete_replies_wait_for_more(raw, expect_payload):
+    assert parse_reply(raw, expect_payload=expect_payload) is None
+
+
+def test_a_reply_with_garbage_bytes_is_a_protocol_error():
+    with pytest.raises(PumpProtocolError, match="unreadable reply"):
+        parse_reply(b"\n\xfe\x81#\r\n15.3 ml/min\r\n:", expect_payload=True, command="irate")
+
+
+@pytest.mark.parametrize(
+    ("prompt", "state"),
+    [
+        (b":", PumpState.IDLE),
+        (b">", PumpState.INFUSING),
+        (b"<", PumpState.WITHDRAWING),
+        (b"*", PumpState.STALLED),
+        (b"T*", PumpState.TARGET_REACHED),
+        (b"T:", PumpState.TARGET_REACHED),
+    ],
+)
+def test_prompt_states(prompt, state):
+    assert parse_reply(b"\n" + prompt, expect_payload=False).state is state
+
+
+@pytest.mark.parametrize(
+    ("text", "error"),
+    [
+        ("Command error: [diameter] / Not allowed while running", PumpCommandError),
+        ("Command error: [bogus] / Unknown command", PumpUnknownCommand),
+        ("Unknown command", PumpUnknownCommand),
+        ("Argument error: [on] / Unknown argument", PumpArgumentError),
+        ("Argument error: [500] / Out of range", PumpRangeError),
+        ("Out of range", PumpRangeError),
+        ("Range error: 1-4", PumpRangeError),
+    ],
+)
+def test_error_texts_become_typed_exceptions_with_the_pumps_text(text, error):
+    reply = parse_reply(
+        b"".join(b"\n" + line.encode() + b"\r" for line in text.split(" / ")) + b"\n:",
+        expect_payload=False,
+    )
+    with pytest.raises(error) as raised:
+        check_refusal(reply, "irate 500 ml/min")
+    assert type(raised.value) is error
+    assert raised.value.pump_text == text
+    assert raised.value.command == "irate 500 ml/min"
+
+
+# ---- values ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("text", "ml"),
+    [
+        ("0 ul", 0.0),
+        ("1.234 ml", 1.234),
+        ("834.5 ul", 0.8345),
+        ("12 nl", 12e-9 * 1e3),
+        ("5 pl", 5e-9),
+    ],
+)
+def test_volumes_are_converted_to_ml(text, ml):
+    assert parse_volume_ml(text) == pytest.approx(ml, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("text", "ml_min"),
+    [
+        ("15.3477 ml/min", 15.3477),
+        ("14.7792 nl/min", 14.7792e-6),
+        ("250 ul/min", 0.25),
+        ("6 ml/hr", 0.1),
+        ("30 ul/hr", 0.0005),
+    ],
+)
+def test_rates_are_converted_to_ml_per_min(text, ml_min):
+    assert parse_rate_ml_min(text) == pytest.approx(ml_min, rel=1e-12)
+
+
+def test_other_values():
+    assert parse_diameter_mm("9.5250 mm") == 9.525
+    assert parse_rate_limits("14.7792 nl/min to 15.3477 ml/min") == pytest.approx(
+        (14.7792e-6, 15.3477)
+    )
+    assert parse_target_ml("5 ml") == 5.0
+    assert parse_target_ml("Target volume not set") is None
+
+
+def test_status_line_fields_in_femtolitres():
+    # 1 mL = 1e12 fL: 1 mL/min = 1e12 fL / 60 s; 2.5 mL = 2.5e12 fL.
+    line = parse_status_line("16666666667 1500 2500000000000 I..TI.")
+    assert line.rate_ml_min == pytest.approx(1.0, rel=1e-9)
+    assert line.volume_ml == pytest.approx(2.5)
+    assert line.time_ms == 1500
+    assert (line.direction, line.running, line.stalled, line.target_reached) == (
+        "i",
+        True,
+        False,
+        False,
+    )
+    stalled = parse_status_line("0 0 0 w.STI.")
+    assert (stalled.direction, stalled.running, stalled.stalled) == ("w", False, True)
+    assert parse_status_line("0 10 5 i..TIT").target_reached
+    # The manual's five flags (no target flag) are read too.
+    assert not parse_status_line("0 0 0 i..TI").target_reached
+
+
+@pytest.mark.parametrize(
+    ("parse", "text"),
+    [
+        (parse_volume_ml, "1.234"),
+        (parse_volume_ml, "1.234 ml/min"),
+        (parse_rate_ml_min, "15 ml"),
+        (parse_rate_ml_min, "fast"),
+        (parse_diameter_mm, "9.5 in"),
+        (parse_rate_limits, "15 ml/min"),
+        (parse_rate_limits, "15 ml/min to 1 ml/min"),
+        (parse_status_line, "0 0 w..TI."),
+    ],
+)
+def test_unreadable_values_are_protocol_errors(parse, text):
+    with pytest.raises(PumpProtocolError):
+        parse(text)
+
+
+@pytest.mark.parametrize(
+    ("rate_ml_min", "text"),
+    [
+        (10.0, "10.0000 ml/min"),
+        (0.25, "250.0000 ul/min"),
+        (0.0000147792, "14.7792 nl/min"),
+        (120.5968, "120.5968 ml/min"),
+    ],
+)
+def test_format_rate(rate_ml_min, text):
+    assert format_rate(rate_ml_min) == text
+
+
+def test_format_volume():
+    assert format_volume(5.0) == "5.0000 ml"
+    assert format_volume(0.002) == "2.0000 ul"
+    assert format_volume(0.0000005) == "0.5000 nl"
+    assert format_volume(0.0000005, smallest="ul") == "0.0005 ul"
+
+
+@given(st.floats(min_value=1e-6, max_value=1e3))
+def test_a_formatted_rate_reads_back_within_its_rounding(rate_ml_min):
+    # 4 decimals of a number >= 1: relative error at most 5e-5.
+    assert math.isclose(parse_rate_ml_min(format_rate(rate_ml_min)), rate_ml_min, rel_tol=5e-5)
+
+
+# ---- the driver's exchanges ----------------------------------------------------------
+
+CONNECT = [
+    (b"00ver\r", b"\nPHD ULTRA 3.0.5\r\n:"),
+    (b"00nvram off\r", b"\n:"),
+    (b"00diameter\r", b"\n26.7000 mm\r\n:"),
+    (b"00svolume\r", b"\n60 ml\r\n:"),
+]
+LIMITS = [
+    (b"00irate lim\r", b"\n116.1297 nl/min to 120.5968 ml/min\r\n:"),
+    (b"00wrate lim\r", b"\n116.1297 nl/min to 120.5968 ml/min\r\n:"),
+]
+
+
+@pytest.mark.parametrize("chunk", [None, 1, 5])
+def test_connect_identifies_switches_off_nvram_and_reads_the_syringe(chunk):
+    with expected_protocol(CONNECT, chunk=chunk) as pump:
+        pump.connect()
+    assert pump.firmware == "PHD ULTRA 3.0.5"
+    assert (pump.syringe.diameter_mm, pump.syringe.volume_ml) == (26.7, 60.0)
+
+
+def test_nvram_falls_back_to_the_other_argument():
+    table = [
+        CONNECT[0],
+        (b"00nvram off\r", b"\nArgument error: [off]\r\n   Unknown argument\r\n:"),
+        (b"00nvram none\r", b"\n:"),
+        *CONNECT[2:],
+    ]
+    with expected_protocol(table) as pump:
+        pump.connect()
+
+
+def test_connect_fails_when_no_nvram_form_is_accepted():
+    table = [
+        CONNECT[0],
+        (b"00nvram off\r", b"\nArgument error: [off]\r\n   Unknown argument\r\n:"),
+        (b"00nvram none\r", b"\nCommand error: [nvram]\r\n   Unknown command\r\n:"),
+    ]
+    with expected_protocol(table) as pump, pytest.raises(PumpCommandError, match="NVRAM"):
+        pump.connect()
+
+
+def test_a_rate_is_sent_and_read_back_in_whatever_unit_the_pump_answers():
+    table = [
+        *LIMITS,
+        (b"00irate 10.0000 ml/min\r", b"\n:"),
+        (b"00irate\r", b"\n10000.0 ul/min\r\n:"),
+        (b"00wrate 250.0000 ul/min\r", b"\n:"),
+        (b"00wrate\r", b"\n15 ml/hr\r\n:"),
+    ]
+    with expected_protocol(table) as pump:
+        pump.set_infuse_rate(10.0)
+        pump.set_withdraw_rate(0.25)
+
+
+def test_a_rate_outside_the_syringe_limits_is_refused_before_sending():
+    # Only the limits are asked: no irate/wrate command is in the table.
+    with expected_protocol(LIMITS) as pump:
+        with pytest.raises(PumpLimitError, match="outside this syringe's limits") as raised:
+            pump.set_infuse_rate(150.0)
+        assert raised.value.exit_code == 2
+        with pytest.raises(PumpLimitError):
+            pump.set_withdraw_rate(50e-6)
+        with pytest.raises(PumpLimitError):
+            pump.set_infuse_rate(float("nan"))
+
+
+def test_a_readback_that_differs_from_the_setting_is_an_error():
+    table = [
+        *LIMITS,
+        (b"00irate 10.0000 ml/min\r", b"\n:"),
+        (b"00irate\r", b"\n1.0000 ml/min\r\n:"),
+    ]
+    with (
+        expected_protocol(table) as pump,
+        pytest.raises(PumpError, match=r"reports infuse rate 1\.0"),
+    ):
+        pump.set_infuse_rate(10.0)
+
+
+def test_the_pumps_refusal_reaches_the_caller_with_its_text():
+    table = [
+        *LIMITS,
+        (b"00irate 100.0000 ml/min\r", b"\nArgument error: [100.0000]\r\n   Out of range\r\n:"),
+    ]
+    with expected_protocol(table) as pump, pytest.raises(PumpRangeError) as raised:
+        pump.set_infuse_rate(100.0)
+    assert raised.value.pump_text == "Argument error: [100.0000] / Out of range"
+
+
+def test_syringe_configuration_target_and_clear():
+    table = [
+        (b"00diameter 14.5700\r", b"\n:"),
+        (b"00svolume 10.0000 ml\r", b"\n:"),
+        (b"00diameter\r", b"\n14.5700 mm\r\n:"),
+        (b"00svolume\r", b"\n10 ml\r\n:"),
+        (b"00tvolume 2.5000 ml\r", b"\n:"),
+        (b"00tvolume\r", b"\n2500 ul\r\n:"),
+        (b"00cvolume\r", b"\n:"),
+        (b"00ctvolume\r", b"\n:"),
+        (b"00tvolume\r", b"\nTarget volume not set\r\n:"),
+    ]
+    with expected_protocol(table) as pump:
+        pump.configure_syringe(14.57, 10.0)
+        pump.set_target_volume(2.5)
+        pump.clear_volumes()
+        assert pump.target_volume_ml() is None
+
+
+def test_run_commands_must_show_the_running_prompt():
+    table = [
+        (b"00irun\r", b"\n>"),
+        (b"00wrun\r", b"\n<"),
+        (b"00irun\r", b"\nT*"),  # the target was already met: the run ended at once
+        (b"00irun\r", b"\n:"),
+    ]
+    with expected_protocol(table) as pump:
+        pump.infuse()
+        pump.withdraw()
+        pump.infuse()
+        with pytest.raises(PumpError, match="did not start"):
+            pump.infuse()
+
+
+def test_stop_must_leave_the_motor_standing():
+    table = [(b"00stop\r", b"\n:"), (b"00stop\r", b"\n>")]
+    with expected_protocol(table) as pump:
+        pump.stop()
+        with pytest.raises(PumpError, match="still reports infusing"):
+            pump.stop()
+
+
+@pytest.mark.parametrize(
+    ("status_reply", "prompt", "state"),
+    [
+        (b"\n100000000000 3000 300000000000 I..TI.\r\n>", b">", PumpState.INFUSING),
+        (b"\n>\n100000000000 3000 300000000000 I..TI.\r\n", b">", PumpState.INFUSING),
+        (b"\n0 3000 300000000000 i.STI.\r\n*", b"*", PumpState.STALLED),
+        (b"\n0 3000 300000000000 i.STI.\r\n:", b":", PumpState.STALLED),
+        (b"\n0 3000 300000000000 i..TIT\r\nT*", b"T*", PumpState.TARGET_REACHED),
+        (b"\n0 3000 300000000000 i..TIT\r\n:", b":", PumpState.TARGET_REACHED),
+        (b"\n0 3000 300000000000 w..TI.\r\n:", b":", PumpState.IDLE),
+    ],
+)
+def test_status_from_prompt_flags_and_counters(status_reply, prompt, state):
+    table = [
+        (b"00status\r", status_reply),
+        (b"00ivolume\r", b"\n300.0000 ul\r\n" + prompt),
+        (b"00wvolume\r", b"\n0 ul\r\n" + prompt),
+    ]
+    with expected_protocol(table) as pump:
+        status = pump.status()
+    assert status.state is state
+    assert (status.infused_ml, status.withdrawn_ml) == (pytest.approx(0.3), 0.0)
+
+
+def test_an_unsolicited_target_prompt_is_discarded_before_the_next_command():
+    table = [(None, b"\nT*"), (b"00ver\r", b"\nPHD ULTRA 3.0.5\r\nT*")]
+    with expected_protocol(table) as pump:
+        assert pump.identify() == "PHD ULTRA 3.0.5"
+
+
+def test_addresses_in_both_forms_and_a_reply_from_another_pump():
+    with expected_protocol(
+        [(b"12:ver\r", b"\nPHD ULTRA 3.0.5\r\n12:")], address=12, address_form="colon"
+    ) as pump:
+        assert pump.identify() == "PHD ULTRA 3.0.5"
+    table = [(b"05ver\r", b"\nPHD ULTRA 3.0.5\r\n07:"), (b"05stop\r", b"\n05:")]
+    with (
+        expected_protocol(table, address=5) as pump,
+        pytest.raises(PumpProtocolError, match="from pump address 7"),
+    ):
+        pump.identify()
+
+
+def test_no_reply_times_out_and_the_driver_stops_the_pump():
+    table = [(b"00ivolume\r", b""), (b"00stop\r", b"\n:")]
+    with expected_protocol(table) as pump, pytest.raises(PumpTimeout) as raised:
+        pump.volumes_ml()
+    assert "'ivolume'" in str(raised.value)
+    assert "the pump was stopped" in str(raised.value)
+
+
+def test_a_garbled_reply_is_a_protocol_error_and_the_driver_stops_the_pump():
+    table = [(b"00ivolume\r", b"\n\xff\xfe\x93\r\n12.5 ml\r\n>"), (b"00stop\r", b"\n:")]
+    with expected_protocol(table) as pump, pytest.raises(PumpProtocolError) as raised:
+        pump.volumes_ml()
+    assert "the pump was stopped" in str(raised.value)
+
+
+def test_a_value_where_none_belongs_is_a_protocol_error():
+    table = [(b"00cvolume\r", b"\n12.5 ml\r\n:"), (b"00stop\r", b"\n:")]
+    with expected_protocol(table) as pump, pytest.raises(PumpProtocolError, match="unexpected"):
+        pump.clear_volumes()

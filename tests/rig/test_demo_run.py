@@ -1,0 +1,78 @@
+"""The demo protocol end to end on the simulated rig, and the file's contents against the
+plant's truth: pressure within the sensor noise, volume within the pump's resolution,
+length within the tracking error."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from simrig import run_sim
+
+from labrig.storage import open_run, read_log, repetition_statuses
+
+DEMO = Path(__file__).parents[2] / "protocols" / "demo.yaml"
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    return run_sim(tmp_path_factory.mktemp("demo"), DEMO.read_text(), speed=50.0)
+
+
+def test_demo_completes_with_every_repetition(demo):
+    assert demo.result.status == "complete", demo.result.reason
+    with open_run(demo.path) as run:
+        assert repetition_statuses(run) == [("complete", "")] * 3
+        assert run["entry/status"][()] == b"complete"
+        assert run["entry/protocol"][()].decode() == DEMO.read_text()
+        assert abs(run["entry/zero/offset_kpa"][()] - 0.8) < 0.05  # the injected offset
+    assert demo.pump_is_stopped()
+
+
+def test_pressure_matches_the_plant_within_sensor_noise(demo):
+    plant = demo.rig.simulation.plant
+    with open_run(demo.path) as run:
+        for rep in (1, 2, 3):
+            log = read_log(run, rep, "pressure")
+            error = log.fields["value"] - plant.pressure_kpa_at(log.time_s)
+            assert len(log) > 100_000  # 1 kS/s for ~2 min
+            assert np.all(np.diff(log.time_s) == pytest.approx(0.001))  # no sample lost
+            assert abs(np.mean(error)) < 0.03  # zeroed: only the noise's mean is left
+            assert np.std(error) < 0.08  # 0.05 kPa noise + 14-bit quantisation
+
+
+def test_volume_matches_the_pump_within_its_resolution(demo):
+    """Every logged volume lies on the plunger's true trajectory: exact while the pump
+    stands, and while it moves at most a little host latency (times the clock's speed)
+    away in time from its stamp."""
+    emulator = demo.rig.simulation.emulator
+    with open_run(demo.path) as run:
+        for rep in (1, 2, 3):
+            log = read_log(run, rep, "pump")
+            t, volume = log.time_s, log.fields["value"]
+            truth = np.array([emulator.net_volume_ml(x) for x in t])
+            later = np.array([emulator.net_volume_ml(x + 1.0) for x in t])
+            earlier = np.array([emulator.net_volume_ml(x - 1.0) for x in t])
+            standing = np.abs(later - earlier) < 1e-9
+            rate_ml_s = (later - earlier) / 2.0
+            # a steady motion through the whole +-1 s window
+            moving = np.abs(truth - 0.5 * (later + earlier)) < 1e-9
+            moving &= np.abs(rate_ml_s) > 1e-3
+            assert np.all(np.abs(volume[standing] - truth[standing]) < 1e-3)
+            offset_s = (volume[moving] - truth[moving]) / rate_ml_s[moving]
+            assert moving.sum() > 50 and standing.sum() > 10
+            assert np.median(np.abs(offset_s)) < 0.5  # 10 ms of host time at 50x
+            assert np.max(np.abs(offset_s)) < 5.0
+            assert volume.max() == pytest.approx(38.0, abs=1e-3)
+            assert volume[-1] == pytest.approx(0.0, abs=1e-3)
+
+
+def test_length_matches_the_plant_within_tracking_error(demo):
+    plant = demo.rig.simulation.plant
+    with open_run(demo.path) as run:
+        for rep in (1, 2, 3):
+            log = read_log(run, rep, "length")
+            assert log.fields["ok"].all()
+            error = log.fields["value"] - plant.length_mm_at(log.time_s)
+            # frames carry their exposure time; the tracker is good to ~0.001 mm
+            assert np.median(np.abs(error)) < 0.01
+            assert np.max(np.abs(error)) < 0.05

@@ -1,0 +1,102 @@
+"""`labrig run` refuses bad protocols with a clear message before anything moves, and
+the dry run answers without a rig."""
+
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from labrig.cli import main
+
+GOOD = textwrap.dedent(
+    """\
+    name: cli test
+    specimen: {segments: [B48-T30, B50-T20]}
+    rig: sim
+    limits: {max_pressure_kpa: 95, max_volume_ml: 45}
+    acquisition: {pressure_rate_hz: 1000, camera_fps: 0}
+    steps:
+      - zero_pressure: {}
+      - infuse: {rate_ml_min: 40, volume_ml: 10}
+      - withdraw: {rate_ml_min: 40, volume_ml: 10}
+    """
+)
+
+
+def run_cli(args, capsys):
+    with pytest.raises(SystemExit) as exited:
+        main(args)
+    out, err = capsys.readouterr()
+    return exited.value.code, out, err
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "expected"),
+    [
+        (
+            "rate_ml_min: 40, volume_ml: 10}\n  - withdraw",
+            "rate_ml_min: fast, volume_ml: 10}\n  - withdraw",
+            "steps[1].infuse.rate_ml_min: Input should be a valid number",
+        ),
+        ("camera_fps: 0", "camera_fps: 0, gain: 2", "acquisition.gain: unknown key"),
+        (
+            "rate_ml_min: 40, volume_ml: 10}\n  - withdraw",
+            "rate_ml_min: -4, volume_ml: 10}\n  - withdraw",
+            "rate_ml_min: Input should be greater than 0",
+        ),
+        (
+            "rate_ml_min: 40, volume_ml: 10}\n  - withdraw",
+            "rate_ml_min: 400, volume_ml: 10}\n  - withdraw",
+            "runs at 0.000124 to 128.9 mL/min",
+        ),
+        ("max_volume_ml: 45", "max_volume_ml: 5", "above limits.max_volume_ml = 5 mL"),
+        ("[B48-T30, B50-T20]", "[B48-T30, B51-T20]", "B51-T20"),
+    ],
+)
+def test_bad_protocols_are_refused_before_the_pump_moves(tmp_path, capsys, old, new, expected):
+    assert old in GOOD
+    protocol = tmp_path / "bad.yaml"
+    protocol.write_text(GOOD.replace(old, new))
+    out_file = tmp_path / "run.h5"
+    code, out, err = run_cli(["run", str(protocol), "--out", str(out_file)], capsys)
+    assert code == 2
+    assert expected in out + err
+    assert "Traceback" not in out + err
+    assert not out_file.exists()  # nothing was created, nothing moved
+
+
+def test_dry_run_summarises_and_moves_nothing(tmp_path, capsys):
+    protocol = tmp_path / "p.yaml"
+    protocol.write_text(GOOD)
+    code, out, _ = run_cli(["run", str(protocol), "--dry-run"], capsys)
+    assert code == 0
+    assert "duration    0.5 min (1 repetitions)" in out
+    assert "model peak" in out and "(limit 95 kPa)" in out
+    assert not Path("runs").exists() or not any(Path("runs").glob("*cli-test*"))
+
+
+def test_run_cli_writes_a_complete_file(tmp_path):
+    protocol = tmp_path / "p.yaml"
+    protocol.write_text(GOOD)
+    out_file = tmp_path / "run.h5"
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "labrig",
+            "run",
+            str(protocol),
+            "--out",
+            str(out_file),
+            "--speed",
+            "100",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 0, result.stderr
+    assert f"complete: {out_file}" in result.stderr
+    assert out_file.exists()

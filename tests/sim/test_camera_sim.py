@@ -1,0 +1,124 @@
+"""SimCamera: the rendered truth, lighting and noise, the capture interface, video files."""
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from labrig.clock import SimulatedClock
+from labrig.sim.camera import SimCamera
+
+
+def camera(**kwargs):
+    kwargs.setdefault("clock", SimulatedClock(speed=50))
+    kwargs.setdefault("length_mm_at", lambda t: 40.0)
+    return SimCamera(**kwargs)
+
+
+def test_markers_sit_where_the_length_puts_them():
+    cam = camera(length_mm_at=lambda t: 30.0 + t, mm_per_px=0.05)
+    for t in (0.0, 2.5, 7.0):
+        (x1, y1), (x2, y2) = cam.marker_centres_px(t)
+        assert math.hypot(x2 - x1, y2 - y1) * 0.05 == pytest.approx(30.0 + t)
+        assert x1 < x2
+
+
+@pytest.mark.parametrize("blur_px", [0.0, 1.5])
+def test_dots_are_rendered_at_their_exact_subpixel_centre_and_area(blur_px):
+    """Independent of the tracker: moments of the noise-free image against the truth."""
+    rng = np.random.default_rng(5)
+    for _ in range(10):
+        centre = (640 + rng.uniform(-1, 1), 360 + rng.uniform(-1, 1))
+        cam = camera(
+            centre_px=centre,
+            blur_px=blur_px,
+            noise_grey=0.0,
+            lighting_drift=0.0,
+            sway_px=0.0,
+            marker_bgr=(0, 0, 0),
+            specimen_bgr=(250, 250, 250),
+        )
+        frame = cam.render(0.0)[:, :, 0].astype(np.float64)
+        (x, y), _ = cam.marker_centres_px(0.0)
+        x0, y0 = int(x) - 30, int(y) - 30
+        m = cv2.moments((250.0 - frame[y0 : y0 + 61, x0 : x0 + 61]).astype(np.float32))
+        # Rounding to 8 bits costs a little; the truth holds to ~0.01 px.
+        assert x0 + m["m10"] / m["m00"] == pytest.approx(x, abs=0.015)
+        assert y0 + m["m01"] / m["m00"] == pytest.approx(y, abs=0.015)
+        assert m["m00"] / 250.0 == pytest.approx(math.pi * cam.radius_px**2, rel=2e-3)
+
+
+def test_noise_and_lighting_drift():
+    cam = camera(noise_grey=3.0, lighting_drift=0.1, drift_period_s=40.0)
+    (x1, y), (x2, _) = cam.marker_centres_px(0.0)
+    rows = slice(int(y) + 40, int(y) + 80)  # plain specimen, below the dots
+    cols = slice(int(x1) + 60, int(x2) - 60)
+    bright = cam.render(10.0)[rows, cols].astype(float)  # a quarter period: gain 1.1
+    dim = cam.render(30.0)[rows, cols].astype(float)  # three quarters: gain 0.9
+    assert np.std(bright) == pytest.approx(3.0, rel=0.1)
+    assert np.mean(bright) == pytest.approx(190 * 1.1, abs=0.5)
+    assert np.mean(dim) == pytest.approx(190 * 0.9, abs=0.5)
+    # Fresh noise each frame, not the same pattern again.
+    assert not np.array_equal(cam.render(1.0)[rows, cols], cam.render(1.0)[rows, cols])
+
+
+def test_read_is_a_capture_paced_by_the_clock():
+    clock = SimulatedClock(speed=2)
+    cam = camera(clock=clock, fps=10.0, size=(320, 240), mm_per_px=0.2)
+    stamps = []
+    for _ in range(4):
+        ok, frame = cam.read()
+        assert ok and frame.shape == (240, 320, 3) and frame.dtype == np.uint8
+        stamps.append(cam.get(cv2.CAP_PROP_POS_MSEC))
+        assert clock.now() >= stamps[-1] / 1000.0  # never a frame from the future
+    # Consecutive frames, 100 ms apart; a late reader gets the next frame, never an old one.
+    steps = np.diff(stamps) / 100.0
+    np.testing.assert_allclose(steps, np.rint(steps))
+    assert np.all(steps >= 1) and np.median(steps) == 1
+    assert cam.get(cv2.CAP_PROP_FRAME_WIDTH) == 320 and cam.get(cv2.CAP_PROP_FPS) == 10.0
+    cam.release()
+    assert not cam.isOpened()
+    assert cam.read() == (False, None)
+
+
+def test_written_video_reads_back_through_videocapture(tmp_path):
+    cam = camera(size=(320, 240), mm_per_px=0.2, length_mm_at=lambda t: 30.0 + 10.0 * t)
+    path = tmp_path / "specimen.avi"
+    truth = cam.write_video(path, n_frames=12, fps=20.0)
+    np.testing.assert_allclose(truth.t_s, np.arange(12) / 20.0)
+    np.testing.assert_allclose(truth.length_mm, 30.0 + 10.0 * truth.t_s)
+    assert truth.centres_px.shape == (12, 2, 2)
+    capture = cv2.VideoCapture(str(path))
+    assert capture.isOpened()
+    assert capture.get(cv2.CAP_PROP_FRAME_COUNT) == 12
+    assert capture.get(cv2.CAP_PROP_FPS) == 20.0
+    frames = []
+    while True:
+        ok, frame = capture.read()
+        if not ok:
+            break
+        frames.append(frame)
+    capture.release()
+    assert len(frames) == 12 and frames[0].shape == (240, 320, 3)
+    # MJPG is lossy but close: the decoded frame is the rendered one within a few levels.
+    difference = np.abs(frames[5].astype(int) - cam.render(5 / 20.0).astype(int))
+    assert np.mean(difference) < 3.0
+
+
+def test_a_marker_outside_the_frame_is_simply_not_drawn():
+    cam = camera(size=(320, 240), mm_per_px=0.2, length_mm_at=lambda t: 90.0, noise_grey=0.0)
+    frame = cam.render(0.0)
+    assert frame.min() >= 80  # only background and specimen: no dark dot anywhere
+
+
+def test_a_hidden_marker_is_not_drawn_until_shown_again():
+    cam = camera(size=(320, 240), mm_per_px=0.2, noise_grey=0.0)
+    (x1, y1), (x2, y2) = cam.marker_centres_px(0.0)
+    cam.hide_marker(1)
+    frame = cam.render(0.0)
+    assert frame[round(y1), round(x1)].max() < 60 and frame[round(y2), round(x2)].min() > 150
+    cam.hide_marker(1, hidden=False)
+    assert cam.render(0.0)[round(y2), round(x2)].max() < 60
+    with pytest.raises(ValueError, match="markers 0 and 1"):
+        cam.hide_marker(2)

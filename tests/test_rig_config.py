@@ -1,0 +1,75 @@
+"""Rig configuration files: the bench example is valid, errors name file/line/key, and
+`--sim` swaps every device for the simulated rig but keeps the syringe."""
+
+import pytest
+
+from labrig.errors import InputError
+from labrig.protocol import load_protocol
+from labrig.rig import load_rig_config
+
+PROTOCOL = """\
+name: bench
+specimen: {segments: [B46-T20]}
+rig: rigs/bench.yaml
+limits: {max_pressure_kpa: 95, max_volume_ml: 25}
+steps:
+  - infuse: {rate_ml_min: 60, volume_ml: 5}
+"""
+
+
+def write_protocol(tmp_path, rig_text):
+    (tmp_path / "rigs").mkdir(exist_ok=True)
+    (tmp_path / "rigs" / "bench.yaml").write_text(rig_text)
+    path = tmp_path / "p.yaml"
+    path.write_text(PROTOCOL)
+    return load_protocol(path)
+
+
+def test_the_bench_example_is_valid():
+    from pathlib import Path
+
+    root = Path(__file__).parents[1] / "protocols"
+    text = (root / "rigs" / "bench.yaml").read_text()
+    from labrig.rig import RigConfig
+    from labrig.yamlmodel import parse_yaml_model
+
+    config = parse_yaml_model(text, "bench.yaml", RigConfig, what="a rig configuration")
+    assert config.pump.port == "/dev/ttyUSB0"
+    assert config.pressure.supply_channel == "Dev1/ai1"
+    assert config.sim is None
+
+
+def test_a_rig_file_is_found_beside_the_protocol(tmp_path):
+    loaded = write_protocol(tmp_path, "pump: {port: /dev/ttyS3, address: 7}\n")
+    config = load_rig_config(loaded)
+    assert config.pump.port == "/dev/ttyS3" and config.pump.address == 7
+    assert config.sim is None and config.camera is None
+
+
+def test_sim_keeps_the_syringe_and_replaces_the_devices(tmp_path):
+    loaded = write_protocol(
+        tmp_path, "pump: {port: /dev/ttyS3, syringe: {diameter_mm: 14.5, volume_ml: 10}}\n"
+    )
+    config = load_rig_config(loaded, force_sim=True)
+    assert config.sim is not None
+    assert config.pump.syringe.diameter_mm == 14.5
+    assert config.pump.port == "emulator"
+
+
+def test_errors_name_the_rig_file_line_and_key(tmp_path):
+    loaded = write_protocol(tmp_path, "pump:\n  port: /dev/ttyS3\n  adress: 7\n")
+    with pytest.raises(InputError, match=r"bench\.yaml: line 3: pump\.adress: unknown key"):
+        load_rig_config(loaded)
+    loaded = write_protocol(tmp_path, "pump: {port: x}\ncamera: {source: 0}\n")
+    with pytest.raises(InputError, match="exactly one of mm_per_px and reference_distance_mm"):
+        load_rig_config(loaded)
+
+
+def test_missing_rig_file_and_speed_without_sim(tmp_path):
+    path = tmp_path / "p.yaml"
+    path.write_text(PROTOCOL)
+    loaded = load_protocol(path)
+    with pytest.raises(InputError, match="cannot read rig file"):
+        load_rig_config(loaded)
+    with pytest.raises(InputError, match="--speed applies to the simulated rig only"):
+        load_rig_config(loaded, speed=10.0)
