@@ -53,13 +53,13 @@ class DetectionSettings:
     length_window_frames: float = 2.5  # window of dl/dt, in camera frame intervals
     trend_gap_s: float = 1.5  # left out on each side for the transition itself
     trend_s: float = 6.0  # stretch of the trend on each side
-    pressure_excess_kpa_per_ml: float = 0.75  # least dp/dv beyond the trends of a snap
+    pressure_excess_kpa_per_ml: float = 1.0  # least dp/dv beyond the trends of a snap
     length_excess_mm_per_ml: float = 1.5  # least dl/dv beyond the trends of a snap
     noise_factor: float = 6.0  # and at least this many standard deviations of its noise
     min_dp_kpa: float = 0.5
     min_dl_mm: float = 0.3
     timing_fraction: float = 0.5  # constant-fraction timing of a transition
-    timing_window_s: float = 0.5  # least-squares window of dp/dt for the timing
+    timing_window_s: float = 0.5  # least-squares window for a transition's time and size
     step_fit_s: float = 2.0  # lines before/after a transition, for dp and dl
     cluster_ml: float = 1.0  # transitions of different repetitions closer than this agree
 
@@ -199,13 +199,14 @@ def _events(excess: np.ndarray, threshold: float) -> list[tuple[int, int, int]]:
 
 def _onset_time(
     t: np.ndarray, steepness: np.ndarray, peak: int, gap: int, span: int, fraction: float
-) -> float:
+) -> tuple[float, float]:
     """Constant-fraction timing: when the steepness, on its way into the bump whose
     excess peaks at ``peak``, first crosses ``fraction`` of the way from its median
-    level before the bump to the bump's extreme (linear between samples)."""
+    level before the bump to the bump's extreme (linear between samples). Returns that
+    time and the bump's sign (+1 above the level before, -1 below)."""
     base = _medians(_side_windows(steepness, gap, span)[0][peak : peak + 1])[0]
     if not np.isfinite(base):
-        return float(t[peak])
+        return float(t[peak]), 0.0
     sign = 1.0 if steepness[peak] >= base else -1.0
     rise = sign * (steepness - base)
     # the extreme of the bump itself may lie a little after the excess' peak
@@ -214,23 +215,57 @@ def _onset_time(
     while k > 0 and rise[k - 1] > level:
         k -= 1
     if k == 0 or not np.isfinite(rise[k - 1]):
-        return float(t[k])
+        return float(t[k]), sign
     weight = (level - rise[k - 1]) / (rise[k] - rise[k - 1])
-    return float(t[k - 1] + weight * (t[k] - t[k - 1]))
+    return float(t[k - 1] + weight * (t[k] - t[k - 1])), sign
 
 
-def _step(t, y, t_from: float, t_to: float, t_at: float, span_s: float, lo: float, hi: float):
-    """Post minus pre value at ``t_at`` of lines fitted over ``span_s`` before ``t_from``
-    and after ``t_to`` (within the motion [lo, hi])."""
+def _jump(
+    t,
+    y,
+    t_from: float,
+    t_to: float,
+    t_at: float,
+    span_s: float,
+    lo: float,
+    hi: float,
+    inner=None,
+    sign: float = 0.0,
+) -> tuple[float, float]:
+    """(size, significance) of a transition in one series.
 
-    def line_at(a: float, b: float) -> float:
+    Lines are fitted over ``span_s`` before ``t_from`` and after ``t_to`` (within the
+    motion [lo, hi]): the curve's trends on either side. The significance is the largest
+    distance of a transition sample ``inner`` (t, y; by default the series' own) from
+    the nearer of the two lines: a curve that only bends (a kink) lies on one line or
+    the other and scores 0, a step scores half its height, a dip its depth. The size is
+    the step between the lines at ``t_at``; with a ``sign`` (the way the transition
+    started), the largest departure that way from the trend before, if larger: a snap
+    onto a stiff branch dips and then recovers, and its drop is the dip.
+    """
+
+    def line(a: float, b: float) -> tuple[float, float]:
         inside = (t >= max(a, lo)) & (t <= min(b, hi))
         if np.count_nonzero(inside) < 2 or np.ptp(t[inside]) <= 0:
-            return np.nan
-        _, intercept = np.polyfit(t[inside] - t_at, y[inside], 1)
-        return float(intercept)
+            return np.nan, np.nan
+        slope, intercept = np.polyfit(t[inside] - t_at, y[inside], 1)
+        return float(slope), float(intercept)
 
-    return line_at(t_to, t_to + span_s) - line_at(t_from - span_s, t_from)
+    (k_pre, c_pre), (k_post, c_post) = line(t_from - span_s, t_from), line(t_to, t_to + span_s)
+    step = c_post - c_pre
+    t_in, y_in = inner if inner is not None else (t, y)
+    chosen = (t_in >= t_from) & (t_in <= t_to) & np.isfinite(y_in)
+    if not np.isfinite(step) or not np.any(chosen):
+        return step, abs(step) / 2  # no sample inside (a sparse camera): the step alone
+    t_in, y_in = t_in[chosen], y_in[chosen]
+    from_pre = y_in - (c_pre + k_pre * (t_in - t_at))
+    from_post = y_in - (c_post + k_post * (t_in - t_at))
+    significance = float(np.max(np.fmin(np.abs(from_pre), np.abs(from_post))))
+    if sign:
+        dip = float(np.max(sign * from_pre))
+        if dip > sign * step:
+            return sign * dip, significance
+    return step, significance
 
 
 def detect_transitions(
@@ -282,6 +317,8 @@ def _detect_in_motion(
     gap, span = round(s.trend_gap_s / s.step_s), max(1, round(s.trend_s / s.step_s))
     in_motion = (pt >= t_lo) & (pt <= t_hi)
     _, p_rate = local_lines(pt[in_motion], p[in_motion], t_eval, half_p)
+    # sharper, for the time and the size of a transition
+    sharp_p, sharp_rate = local_lines(pt[in_motion], p[in_motion], t_eval, 0.5 * s.timing_window_s)
     steepness = {"p": direction * p_rate / rate_ml_s}
     excess = {"p": bump_excess(steepness["p"], gap, span)}
     threshold_p = max(
@@ -313,17 +350,17 @@ def _detect_in_motion(
         # the pressure (1 kHz) times an event better than the camera
         channel = "p" if by_p else "l"
         peak = max((e[2] for e in group if e[3] == channel), key=lambda k: excess[channel][k])
-        timing = steepness[channel]
-        if channel == "p" and s.timing_window_s != s.pressure_window_s:
-            _, sharp = local_lines(pt[in_motion], p[in_motion], t_eval, 0.5 * s.timing_window_s)
-            timing = direction * sharp / rate_ml_s
-        t_peak = _onset_time(t_eval, timing, peak, gap, span, s.timing_fraction)
+        timing = steepness[channel] if channel == "l" else direction * sharp_rate / rate_ml_s
+        t_peak, bump_sign = _onset_time(t_eval, timing, peak, gap, span, s.timing_fraction)
         t_from, t_to = float(t_eval[first]), float(t_eval[last])
-        dp = _step(pt, p, t_from, t_to, t_peak, s.step_fit_s, t_lo, t_hi)
-        dl = np.nan
+        fit = (t_from, t_to, t_peak, s.step_fit_s, t_lo, t_hi)
+        # a steepness bump below the trend is a pressure falling with the supply
+        drop_sign = bump_sign * direction if channel == "p" else 0.0
+        dp, dp_score = _jump(pt, p, *fit, inner=(t_eval, sharp_p), sign=drop_sign)
+        dl = dl_score = np.nan
         if lt is not None and len(lt) >= 2:
-            dl = _step(lt, lv, t_from, t_to, t_peak, s.step_fit_s, t_lo, t_hi)
-        if not (abs(dp) >= s.min_dp_kpa or abs(dl) >= s.min_dl_mm):
+            dl, dl_score = _jump(lt, lv, *fit)
+        if not (dp_score >= 0.5 * s.min_dp_kpa or dl_score >= 0.5 * s.min_dl_mm):
             continue
         v_peak, v_from, v_to = volume_at(np.array([t_peak, t_from, t_to]), pump_t, pump_v)
         out.append(
