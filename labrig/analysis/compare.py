@@ -130,17 +130,20 @@ def predict(
 
 
 def _single_segment(curve, fittings_length_mm, v_max_ml, deflate, names, sources) -> Prediction:
-    v = np.linspace(0.0, v_max_ml, max(2, int(np.ceil(v_max_ml / SAMPLE_DV_ML)) + 1))
-    phases = [(v, INFLATE)] + ([(v[::-1], DEFLATE)] if deflate else [])
-    v_all = np.concatenate([x for x, _ in phases])
-    direction = np.concatenate([np.full(len(x), d) for x, d in phases])
+    from labrig.model.prediction import predicted_inflation
+
+    v, p, length = predicted_inflation([curve], v_max_ml, SAMPLE_DV_ML)
+    # under volume control a lone segment runs back down its own curve
+    phases = [(v, p, length, INFLATE)] + (
+        [(v[::-1], p[::-1], length[::-1], DEFLATE)] if deflate else []
+    )
     return Prediction(
         names,
         sources,
-        v_all,
-        np.asarray(curve.pressure_kpa(v_all), dtype=float),
-        np.asarray(curve.length_mm(v_all), dtype=float) + fittings_length_mm,
-        direction,
+        np.concatenate([x[0] for x in phases]),
+        np.concatenate([x[1] for x in phases]).astype(float),
+        np.concatenate([x[2] for x in phases]).astype(float) + fittings_length_mm,
+        np.concatenate([np.full(len(x[0]), x[3]) for x in phases]),
         (),
     )
 
