@@ -12,6 +12,7 @@ import math
 from rich import box
 from rich.console import Console, Group, RenderableType
 from rich.table import Table
+from rich.text import Text
 
 from labrig.analysis.curves import DEFLATE, INFLATE, PHASES
 from labrig.analysis.results import AnalysisResult
@@ -21,15 +22,23 @@ from labrig.protocol import plan
 DIRECTION = {INFLATE: "inflate", DEFLATE: "deflate"}
 
 
+class _Titled(Table):
+    """A table whose title is a line of its own above it: rich wraps a table's title to
+    the table's width, which cuts the units in a title in two."""
+
+    def __init__(self, heading: str, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self.heading = heading
+
+    def __rich_console__(self, console, options):
+        yield Text(f"\n{self.heading}", style="bold")
+        yield from super().__rich_console__(console, options)
+
+
 def _table(title: str, columns, right: tuple[str, ...] = ()) -> Table:
     """A compact table (no vertical rules, so it stays legible in 80 columns and logs)."""
-    table = Table(
-        title=title,
-        title_justify="left",
-        box=box.SIMPLE_HEAD,
-        pad_edge=False,
-        collapse_padding=True,
-        min_width=60,
+    table = _Titled(
+        title, box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True, show_edge=False
     )
     for name in columns:
         table.add_column(name, justify="right" if name in right else "left", no_wrap=True)
@@ -101,7 +110,8 @@ def repetitions_table(result: AnalysisResult) -> Table:
         columns.append("l min-max")
     columns.append("transitions")
     units = "time s, v mL, p kPa" + (", l mm" if result.with_length else "")
-    table = _table(f"repetitions ({units}; transitions at v)", columns, right=columns[3:7])
+    title = f"repetitions ({units}; transitions +in/-out at v, seen in p, l)"
+    table = _table(title, columns, right=columns[3:7])
     for rep in result.repetitions:
         row = [
             str(rep.index),
@@ -115,7 +125,9 @@ def repetitions_table(result: AnalysisResult) -> Table:
         if result.with_length:
             row.append(f"{_num(rep.l_min_mm, '.1f')}-{_num(rep.l_max_mm, '.1f')}")
         row.append(
-            " ".join(f"{'+' if t.direction > 0 else '-'}{t.v_ml:.2f}" for t in rep.transitions)
+            " ".join(
+                f"{'+' if t.direction > 0 else '-'}{t.v_ml:.2f}({t.kind})" for t in rep.transitions
+            )
             or "-"
         )
         table.add_row(*row)

@@ -67,10 +67,6 @@ class RunRecord:
     repetitions: tuple[Repetition, ...]
     writer_flag_set: bool
 
-    @property
-    def with_length(self) -> bool:
-        return any(rep.length is not None for rep in self.repetitions)
-
 
 def superblock_facts(path: Path) -> tuple[int, int, int] | None:
     """(superblock version, consistency flags, end-of-file address) of an HDF5 file with

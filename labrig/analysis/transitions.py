@@ -16,19 +16,22 @@ and stop, where the inlet's flow-resistance offset steps, are left out):
   both sides. A curve that bends quickly but smoothly (the stiffening wall, a peak, the
   kink where the braids touch, a ramp into it) passes from one side's trend to the other
   and stays between them, or follows a line that predicts it;
-- a transition is a run of excess above its threshold (extended while above half of
+- a candidate is a run of excess above its threshold (extended while above half of
   it), in the pressure or the length or both. The threshold is a floor in kPa/mL
   (mm/mL) or ``noise_factor`` standard deviations of the steepness' noise, whichever is
   larger; that noise follows from the samples' own scatter (second differences), so a
   noisy sensor raises it and a quiet one lets small snaps through;
+- a candidate is kept if, during it, the curve stands off the nearer of its trend
+  lines before and after by at least half of ``min_dp_kpa`` (or ``min_dl_mm``): a
+  curve that only bends lies on one line or the other;
 - its time is when the steepness (from a shorter window, for sharpness), rising into
   the bump, crosses half-way from its level before to the bump's extreme
   (constant-fraction timing): the internal flow peaks near that point, while the
   pressure's own fastest change lags it (the segments stiffen as the fluid moves). Its
-  volume is the supplied volume then. Its size dp, dl is the step between lines fitted
-  before and after the run, both taken at that time, so the quasi-static slope is not
-  counted as jump. Transitions too small to tell from noise (|dp| < min_dp_kpa and
-  |dl| < min_dl_mm) are dropped.
+  volume is the supplied volume then;
+- its size dp, dl is the step between the trend lines at that time (the quasi-static
+  slope is not counted as jump), or for the pressure the dip, if deeper: a snap onto a
+  stiff branch drops and then recovers while the pump goes on.
 
 A snap within ``trend_gap_s`` of the start or end of a pump motion has no trend on one
 side and is not reported.
@@ -67,8 +70,9 @@ class DetectionSettings:
 @dataclass(frozen=True)
 class MeasuredTransition:
     """One transition seen in one repetition. ``direction`` +1 on inflation, -1 on
-    deflation; ``v_ml`` the supplied volume where the change is fastest; dp, dl the
-    jump (post - pre) in kPa and mm (dl NaN without a camera)."""
+    deflation; ``t_s``, ``v_ml`` its time and supplied volume (constant-fraction
+    timing); ``v_start_ml``..``v_end_ml`` its extent; dp, dl its size in kPa and mm (dl
+    NaN without a camera); seen in the pressure, the length or both."""
 
     repetition: int
     direction: int

@@ -26,7 +26,8 @@ def test_show_tables_metadata_protocol_and_repetitions(segment_run, capsys):
     assert "repeat x5" in out and "infuse rate_ml_min 20, volume_ml 20.8" in out
     assert "repetition 3 faulted: simulated fault" in out
     table = out[out.index("repetitions (") :].splitlines()
-    rows = {line.split()[0]: line.split() for line in table[4:9]}
+    header = next(k for k, line in enumerate(table) if line.split()[:2] == ["#", "status"])
+    rows = {line.split()[0]: line.split() for line in table[header + 2 : header + 7]}
     assert rows["1"][:3] == ["1", "complete", "yes"]
     assert rows["3"][:2] == ["3", "faulted"] and rows["3"][2] != "yes"
     assert [rows[k][1] for k in "1245"] == ["complete"] * 4
