@@ -20,10 +20,10 @@ COLOURS = {"p": "tab:blue", "l": "tab:green", "deflate": "tab:orange", "model": 
 
 
 def _at(grid: np.ndarray, curve: np.ndarray, v_ml: float) -> float:
-    finite = np.isfinite(curve)
-    if not np.any(finite):
+    """The curve at v_ml, NaN where it has a gap (a marker there would float)."""
+    if not len(grid):
         return float("nan")
-    return float(np.interp(v_ml, grid[finite], curve[finite]))
+    return float(np.interp(v_ml, grid, curve))
 
 
 def plot_run(result: AnalysisResult, path: Path, dpi: int = 130) -> None:
@@ -118,8 +118,12 @@ def _panel(ax, result: AnalysisResult, quantity: str, grid: np.ndarray) -> None:
                 label="model snap-throughs" if k == 0 else None,
             )
     if quantity == "p":
-        top = np.nanmax([np.nanmax(c.mean) for c in means.values()]) if means else 1.0
-        ax.set_ylim(bottom=min(0.0, ax.get_ylim()[0]), top=1.15 * top if np.isfinite(top) else None)
+        # from 0 to a little above the measurement (the model may run far up its wall)
+        measured = [c.mean for c in means.values()] if means else []
+        measured += [c for rep in result.repetitions for c in rep.p_kpa.values()]
+        finite = np.concatenate([c[np.isfinite(c)] for c in measured]) if measured else []
+        if len(finite):
+            ax.set_ylim(min(0.0, float(np.min(finite))), 1.15 * float(np.max(finite)))
     if means is not None:
         _mark_transitions(ax, result, quantity, grid, means)
 

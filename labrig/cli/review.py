@@ -97,7 +97,8 @@ def plot(file: Path, out: Path) -> None:
     record, result, stored = load(file)
     _warn_open(record)
     plot_run(result, out)
-    click.echo(f"{out}: p-v and l-v of {file} ({len(result.repetitions)} repetitions)")
+    curves = "p-v and l-v" if result.with_length else "p-v"
+    click.echo(f"{out}: {curves} of {file} ({len(result.repetitions)} repetitions)")
     _computed_note(stored)
 
 
