@@ -69,7 +69,7 @@ class SimConfig(Strict):
     speed: float = Field(50.0, gt=0, description="Simulated clock speed factor")
     seed: int = 0
     resistance_kpa_s_per_ml: float = Field(
-        1.0, gt=0, description="Flow resistance between segments (sets the snap time)"
+        0.1, gt=0, description="Flow resistance between segments (sets the snap time)"
     )
     noise_kpa: float = Field(0.05, ge=0, description="Pressure sensor white noise")
     offset_error_kpa: float = Field(0.8, description="Sensor zero offset (removed by zeroing)")

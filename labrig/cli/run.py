@@ -92,9 +92,25 @@ def _run(loaded, rig_config, out_path: Path) -> None:
             )
 
         result = Runner(loaded, rig, out_path, on_progress=show).run()
+    _analyse(result.path, console)
     style = {"complete": "green", "aborted": "yellow", "faulted": "red"}[result.status]
     console.print(f"[{style}]{result.status}[/]: {result.path}")
     if result.reason:
         console.print(f"reason: {result.reason}")
     if result.status != "complete":
         raise click.exceptions.Exit(1)
+
+
+def _analyse(path: Path, console) -> None:
+    """Analyse the finished file and print the summary. An analysis that cannot be
+    made (an aborted run with too little data) is reported, never a failed run: the
+    data are in the file whatever happens here."""
+    from labrig.analysis import analyse_run, summary_text
+    from labrig.errors import LabrigError
+
+    try:
+        result = analyse_run(path)
+    except LabrigError as exc:
+        console.print(f"analysis: not made ({exc}); the raw data are in the file")
+        return
+    console.print(summary_text(result, width=min(console.width, 110)), end="")
