@@ -140,20 +140,24 @@ def _step_limit(k: list[float]) -> float:
 
 def _solve(h: float, k: list[float], rhs: list[float]) -> list[float] | None:
     """Solve (I - gamma h J) x = rhs, J = -(diag(k) - (1/n) 1 k^T), by Sherman-Morrison;
-    None if the matrix is (nearly) singular for this step size."""
+    None if the matrix is (nearly) singular for this step size.
+
+    With D = diag(1 + gamma h k_i) the Sherman-Morrison denominator
+    1 - (gamma h / n) sum k_i/d_i equals mean(1/d_i) exactly, which is how it is
+    computed: the textbook form cancels to nothing for long steps.
+    """
     n = len(k)
     gh = _GAMMA * h
     d = [1.0 + gh * x for x in k]
     if min(abs(x) for x in d) < 1e-12:
         return None
-    y = [r / di for r, di in zip(rhs, d, strict=True)]
-    z_k = math.fsum(x * yi for x, yi in zip(k, y, strict=True))
-    u_k = math.fsum(x / di for x, di in zip(k, d, strict=True)) * gh / n
-    denominator = 1.0 - u_k
-    if abs(denominator) < 1e-12:
+    inverse = [1.0 / x for x in d]
+    denominator = math.fsum(inverse) / n
+    if abs(denominator) < 1e-12 * max(abs(x) for x in inverse):
         return None
-    scale = (gh / n) * z_k / denominator
-    return [yi + scale / di for yi, di in zip(y, d, strict=True)]
+    y = [r * q for r, q in zip(rhs, inverse, strict=True)]
+    scale = (gh / n) * math.fsum(x * yi for x, yi in zip(k, y, strict=True)) / denominator
+    return [yi + scale * q for yi, q in zip(y, inverse, strict=True)]
 
 
 def _newton_step_size(k: list[float], f: list[float]) -> float:
@@ -180,7 +184,7 @@ def _escape_saddle(w: list[float], k: list[float]) -> list[float]:
     u = u / np.max(np.abs(u))
     if u[np.flatnonzero(np.abs(u) > 1e-12)[0]] < 0:
         u = -u
-    return [x + 1e-4 * ui for x, ui in zip(w, u, strict=True)]
+    return [x + 1e-3 * ui for x, ui in zip(w, u, strict=True)]
 
 
 def _settle_flow(
@@ -195,12 +199,14 @@ def _settle_flow(
         k = [b for _, b in pk]
         mean = math.fsum(p) / n
         f = [mean - x for x in p]
-        if _newton_step_size(k, f) < 1e-10:
+        at_rest = max(abs(x) for x in f) <= 1e-12 * max(1.0, abs(mean))
+        if at_rest or _newton_step_size(k, f) < 1e-10:
             if stable_scalar(k):
                 return w
-            w = _escape_saddle(w, k)
-            h = 1e-3
-            continue
+            if at_rest:  # an unstable equilibrium (a saddle, or extrema that coincide)
+                w = _escape_saddle(w, k)
+                h = 1e-3
+                continue
         h = min(h, _step_limit(k))
         k1 = _solve(h, k, f)
         if k1 is None:
@@ -213,9 +219,20 @@ def _settle_flow(
             h *= 0.25
             continue
         error = h * max(abs(0.5 * (a + b)) for a, b in zip(k1, k2, strict=True))
-        accepted = error <= tol_ml
+        w_new = [x + h * (1.5 * a + 0.5 * b) for x, a, b in zip(w, k1, k2, strict=True)]
+        # a gradient flow only loses energy (dE/dt = -sum (p_i - mean p)^2): a step that
+        # gains some is wrong however small its error estimate (this stops the method
+        # from cycling where the Jacobian changes fast, next to coincident extrema)
+        gained = math.fsum(
+            kern.energy_between(a, b) for kern, a, b in zip(kernels, w, w_new, strict=True)
+        )
+        rounding = 1e-13 * math.fsum(abs(x) for x in p)  # of the piecewise integrals
+        lost_energy = gained <= rounding
+        accepted = error <= tol_ml and lost_energy
         if accepted:
-            w = [x + h * (1.5 * a + 0.5 * b) for x, a, b in zip(w, k1, k2, strict=True)]
+            w = w_new
+        elif not lost_energy:
+            error = max(error, 4.0 * tol_ml)
         factor = 0.8 * math.sqrt(tol_ml / error) if error > 0 else 5.0
         # no growth right after a rejection (avoids alternating reject/accept)
         h *= min(5.0 if accepted and not rejected else 1.0, max(0.2, factor))

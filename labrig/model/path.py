@@ -243,9 +243,9 @@ class _Tracer:
             vm1 = kern.v_last + (kern.v_last - kern.v_first)
         s_start = self.inverse_sum(state)
         if math.isnan(s_start):
-            # two segments at branch ends at once (+inf - inf): start just inside the
-            # piece, which the crossing checked to be stable there
-            state = self.at(state.branches, kern.pressure(vm0 + 1e-9 * (vm1 - vm0)))
+            # two segments at branch ends at once (+inf - inf): start where the crossing
+            # probed this piece and found it stable (``_cross``)
+            state = self.at(state.branches, state.p_kpa - direction * _probe_kpa(state.p_kpa))
             s_start = self.inverse_sum(state)
         fractions = [
             0.5 * (1.0 - math.cos(math.pi * j / self.scan_points))
@@ -293,6 +293,8 @@ class _Tracer:
             return self.inverse_sum(self.at(b, p))
 
         lo, s_lo, hi, s_hi = a.p_kpa, s_a, c.p_kpa, s_c
+        if not s_lo < 0:  # lost already at the start of the piece (a degenerate point)
+            return a
         for _ in range(6):
             root = bracketed_root(inverse_sum_at, lo, hi, s_lo, s_hi, xtol=1e-11)
             earlier = None
@@ -330,7 +332,9 @@ class _Tracer:
                 continue  # still inside the old basin
             post = self.polish(settle(self.kernels, w0), fold.v_ml)
             # the flow must not have come back to the fold's own stable stretch
-            beyond = post.branches != fold.branches or s_p * (post.p_kpa - fold.p_kpa) > 1e-6 * max(
+            # (the fold is known to ~1e-11 kPa; a snap along the same branches can be
+            # short: 3e-5 kPa, 0.004 mL next to coincident peaks of the library)
+            beyond = post.branches != fold.branches or s_p * (post.p_kpa - fold.p_kpa) > 1e-9 * max(
                 1.0, abs(fold.p_kpa)
             )
             if beyond and stable_scalar(post.k_i):
@@ -392,7 +396,7 @@ class _Tracer:
         pressure direction is reversed, stable just past the point, with v moving on.
         """
         b = end.branches
-        delta = 1e-7 * max(1.0, abs(end.p_kpa))
+        delta = _probe_kpa(end.p_kpa)
         candidates = []
         for size in range(1, len(at_limit) + 1):
             for subset in itertools.combinations(at_limit, size):
@@ -413,13 +417,15 @@ class _Tracer:
         if candidates:
             _, _, new = min(candidates)
             cause = "branch end" if len(at_limit) == 1 else "coincident branch ends"
-            return Event("crossing", cause, direction, end, _rebranch(end, new))
+            return Event("crossing", cause, direction, end, _rebranch(end, new, at_limit))
         if all(self._switched(i, b[i], s_p) is None for i in at_limit):
             names = ", ".join(self.kernels[i].name for i in at_limit)
             raise FlowError(f"the path runs past the end of the curve of {names}")
         # No stable way on: the state is lost here. Feed a little more volume into the
         # segments at their limits and let the flow decide; then back to this volume.
-        extra = 1e-6
+        # Past an extremum the pressures differ only to second order in the volume, so
+        # the extra volume must be large enough to lift that above rounding.
+        extra = 1e-3
         w0 = list(end.v_i_ml)
         for i in at_limit:
             w0[i] += direction * extra / len(at_limit)
@@ -431,8 +437,18 @@ class _Tracer:
         return Event("snap", "coincident", direction, end, post)
 
 
-def _rebranch(state: State, branches: tuple[int, ...]) -> State:
-    return State(branches, state.p_kpa, state.v_i_ml, state.k_i)
+def _probe_kpa(p_kpa: float) -> float:
+    """How far past a point where segments reach branch ends the ways on are tried:
+    far enough that the slopes there are not rounding, close enough to be asymptotic."""
+    return 1e-7 * max(1.0, abs(p_kpa))
+
+
+def _rebranch(state: State, branches: tuple[int, ...], at_limit: Sequence[int]) -> State:
+    """The same point on other branches. The segments at their branch ends sit on an
+    extremum of their curve, where the slope is exactly 0 (PCHIP puts it there); their
+    slopes are set so, whatever rounding gave on the branch they arrived on."""
+    k = tuple(0.0 if i in at_limit else x for i, x in enumerate(state.k_i))
+    return State(branches, state.p_kpa, state.v_i_ml, k)
 
 
 def _piece(start: State, end: State, direction: int) -> Piece:
