@@ -24,7 +24,7 @@ moving (the fold's null vector), then the new state is put on its branch combina
 solving sum_i v_i(p) = v. Deflation runs the same machinery with v decreasing.
 
 The path is a list of ``Piece``s (one combination, a pressure interval) and ``Event``s;
-``sample`` turns it into arrays for plots and JSON, ``labrig.model.transitions`` into
+``sample_path`` turns it into arrays for plots and JSON, ``labrig.model.transitions`` into
 the paper's transitions.
 """
 
