@@ -192,7 +192,16 @@ def add_from_run(
     p = result.mean_p[INFLATE].mean
     # the segment's own length: the model adds the fittings of the actuator it builds
     length = result.mean_l[INFLATE].mean - fittings_mm
-    usable = np.isfinite(p) & np.isfinite(length)
+    # The camera sees far fewer points than the 1 kHz pressure (2 frames per second at
+    # 60 mL/min is one every 0.5 mL, the paper's every 2 mL): the length is interpolated
+    # between frames and held at the nearest frame's value beyond them, so the table
+    # keeps every pressure point from v = 0.
+    seen = np.isfinite(length)
+    if seen.sum() < 2:
+        raise InputError(f"{run_path}: fewer than two camera frames in the averaged inflation")
+    grid = result.grid_ml
+    length = np.interp(grid, grid[seen], length[seen])
+    usable = np.isfinite(p)
     provenance = {
         "name": name,
         "created": now_iso(),
