@@ -19,6 +19,7 @@ from labrig.errors import LabrigError
 # name -> "module:attribute" of a click command or group. Only what is built is listed:
 # the CLI never shows a command that would pretend.
 COMMANDS: dict[str, tuple[str, str]] = {
+    "bench": ("labrig.cli.bench", "bench"),
     "model": ("labrig.cli.model", "model"),
     "protocol": ("labrig.cli.protocol", "protocol"),
     "pump": ("labrig.cli.pump", "pump"),
