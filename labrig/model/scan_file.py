@@ -153,11 +153,16 @@ class ScanFile:
                 raise InputError(f"{path}: not a labrig scan file; cannot resume it")
             wanted = {"n": n, "deflate": deflate, "library_digest": library.digest}
             for key, value in wanted.items():
-                if attrs[key] != value:
-                    shown = "the segments' tables" if key == "library_digest" else value
+                stored = attrs[key].item() if hasattr(attrs[key], "item") else attrs[key]
+                if stored != value:
+                    what = (
+                        "other segments' tables"
+                        if key == "library_digest"
+                        else f"{key} = {stored}, not {value}"
+                    )
                     raise InputError(
-                        f"{path}: scanned with {key} = {attrs[key]!r}, not {shown}; resume "
-                        "with the same --n, --library and --deflate, or start a new file"
+                        f"{path}: scanned with {what}; resume with the same --n, --library "
+                        "and --deflate, or start a new file"
                     )
             done = h5["chunks/done"][:]
             kept = int(np.argmin(done)) if not done.all() else len(done)
