@@ -71,3 +71,55 @@ class SimulatedClock:
             self._start_s += (real - self._real0) * self.speed
             self._real0 = real
             self.speed = float(speed)
+
+
+class SpeedGovernor:
+    """Runs a simulated clock as fast as the machine allows while keeping every sample.
+
+    The acquisition loops report how long their last period really took in clock time
+    against the period they asked for. A loop that falls behind (a camera frame
+    skipped, a pump poll late) means the host cannot keep up at this speed: the clock
+    slows down. When every loop keeps time, it speeds up again, up to ``max_speed``.
+    Decisions are taken at most every ``interval_s`` of host time, from the worst
+    report since the last one.
+    """
+
+    def __init__(
+        self,
+        clock: SimulatedClock,
+        *,
+        min_speed: float = 1.0,
+        max_speed: float = 200.0,
+        interval_s: float = 0.25,
+        late_ratio: float = 1.5,
+        on_time_ratio: float = 1.15,
+    ) -> None:
+        self.clock = clock
+        self.min_speed = min_speed
+        self.max_speed = max_speed
+        self.interval_s = interval_s
+        self.late_ratio = late_ratio
+        self.on_time_ratio = on_time_ratio
+        self._lock = threading.Lock()
+        self._worst = 0.0
+        self._last_decision = time.monotonic()
+        self.slowest_speed = clock.speed
+
+    def report(self, interval_s: float, period_s: float) -> None:
+        """A loop asked for ``period_s`` and got ``interval_s`` (both clock time)."""
+        if period_s <= 0:
+            return
+        with self._lock:
+            self._worst = max(self._worst, interval_s / period_s)
+            now = time.monotonic()
+            if now - self._last_decision < self.interval_s:
+                return
+            worst, self._worst, self._last_decision = self._worst, 0.0, now
+            speed = self.clock.speed
+            if worst > self.late_ratio:
+                speed = max(self.min_speed, speed * 0.7)
+            elif worst < self.on_time_ratio:
+                speed = min(self.max_speed, speed * 1.1)
+            if speed != self.clock.speed:
+                self.clock.set_speed(speed)
+                self.slowest_speed = min(self.slowest_speed, speed)

@@ -19,7 +19,7 @@ from typing import Literal
 import yaml
 from pydantic import Field, model_validator
 
-from labrig.clock import RealClock, SimulatedClock
+from labrig.clock import RealClock, SimulatedClock, SpeedGovernor
 from labrig.errors import InputError
 from labrig.protocol import LoadedProtocol, Protocol
 from labrig.runner import Rig
@@ -28,6 +28,8 @@ from labrig.yamlmodel import Strict, parse_yaml_model
 # A 50 mL Hamilton 1000-series gastight syringe (the paper's), inner diameter in mm.
 DEFAULT_SYRINGE_DIAMETER_MM = 27.6
 DEFAULT_SYRINGE_VOLUME_ML = 50.0
+# The simulated clock's first speed when none is fixed; the governor takes it from there.
+AUTO_START_SPEED = 50.0
 
 
 class SyringeConfig(Strict):
@@ -66,10 +68,15 @@ class CameraConfig(Strict):
 
 
 class SimConfig(Strict):
-    speed: float = Field(50.0, gt=0, description="Simulated clock speed factor")
+    speed: float | None = Field(
+        None,
+        gt=0,
+        description="Fixed clock speed factor; default: as fast as the host keeps every "
+        "sample (starting at 50x)",
+    )
     seed: int = 0
     resistance_kpa_s_per_ml: float = Field(
-        1.0, gt=0, description="Flow resistance between segments (sets the snap time)"
+        0.1, gt=0, description="Flow resistance between segments (sets the snap time)"
     )
     noise_kpa: float = Field(0.05, ge=0, description="Pressure sensor white noise")
     offset_error_kpa: float = Field(0.8, description="Sensor zero offset (removed by zeroing)")
@@ -189,7 +196,8 @@ def _build_sim_rig(protocol: Protocol, config: RigConfig) -> Rig:
 
     sim = config.sim
     segments = [load_segment(spec) for spec in protocol.specimen.segments]
-    clock = SimulatedClock(speed=sim.speed)
+    clock = SimulatedClock(speed=sim.speed or AUTO_START_SPEED)
+    governor = None if sim.speed is not None else SpeedGovernor(clock)
     syringe = config.pump.syringe
     plant_box: list[Plant] = []
     emulator = PumpEmulator(
@@ -237,7 +245,7 @@ def _build_sim_rig(protocol: Protocol, config: RigConfig) -> Rig:
             "reader_factory": SimAnalogMultiChannelReader,
             # the buffer must hold the same host time as on the bench (a loop delayed
             # by the host is delayed speed times longer in rig time)
-            "buffer_s": max(10.0, 2.0 * sim.speed),
+            "buffer_s": max(10.0, 2.0 * (sim.speed or governor.max_speed)),
         }
         pressure = _pressure_driver(NiDaqPressure, clock, config, protocol, factories)
         length = camera = None
@@ -256,7 +264,9 @@ def _build_sim_rig(protocol: Protocol, config: RigConfig) -> Rig:
             length = CameraLength(frames, mm_per_px=mm_per_px)
         closer = stack.pop_all()
     simulation = SimulatedParts(plant, emulator, camera, daq_tasks)
-    return Rig(clock, pump, pressure, length, rig_config_text(config), closer.close, simulation)
+    return Rig(
+        clock, pump, pressure, length, rig_config_text(config), closer.close, simulation, governor
+    )
 
 
 @dataclass(frozen=True)

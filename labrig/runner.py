@@ -26,7 +26,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from labrig.clock import Clock
+from labrig.clock import Clock, SpeedGovernor
 from labrig.devices import LengthSource, PressureBlock, PressureSource, Pump, PumpState
 from labrig.errors import DeviceError, LabrigError
 from labrig.interlocks import InterlockMonitor, PressureCeiling, PumpStall, VolumeCeiling
@@ -57,6 +57,8 @@ class Rig:
     # The simulated specimen and emulators behind the drivers, when simulated: the
     # truth that tests and benchmarks compare the recorded data with.
     simulation: object | None = None
+    # Sets a simulated clock's speed from how well the loops keep time (None: fixed).
+    governor: SpeedGovernor | None = None
 
 
 @dataclass(frozen=True)
@@ -359,22 +361,38 @@ class Runner:
 
     def _camera_loop(self) -> None:
         period_s = 1.0 / self.protocol.acquisition.camera_fps
-        self._device_loop("camera", period_s, self._read_length)
+        # wake a quarter period early: a camera delivers its next frame when it is
+        # exposed, and a reader that arrives just after that moment gets the one after
+        self._device_loop("camera", period_s, self._read_length, early_s=0.25 * period_s)
 
-    def _device_loop(self, device: str, period_s: float, read_once: Callable[[], None]) -> None:
+    def _device_loop(
+        self,
+        device: str,
+        period_s: float,
+        read_once: Callable[[], float | None],
+        early_s: float = 0.0,
+    ) -> None:
         """Read one device every ``period_s`` (paced by deadlines, so a slow read does
-        not stretch the period); a device error is a fault of the run."""
+        not stretch the period); a device error is a fault of the run. ``read_once``
+        returns the clock time its reading describes (None: nothing read), which the
+        speed governor of a simulated rig compares with the period."""
         next_s = self.clock.now()
+        last_read_s = None
+        governor = self.rig.governor
         while not self._stop_loops.is_set():
             try:
-                read_once()
+                read_s = read_once()
             except (DeviceError, OSError) as exc:
                 self.monitor.trip(f"{device}: {exc}", "faulted")
                 return
+            if governor is not None and read_s is not None:
+                if last_read_s is not None:
+                    governor.report(read_s - last_read_s, period_s)
+                last_read_s = read_s
             next_s = max(next_s + period_s, self.clock.now() - period_s)
-            self._pause(next_s - self.clock.now())
+            self._pause(next_s - early_s - self.clock.now())
 
-    def _read_pressure(self) -> None:
+    def _read_pressure(self) -> float | None:
         block = self.rig.pressure.read()
         if len(block):
             self.writer.append_pressure(
@@ -387,8 +405,9 @@ class Runner:
                 latest.pressure_kpa = float(block.pressure_kpa[-1])
             latest.pressure_blocks += 1
             latest.lock.notify_all()
+        return float(block.t_s[-1]) if len(block) else None
 
-    def _read_pump(self) -> None:
+    def _read_pump(self) -> float:
         with self.latest.lock:
             seq = self._motion_seq
         with self._volume_lock:
@@ -410,11 +429,12 @@ class Runner:
             latest.pump_t_s = status.t_s
             latest.pump_seq = seq
             latest.lock.notify_all()
+        return status.t_s
 
-    def _read_length(self) -> None:
+    def _read_length(self) -> float | None:
         sample = self.rig.length.read()
         if sample is None:
-            return
+            return None
         self.writer.append_length(
             self._current_repetition(),
             sample.t_s,
@@ -439,6 +459,7 @@ class Runner:
                     "and the markers)",
                     "faulted",
                 )
+        return sample.t_s
 
     # --- time, progress, signals -----------------------------------------------------
     def _pause(self, clock_s: float) -> None:

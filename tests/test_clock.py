@@ -71,3 +71,30 @@ def test_real_clock_sleeps_for_real():
     t0 = clock.now()
     clock.sleep(0.02)
     assert clock.now() - t0 >= 0.02
+
+
+def test_governor_slows_down_when_a_loop_falls_behind_and_speeds_up_when_all_keep_time():
+    from labrig.clock import SpeedGovernor
+
+    clock = SimulatedClock(speed=50.0)
+    governor = SpeedGovernor(clock, min_speed=5.0, max_speed=100.0, interval_s=0.0)
+    governor.report(interval_s=1.0, period_s=0.5)  # a camera frame skipped
+    assert clock.speed == pytest.approx(35.0)
+    for _ in range(50):
+        governor.report(interval_s=2.0, period_s=0.5)
+    assert clock.speed == 5.0 and governor.slowest_speed == 5.0  # never below the floor
+    for _ in range(100):
+        governor.report(interval_s=0.21, period_s=0.2)  # on time
+    assert clock.speed == 100.0  # and never above the ceiling
+    governor.report(interval_s=0.26, period_s=0.2)  # a little late: hold the speed
+    assert clock.speed == 100.0
+
+
+def test_governor_decides_at_most_once_per_interval():
+    from labrig.clock import SpeedGovernor
+
+    clock = SimulatedClock(speed=50.0)
+    governor = SpeedGovernor(clock, interval_s=60.0)
+    for _ in range(10):
+        governor.report(interval_s=5.0, period_s=0.5)
+    assert clock.speed == 50.0

@@ -20,10 +20,16 @@ from labrig.errors import LabrigError
 # the CLI never shows a command that would pretend.
 COMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("labrig.cli.bench", "bench"),
+    "compare": ("labrig.cli.review", "compare_command"),
+    "export": ("labrig.cli.review", "export"),
+    "library": ("labrig.cli.library", "library"),
     "model": ("labrig.cli.model", "model"),
+    "plot": ("labrig.cli.review", "plot"),
     "protocol": ("labrig.cli.protocol", "protocol"),
     "pump": ("labrig.cli.pump", "pump"),
+    "recover": ("labrig.cli.review", "recover"),
     "run": ("labrig.cli.run", "run"),
+    "show": ("labrig.cli.review", "show"),
     "track": ("labrig.cli.track", "track"),
 }
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import datetime as dt
 import math
 import re
+import time
 from pathlib import Path
 
 import click
@@ -27,7 +28,8 @@ def default_out_path(protocol_name: str) -> Path:
     "--speed",
     type=click.FloatRange(min=0.0, min_open=True),
     default=None,
-    help="Simulated rig only: clock speed factor (default: the rig config's, 50x).",
+    help="Simulated rig only: a fixed clock speed factor (default: as fast as the "
+    "machine keeps every sample).",
 )
 @click.option("--dry-run", is_flag=True, help="Check and summarise the protocol; move nothing.")
 def run(protocol_file: Path, sim: bool, out_path: Path | None, speed, dry_run: bool) -> None:
@@ -91,10 +93,34 @@ def _run(loaded, rig_config, out_path: Path) -> None:
                 left=f"{snapshot.remaining_s / 60:4.1f} min left",
             )
 
+        wall0 = time.monotonic()
+        rig_t0 = rig.clock.now()
         result = Runner(loaded, rig, out_path, on_progress=show).run()
+        rig_s, wall_s = rig.clock.now() - rig_t0, time.monotonic() - wall0
+    if rig.simulation is not None:
+        console.print(
+            f"simulated {rig_s / 60:.1f} min of rig time in {wall_s:.1f} s "
+            f"(x{rig_s / max(wall_s, 1e-9):.0f} on average)"
+        )
+    _analyse(result.path, console)
     style = {"complete": "green", "aborted": "yellow", "faulted": "red"}[result.status]
     console.print(f"[{style}]{result.status}[/]: {result.path}")
     if result.reason:
         console.print(f"reason: {result.reason}")
     if result.status != "complete":
         raise click.exceptions.Exit(1)
+
+
+def _analyse(path: Path, console) -> None:
+    """Analyse the finished file and print the summary. An analysis that cannot be
+    made (an aborted run with too little data) is reported, never a failed run: the
+    data are in the file whatever happens here."""
+    from labrig.analysis import analyse_run, summary_text
+    from labrig.errors import LabrigError
+
+    try:
+        result = analyse_run(path)
+    except LabrigError as exc:
+        console.print(f"analysis: not made ({exc}); the raw data are in the file")
+        return
+    console.print(summary_text(result, width=min(console.width, 110)), end="")

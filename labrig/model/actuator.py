@@ -99,7 +99,7 @@ class Actuator:
 
     @cached_property
     def kernels(self) -> tuple[CurveKernel, ...]:
-        return tuple(CurveKernel(s) for s in self.segments)
+        return tuple(s.kernel for s in self.segments)
 
     def energy_mj(self, v_i_ml: Sequence[float]) -> float:
         """Total stored energy, Eq. 3 (from the unpressurised state)."""

@@ -19,6 +19,8 @@ from labrig.model.segment import SegmentCurve
 # Newton on a branch's cubic piece stops when the step is below this fraction of the
 # sample spacing (the interpolant itself is only defined to rounding, ~1e-16).
 _T_TOL = 1e-13
+# fractions of a sample interval at which slope profiles close in on an extremum
+_TOWARD_END = (0.5, 0.25, 0.1, 0.03, 0.01, 0.003, 0.001)
 
 
 class CurveKernel:
@@ -28,6 +30,7 @@ class CurveKernel:
         self.name = curve.name
         pp = curve._p
         self.x = [float(x) for x in pp.x]
+        self.last_piece = len(self.x) - 2
         self.c3, self.c2, self.c1, self.c0 = (row.tolist() for row in pp.c)
         self.samples = curve.p_kpa.tolist()
         self.v_first = self.x[0]
@@ -52,6 +55,7 @@ class CurveKernel:
         self.peak_branch = curve.peak_branch
         self.extremum_volumes = [b.v_hi_ml for b in self.branches[:-1]]
         # per branch: sample pressures in ascending order, for bisection
+        self._profiles: dict[int, tuple[list[float], list[float]]] = {}
         self._ascending = []
         for b in self.branches:
             run = self.samples[b.first : b.last + 1]
@@ -60,7 +64,9 @@ class CurveKernel:
     # --- forward evaluation ----------------------------------------------------------
     def _piece(self, v: float) -> int:
         j = bisect_right(self.x, v) - 1
-        return min(max(j, 0), len(self.x) - 2)
+        if j < 0:
+            return 0
+        return j if j < self.last_piece else self.last_piece
 
     def _piece_integral(self, j: int, t: float) -> float:
         return (
@@ -152,6 +158,54 @@ class CurveKernel:
     def right_of_peak(self, branch: int) -> bool:
         """On the pressure peak's falling branch or later; never, without a peak."""
         return self.peak_branch is not None and branch >= self.peak_branch
+
+    def slope_profile(self, branch: int) -> tuple[list[float], list[float]]:
+        """(p, 1/k * sqrt(d(p))) along a branch, sorted by p, d the pressure distance to
+        the nearer extremum end of the branch (``singular_weight``). Near an extremum
+        1/k grows like 1/sqrt(d), so the weighted value is smooth and linear
+        interpolation in p follows it closely, even where two segments near their
+        peaks make the sum of two large terms of opposite sign. The points: every
+        sample, the slope's extremum inside each sample interval (PCHIP's slope is a
+        quadratic there and can dip below both ends, e.g. next to the contact kink),
+        and points closing in on an extremum sample. Computed once per branch."""
+        cached = self._profiles.get(branch)
+        if cached is not None:
+            return cached
+        b = self.branches[branch]
+        volumes = []
+        for j in range(b.first, b.last):
+            h = self.x[j + 1] - self.x[j]
+            volumes.append(self.x[j])
+            c3, c2 = self.c3[j], self.c2[j]
+            if c3 != 0.0:
+                t = -c2 / (3.0 * c3)
+                if 0.0 < t < h:
+                    volumes.append(self.x[j] + t)
+            if j == b.first and b.first > 0:  # leaving an extremum sample
+                volumes.extend(self.x[j] + h * f for f in _TOWARD_END)
+            if j == b.last - 1 and b.last < len(self.x) - 1:  # arriving at one
+                volumes.extend(self.x[j + 1] - h * f for f in _TOWARD_END)
+        volumes.append(self.x[b.last])
+        points = []
+        for v in volumes:
+            p, k = self.pressure_and_slope(v)
+            if (k > 0.0) == b.rising and k != 0.0:
+                points.append((p, math.sqrt(self.singular_distance(branch, p)) / k))
+        points.sort()
+        profile = ([p for p, _ in points], [r for _, r in points])
+        self._profiles[branch] = profile
+        return profile
+
+    def singular_distance(self, branch: int, p: float) -> float:
+        """Pressure distance from p to the nearer end of the branch that is an
+        extremum of the curve (where the slope is 0); 1.0 kPa if neither is."""
+        b = self.branches[branch]
+        ends = []
+        if b.first > 0:
+            ends.append(abs(p - self.samples[b.first]))
+        if b.last < len(self.x) - 1:
+            ends.append(abs(p - self.samples[b.last]))
+        return min(ends) if ends else 1.0
 
     def volume_on_branch(self, branch: int, p: float) -> tuple[float, float]:
         """(v, dp/dv) on ``branch`` at pressure ``p``; the caller keeps ``p`` within the

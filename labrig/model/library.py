@@ -54,20 +54,25 @@ def _looks_like_path(spec: str) -> bool:
     return spec.lower().endswith(".csv") or "/" in spec or "\\" in spec or Path(spec).exists()
 
 
-def load_segment(spec: str) -> SegmentCurve:
-    """A segment from a library name, a Gent membrane name or a CSV path."""
+def load_segment(spec: str, library_dir: Path | None = None) -> SegmentCurve:
+    """A segment from a library name, a Gent membrane name, the name of a measured
+    segment (``labrig.segment_library``: ``library_dir``, else $LABRIG_LIBRARY, else
+    ./library) or a CSV path."""
     from labrig.model.gent import GENT_NAMES, gent_membrane
+    from labrig.segment_library import find_measured, resolve_library_dir
 
     text = spec.strip()
     if text.lower() in GENT_NAMES:
         return gent_membrane(text.lower())
     if text.upper() in LIBRARY_NAMES:
         return analytical_segment(text)
-    if _looks_like_path(text):
+    measured = find_measured(text, library_dir)
+    if measured is not None or _looks_like_path(text):
         from labrig.model.measured import load_csv
 
-        return load_csv(Path(text))
+        return load_csv(measured, name=text) if measured else load_csv(Path(text))
     raise InputError(
-        f"unknown segment {spec!r}: use a library name ({_VALID}), gent-a/b/c, or a "
-        "path to a CSV file with the header volume_ml,pressure_kpa,length_mm"
+        f"unknown segment {spec!r}: use a library name ({_VALID}), gent-a/b/c, a measured "
+        f"segment in {resolve_library_dir(library_dir)}/ (labrig library add), or a path to a CSV "
+        "file with the header volume_ml,pressure_kpa,length_mm"
     )

@@ -24,7 +24,7 @@ moving (the fold's null vector), then the new state is put on its branch combina
 solving sum_i v_i(p) = v. Deflation runs the same machinery with v decreasing.
 
 The path is a list of ``Piece``s (one combination, a pressure interval) and ``Event``s;
-``sample`` turns it into arrays for plots and JSON, ``labrig.model.transitions`` into
+``sample_path`` turns it into arrays for plots and JSON, ``labrig.model.transitions`` into
 the paper's transitions.
 """
 
@@ -32,17 +32,22 @@ from __future__ import annotations
 
 import itertools
 import math
+from bisect import bisect_left, bisect_right
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from labrig.model.actuator import Actuator, stable_scalar
-from labrig.model.descent import FlowError, flow_rate, settle
+from labrig.model.descent import FlowError, settle
 from labrig.model.roots import bracketed_root
 
 INFLATE = 1
 DEFLATE = -1
+# The fold screen computes a state exactly where the screened sum 1/k is within this
+# fraction of its terms' magnitudes from 0. At 0.05, 35 of 400 random library actuators
+# lost a small snap next to coincident peaks; at 0.2 and up, 2 of 400 (docs/actuator.md).
+_SCREEN_MARGIN = 0.2
 
 
 @dataclass(frozen=True)
@@ -129,11 +134,10 @@ def quasi_static_path(
     v_end_ml: float | None = None,
     *,
     deflate: bool = False,
-    scan_points: int = 32,
 ) -> Path:
     """Inflate from the unpressurised state to ``v_end_ml`` (default:
     ``default_end_volume_ml``), then, if ``deflate``, withdraw back to zero."""
-    tracer = _Tracer(actuator, scan_points=scan_points)
+    tracer = _Tracer(actuator)
     v_end = default_end_volume_ml(actuator) if v_end_ml is None else float(v_end_ml)
     start = tracer.at(tuple(0 for _ in range(actuator.n)), 0.0)
     timeline, end = tracer.follow(start, INFLATE, v_end)
@@ -145,16 +149,27 @@ def quasi_static_path(
 class _Tracer:
     """The continuation itself; holds the actuator's scalar kernels."""
 
-    def __init__(self, actuator: Actuator, *, scan_points: int, max_events: int = 10_000) -> None:
+    def __init__(self, actuator: Actuator, *, max_events: int = 10_000) -> None:
         self.actuator = actuator
         self.kernels = actuator.kernels
         self.n = actuator.n
-        self.scan_points = scan_points
         self.max_events = max_events
 
     # --- states on a branch combination ------------------------------------------------
     def at(self, branches: tuple[int, ...], p: float) -> State:
         vk = [kern.volume_on_branch(b, p) for kern, b in zip(self.kernels, branches, strict=True)]
+        return State(branches, p, tuple(v for v, _ in vk), tuple(k for _, k in vk))
+
+    def at_volume_of(self, branches: tuple[int, ...], m: int, v_m: float) -> State:
+        """The state on ``branches`` where segment m holds v_m (its pressure sets the
+        others'): one inversion fewer than ``at``, for scans along m's branch."""
+        kern = self.kernels[m]
+        p, k_m = kern.pressure_and_slope(v_m)
+        k_m = max(k_m, 0.0) if kern.branches[branches[m]].rising else min(k_m, 0.0)
+        vk = [
+            (v_m, k_m) if i == m else other.volume_on_branch(b, p)
+            for i, (other, b) in enumerate(zip(self.kernels, branches, strict=True))
+        ]
         return State(branches, p, tuple(v for v, _ in vk), tuple(k for _, k in vk))
 
     def inverse_sum(self, state: State) -> float:
@@ -231,56 +246,88 @@ class _Tracer:
 
     # --- folds -------------------------------------------------------------------------
     def _find_fold(self, state: State, m: int, p_stop: float, direction: int) -> State | None:
-        """First fold on the way from ``state`` to ``p_stop``; segment m is the one past
-        its peak. The scan runs over m's volume, (1 - cos) spaced so that it is dense at
-        both ends of m's falling branch, where v varies like the square root of p and
-        where a fold close to a branch end hides."""
-        kern = self.kernels[m]
-        vm0 = state.v_i_ml[m]
-        if math.isfinite(p_stop):
-            vm1 = kern.volume_on_branch(state.branches[m], p_stop)[0]
-        else:  # a falling last branch continued linearly: look one table length on
-            vm1 = kern.v_last + (kern.v_last - kern.v_first)
+        """First fold on the way from ``state`` to ``p_stop`` (segment m past its peak).
+
+        A fold is where sum_i 1/k_i(p) reaches 0. Each 1/k_i is smooth between the
+        samples of segment i's table and can change fast across a few of them (m's
+        near-flat dips; another segment's contact kink, where its slope drops from the
+        stiff wall to the soft branch and a small snap appears). So the sum is screened
+        at every sample pressure of every segment in the piece, each term interpolated
+        linearly in p between its own segment's samples (exact there: the sample's v
+        and PCHIP slope); where the screened sum comes near 0 the state is computed
+        exactly. Brackets are then refined down to m's sample spacing, so the
+        first fold is found, not a later one.
+        """
+        b = state.branches
         s_start = self.inverse_sum(state)
         if math.isnan(s_start):
-            # two segments at branch ends at once (+inf - inf): start just inside the
-            # piece, which the crossing checked to be stable there
-            state = self.at(state.branches, kern.pressure(vm0 + 1e-9 * (vm1 - vm0)))
+            # two segments at branch ends at once (+inf - inf): start where the crossing
+            # probed this piece and found it stable (``_cross``)
+            state = self.at(b, state.p_kpa - direction * _probe_kpa(state.p_kpa))
             s_start = self.inverse_sum(state)
-        fractions = [
-            0.5 * (1.0 - math.cos(math.pi * j / self.scan_points))
-            for j in range(1, self.scan_points + 1)
-        ]
-        return self._scan(state, s_start, vm0, vm1, fractions, p_stop, m, direction)
+        if not math.isfinite(p_stop):  # a falling last branch continued linearly
+            kern = self.kernels[m]
+            p_stop = kern.pressure(kern.v_last + (kern.v_last - kern.v_first))
+        end = self.at(b, p_stop)
+        s_end = self.inverse_sum(end)
+        prev, s_prev = state, s_start
+        for p in self._screen(state, end, m):
+            point = self.at(b, p)
+            s_point = self.inverse_sum(point)
+            found = self._check(prev, s_prev, point, s_point, m, direction)
+            if found is not None:
+                return found
+            prev, s_prev = point, s_point
+        return self._check(prev, s_prev, end, s_end, m, direction)
 
-    def _scan(self, prev, s_prev, vm0, vm1, fractions, p_last, m, direction):
-        """Walk the grid; where sum 1/k reaches 0, or v turns back (a pair of folds
-        between two points), look closer until the bracket spans about two samples of
-        m's table, so that the first fold is found, not any later one."""
+    def _screen(self, start: State, end: State, m: int) -> list[float]:
+        """Pressures between start and end (in the order the path meets them) where
+        the screened sum 1/k comes near 0 (see ``_find_fold``)."""
+        p_a, p_b = start.p_kpa, end.p_kpa
+        lo, hi = min(p_a, p_b), max(p_a, p_b)
+        branches = start.branches
+        profiles = [kern.slope_profile(b) for kern, b in zip(self.kernels, branches, strict=True)]
+        pressures = set()
+        for ps, _ in profiles:
+            pressures.update(ps[bisect_right(ps, lo) : bisect_left(ps, hi)])
+        flagged = []
+        for p in sorted(pressures, reverse=p_b < p_a):
+            total = 0.0
+            scale = 0.0
+            for kern, b, (ps, gs) in zip(self.kernels, branches, profiles, strict=True):
+                distance = kern.singular_distance(b, p)
+                if distance <= 0.0:
+                    continue
+                value = _interpolate(ps, gs, p) / math.sqrt(distance)
+                total += value
+                scale += abs(value)
+            if total >= -_SCREEN_MARGIN * scale:
+                flagged.append(p)
+        return flagged
+
+    def _check(self, prev, s_prev, cur, s_cur, m, direction) -> State | None:
+        """The first fold between two exact states, if sum 1/k reaches 0 between them
+        or v turns back (then a fold pair hides between them): look closer at 8 points
+        while the bracket is wider than two samples of m's table."""
+        if not (s_cur >= 0 or direction * (cur.v_ml - prev.v_ml) < 0):
+            return None
         kern = self.kernels[m]
-        b = prev.branches
-        for j, fraction in enumerate(fractions):
-            last = j == len(fractions) - 1
-            p = (
-                p_last
-                if last and p_last is not None
-                else kern.pressure(vm0 + (vm1 - vm0) * fraction)
-            )
-            if not math.isfinite(p):
-                return None
-            cur = self.at(b, p)
-            s_cur = self.inverse_sum(cur)
-            turned = direction * (cur.v_ml - prev.v_ml) < 0
-            if s_cur >= 0 or turned:
-                a_m, c_m = prev.v_i_ml[m], cur.v_i_ml[m]
-                if abs(c_m - a_m) > 2.0 * kern.spacing_near(a_m):
-                    inner = [k / 8 for k in range(1, 9)]
-                    found = self._scan(prev, s_prev, a_m, c_m, inner, cur.p_kpa, m, direction)
-                    if found is not None:
-                        return found
-                if s_cur >= 0:
-                    return self._fold_between(prev, cur, s_prev, s_cur)
-            prev, s_prev = cur, s_cur
+        a_m, c_m = prev.v_i_ml[m], cur.v_i_ml[m]
+        if abs(c_m - a_m) > 2.0 * kern.spacing_near(a_m):
+            inner_prev, inner_s = prev, s_prev
+            for k in range(1, 9):
+                point = (
+                    cur
+                    if k == 8
+                    else self.at_volume_of(prev.branches, m, a_m + (c_m - a_m) * k / 8)
+                )
+                s_point = s_cur if k == 8 else self.inverse_sum(point)
+                found = self._check(inner_prev, inner_s, point, s_point, m, direction)
+                if found is not None:
+                    return found
+                inner_prev, inner_s = point, s_point
+        if s_cur >= 0:
+            return self._fold_between(prev, cur, s_prev, s_cur)
         return None
 
     def _fold_between(self, a: State, c: State, s_a: float, s_c: float) -> State:
@@ -293,6 +340,8 @@ class _Tracer:
             return self.inverse_sum(self.at(b, p))
 
         lo, s_lo, hi, s_hi = a.p_kpa, s_a, c.p_kpa, s_c
+        if not s_lo < 0:  # lost already at the start of the piece (a degenerate point)
+            return a
         for _ in range(6):
             root = bracketed_root(inverse_sum_at, lo, hi, s_lo, s_hi, xtol=1e-11)
             earlier = None
@@ -311,26 +360,26 @@ class _Tracer:
 
     # --- snaps -------------------------------------------------------------------------
     def _snap_from_fold(self, fold: State, s_p: int) -> State:
-        """Settle from a fold. The flow starts a small distance eta along the fold's
-        null vector (u_i = 1/k_i, sum u_i = 0 there), the way the path was going. At a
-        fold the flow away from it is second order in eta, so eta must keep that drive
-        well above the rounding of the pressures (~1e-14 kPa), and the further out the
-        start, the fewer slow steps the flow needs to leave the fold. With eta = 1e-2 mL
-        the start is on the fold's unstable manifold to ~1e-4 mL, below the flow's own
-        tolerance; smaller and larger eta are tried if the flow comes back."""
+        """Settle from a fold. The flow starts a distance eta along the fold's null
+        vector (u_i = 1/k_i, sum u_i = 0 there), the way the path was going, i.e. on the
+        fold's unstable manifold to O(eta^2). At a fold the drive away from it is second
+        order in eta, so eta must lift it well above the rounding of the pressures
+        (~1e-14 kPa); the further out, the fewer slow steps the flow needs to leave. If
+        the flow ends back on the fold's own stretch (eta inside the fold's numerical
+        uncertainty), or the snap is shorter than eta and the start passed its end (the
+        flow then returns to it, which is fine), other eta are tried."""
         u = [s_p / k if k != 0 else 0.0 for k in fold.k_i]
         mean = math.fsum(u) / self.n
         u = [x - mean for x in u]
         scale = 1.0 / max(abs(x) for x in u)
         u = [x * scale for x in u]
-        for eta in (1e-2, 1e-3, 1e-1):
+        for eta in (1e-2, 1e-3, 1e-4, 1e-1):
             w0 = [v + eta * x for v, x in zip(fold.v_i_ml, u, strict=True)]
-            rate = flow_rate(self.kernels, w0)
-            if math.fsum(r * x for r, x in zip(rate, u, strict=True)) <= 0:
-                continue  # still inside the old basin
             post = self.polish(settle(self.kernels, w0), fold.v_ml)
-            # the flow must not have come back to the fold's own stable stretch
-            beyond = post.branches != fold.branches or s_p * (post.p_kpa - fold.p_kpa) > 1e-6 * max(
+            # not back on the fold's own stable stretch (the fold is known to ~1e-11
+            # kPa; a snap along the same branches can be short: 7e-5 kPa, 5e-4 mL
+            # next to the near-flat dips and coincident peaks of the library)
+            beyond = post.branches != fold.branches or s_p * (post.p_kpa - fold.p_kpa) > 1e-9 * max(
                 1.0, abs(fold.p_kpa)
             )
             if beyond and stable_scalar(post.k_i):
@@ -392,7 +441,7 @@ class _Tracer:
         pressure direction is reversed, stable just past the point, with v moving on.
         """
         b = end.branches
-        delta = 1e-7 * max(1.0, abs(end.p_kpa))
+        delta = _probe_kpa(end.p_kpa)
         candidates = []
         for size in range(1, len(at_limit) + 1):
             for subset in itertools.combinations(at_limit, size):
@@ -413,13 +462,15 @@ class _Tracer:
         if candidates:
             _, _, new = min(candidates)
             cause = "branch end" if len(at_limit) == 1 else "coincident branch ends"
-            return Event("crossing", cause, direction, end, _rebranch(end, new))
+            return Event("crossing", cause, direction, end, _rebranch(end, new, at_limit))
         if all(self._switched(i, b[i], s_p) is None for i in at_limit):
             names = ", ".join(self.kernels[i].name for i in at_limit)
             raise FlowError(f"the path runs past the end of the curve of {names}")
         # No stable way on: the state is lost here. Feed a little more volume into the
         # segments at their limits and let the flow decide; then back to this volume.
-        extra = 1e-6
+        # Past an extremum the pressures differ only to second order in the volume, so
+        # the extra volume must be large enough to lift that above rounding.
+        extra = 1e-3
         w0 = list(end.v_i_ml)
         for i in at_limit:
             w0[i] += direction * extra / len(at_limit)
@@ -431,8 +482,29 @@ class _Tracer:
         return Event("snap", "coincident", direction, end, post)
 
 
-def _rebranch(state: State, branches: tuple[int, ...]) -> State:
-    return State(branches, state.p_kpa, state.v_i_ml, state.k_i)
+def _interpolate(xs: list[float], ys: list[float], x: float) -> float:
+    """Linear interpolation in points sorted by x; constant beyond the ends."""
+    j = bisect_right(xs, x)
+    if j == 0:
+        return ys[0]
+    if j == len(xs):
+        return ys[-1]
+    x0, x1 = xs[j - 1], xs[j]
+    return ys[j - 1] + (ys[j] - ys[j - 1]) * (x - x0) / (x1 - x0) if x1 != x0 else ys[j]
+
+
+def _probe_kpa(p_kpa: float) -> float:
+    """How far past a point where segments reach branch ends the ways on are tried:
+    far enough that the slopes there are not rounding, close enough to be asymptotic."""
+    return 1e-7 * max(1.0, abs(p_kpa))
+
+
+def _rebranch(state: State, branches: tuple[int, ...], at_limit: Sequence[int]) -> State:
+    """The same point on other branches. The segments at their branch ends sit on an
+    extremum of their curve, where the slope is exactly 0 (PCHIP puts it there); their
+    slopes are set so, whatever rounding gave on the branch they arrived on."""
+    k = tuple(0.0 if i in at_limit else x for i, x in enumerate(state.k_i))
+    return State(branches, state.p_kpa, state.v_i_ml, k)
 
 
 def _piece(start: State, end: State, direction: int) -> Piece:
@@ -441,7 +513,7 @@ def _piece(start: State, end: State, direction: int) -> Piece:
 
 def state_on_piece(actuator: Actuator, piece: Piece, v_ml: float) -> State:
     """The path's state at volume ``v_ml`` on ``piece``, clamped to the piece's ends."""
-    tracer = _Tracer(actuator, scan_points=0)
+    tracer = _Tracer(actuator)
     start = tracer.at(piece.branches, piece.p_from_kpa)
     end = tracer.at(piece.branches, piece.p_to_kpa)
     lo, hi = sorted((piece.v_from_ml, piece.v_to_ml))

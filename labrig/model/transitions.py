@@ -22,15 +22,16 @@ Definitions (pre/post: immediately before/after):
 For a snap, pre and post are the states on both sides of the jump at the same volume. A
 stable transition has no jump, and the paper notes its dE is set by the increment of
 its algorithm; here pre and post are the path's states a fixed ``window_ml`` apart,
-centred on the crossing (default 1e-4 mL, the order of increment that reproduces the
-paper's largest stable dE of ~4e-5), so the numbers are deterministic and comparable.
+centred on the crossing (default 1e-4 mL: dE = p window / E, 3e-6 to 1e-5 for the
+library, the order of the paper's stable values, up to 4e-5), so the numbers are
+deterministic and comparable between actuators.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from labrig.model.path import INFLATE, Event, Path, Piece, State, state_on_piece
+from labrig.model.path import INFLATE, Event, Path, State, state_on_piece
 
 
 @dataclass(frozen=True)
@@ -65,7 +66,6 @@ def transitions(path: Path, window_ml: float = 1e-4) -> list[Transition]:
             pre, post, stable = item.pre, item.post, False
         elif alpha != beta:
             before, after = timeline[t - 1], timeline[t + 1]
-            assert isinstance(before, Piece) and isinstance(after, Piece)
             v = item.pre.v_ml
             half = 0.5 * window_ml * item.direction
             pre = state_on_piece(actuator, before, v - half)

@@ -309,3 +309,26 @@ def test_transition_numbers_follow_the_papers_definitions():
         else:
             assert post.sum() == pytest.approx(pre.sum(), abs=1e-9) and t.dE < 0
     assert math.isclose(found[0].v_ml, found[0].pre.v_ml + 0.5e-4, abs_tol=1e-12) or found[0].stable
+
+
+TRICKY = [
+    ("B40-T28", "B50-T22"),  # B40-T28's contact kink under the other's long fall
+    ("B46-T26", "B46-T28"),  # coincident peaks, a 0.08 mL snap right after them
+    ("B40-T20", "B40-T24"),  # coincident peaks, snaps back on deflation next to them
+    ("B44-T22", "B44-T30"),  # B44-T30's 0.007 kPa dip
+    ("B42-T20", "B42-T26", "B50-T20"),
+]
+
+
+@pytest.mark.parametrize("names", TRICKY, ids=["+".join(n) for n in TRICKY])
+def test_no_fold_is_missed_next_to_kinks_dips_and_coincident_peaks(names):
+    """Sampled every 2 uL, the path holds only stable states (a missed fold would show
+    as a stretch of unstable ones), checked with the SegmentCurve's own slopes."""
+    actuator = library_actuator(*names)
+    sampled = sample_path(quasi_static_path(actuator, deflate=True), dv_ml=0.002)
+    k = np.array(
+        [s.slope_kpa_per_ml(v) for s, v in zip(actuator.segments, sampled.v_i_ml, strict=True)]
+    ).T
+    unstable = ~is_stable(k)
+    smallest = np.array([np.linalg.eigvalsh(hessian(row)).min() for row in k[unstable]])
+    assert np.all(smallest > -1e-6 * np.median(np.abs(k)))

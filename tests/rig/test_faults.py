@@ -99,7 +99,7 @@ def test_lost_markers_fault_the_run_after_the_allowed_gap(tmp_path):
     assert ok[0] and not ok[-1]
     assert np.all(np.isnan(length.fields["value"][~ok]))  # NaN, never a wrong number
     lost_s = length.time_s[-1] - length.time_s[np.flatnonzero(ok)[-1] + 1]
-    assert 10.0 <= lost_s < 12.0
+    assert 10.0 <= lost_s < 13.5  # tripped at the first frame 10 s after the loss
 
 
 def test_overpressure_aborts_before_the_limit_is_passed_by_much(tmp_path):

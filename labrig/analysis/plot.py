@@ -1,0 +1,163 @@
+"""The paper's Fig. 2C for a run: pressure and length against supplied volume.
+
+Pressure on top, length below, sharing the volume axis. Inflation is what the paper
+shows: each repetition faint, the mean of the averaged repetitions bold with its spread
+(± one standard deviation) as a band; the deflation mean is drawn thin in a second
+colour. The model's prediction is dashed, its snap-throughs marked with open diamonds;
+the measured transitions are marked on the mean curve with their dp and dl.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from labrig.analysis.curves import DEFLATE, INFLATE
+from labrig.analysis.results import AnalysisResult
+
+COLOURS = {"p": "tab:blue", "l": "tab:green", "deflate": "tab:orange", "model": "black"}
+
+
+def _at(grid: np.ndarray, curve: np.ndarray, v_ml: float) -> float:
+    """The curve at v_ml, NaN where it has a gap (a marker there would float)."""
+    if not len(grid):
+        return float("nan")
+    return float(np.interp(v_ml, grid, curve))
+
+
+def plot_run(result: AnalysisResult, path: Path, dpi: int = 130) -> None:
+    """Write the figure to ``path`` (PNG, or any format matplotlib knows by suffix)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    with_length = result.with_length
+    rows = 2 if with_length else 1
+    fig, axes = plt.subplots(
+        rows, 1, sharex=True, figsize=(7.5, 7.5 if with_length else 4.5), squeeze=False
+    )
+    axes = axes[:, 0]
+    grid = result.grid_ml
+    quantities = [("p", "pressure p (kPa)")] + ([("l", "length l (mm)")] if with_length else [])
+    for ax, (quantity, label) in zip(axes, quantities, strict=True):
+        _panel(ax, result, quantity, grid)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+        ax.margins(x=0)
+    axes[-1].set_xlabel("supplied volume v (mL)")
+    axes[0].set_xlim(0, float(grid[-1]) if len(grid) else 1.0)
+    axes[0].legend(loc="lower right", fontsize=8, framealpha=0.9)
+    averaged = ", ".join(str(i) for i in result.averaged) or "none"
+    fig.suptitle(f"{result.title}\nmean of repetitions {averaged}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+
+
+def _panel(ax, result: AnalysisResult, quantity: str, grid: np.ndarray) -> None:
+    colour = COLOURS[quantity]
+    for rep in result.repetitions:
+        curves = rep.p_kpa if quantity == "p" else rep.l_mm
+        if curves is None:
+            continue
+        ax.plot(
+            grid,
+            curves[INFLATE],
+            color=colour,
+            alpha=0.25,
+            linewidth=0.8,
+            label="repetitions" if rep is result.repetitions[0] else None,
+        )
+    means = result.mean_p if quantity == "p" else result.mean_l
+    if means is not None:
+        inflate = means[INFLATE]
+        ax.fill_between(
+            grid,
+            inflate.mean - inflate.std,
+            inflate.mean + inflate.std,
+            color=colour,
+            alpha=0.25,
+            linewidth=0,
+            label="spread (±1 s.d.)",
+        )
+        ax.plot(grid, inflate.mean, color=colour, linewidth=2.0, label="mean, inflation")
+        ax.plot(
+            grid,
+            means[DEFLATE].mean,
+            color=COLOURS["deflate"],
+            linewidth=1.0,
+            label="mean, deflation",
+        )
+    comparison = result.comparison
+    if comparison is not None:
+        prediction = comparison.prediction
+        values = prediction.p_kpa if quantity == "p" else prediction.l_mm
+        for phase, style, name in ((INFLATE, "--", "model"), (DEFLATE, ":", "model, deflation")):
+            chosen = prediction.direction == phase
+            if np.any(chosen):
+                ax.plot(
+                    prediction.v_ml[chosen],
+                    values[chosen],
+                    style,
+                    color=COLOURS["model"],
+                    linewidth=1.1,
+                    label=name,
+                )
+        snaps = [t for t in prediction.transitions if not t.stable]
+        for k, t in enumerate(snaps):
+            curve = comparison.model_p_kpa if quantity == "p" else comparison.model_l_mm
+            ax.plot(
+                t.v_ml,
+                _at(grid, curve[t.direction], t.v_ml),
+                "D",
+                mfc="none",
+                mec=COLOURS["model"],
+                ms=7,
+                label="model snap-throughs" if k == 0 else None,
+            )
+    if quantity == "p":
+        # from 0 to a little above the measurement (the model may run far up its wall)
+        measured = [c.mean for c in means.values()] if means else []
+        measured += [c for rep in result.repetitions for c in rep.p_kpa.values()]
+        finite = np.concatenate([c[np.isfinite(c)] for c in measured]) if measured else []
+        if len(finite):
+            ax.set_ylim(min(0.0, float(np.min(finite))), 1.15 * float(np.max(finite)))
+    if means is not None:
+        _mark_transitions(ax, result, quantity, grid, means)
+
+
+def _mark_transitions(ax, result: AnalysisResult, quantity: str, grid, means) -> None:
+    """A triangle on the mean curve at each measured transition (down on inflation, up on
+    deflation) labelled with its jump, the label placed on the side the curve leaves
+    free (towards the axis' middle) so it neither hides the jump nor leaves the axes."""
+    v_span = float(grid[-1]) if len(grid) else 1.0
+    first = True
+    for t in result.transitions:
+        y = _at(grid, means[t.direction].mean, t.v_ml)
+        size = t.dp_kpa if quantity == "p" else t.dl_mm
+        if not np.isfinite(y):
+            continue
+        colour = "tab:red" if t.direction == INFLATE else "tab:purple"
+        marker = "v" if t.direction == INFLATE else "^"
+        label = "measured transitions" if first else None
+        first = False
+        ax.plot(t.v_ml, y, marker, color=colour, ms=8, label=label, zorder=5)
+        if not np.isfinite(size):
+            continue
+        unit, symbol = ("kPa", "Δp") if quantity == "p" else ("mm", "Δl")
+        bottom, top = ax.get_ylim()
+        dx = -70 if t.v_ml > 0.75 * v_span else 10
+        dy = -34 if y > 0.5 * (bottom + top) else 14
+        ax.annotate(
+            f"{symbol} {size:+.1f} {unit}\nat {t.v_ml:.1f} mL",
+            (t.v_ml, y),
+            xytext=(dx, dy),
+            textcoords="offset points",
+            fontsize=8,
+            color=colour,
+            bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": colour, "alpha": 0.85},
+            arrowprops={"arrowstyle": "-", "color": colour, "lw": 0.6},
+            zorder=6,
+        )

@@ -1,0 +1,219 @@
+"""A run file read back for review and analysis, every piece checked and every absence
+named.
+
+``labrig.storage`` writes the layout and knows how to open a file a killed writer left;
+this module reads what the analysis needs into plain arrays and turns whatever is wrong
+with a file into one ``InputError`` line: a file that is not HDF5, one cut short (a copy
+that stopped early), a foreign HDF5 file, a repetition or a field that is missing, a
+dataset that cannot be read. It also reports whether the writer's "open for writing"
+flag is still set, so commands can say that ``labrig recover`` applies.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from labrig.errors import InputError
+from labrig.protocol import Protocol, parse_protocol
+from labrig.storage import LogSeries, decode, open_run, repetition_name
+
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+# fields the analysis cannot do without, per log; other fields are read when present
+REQUIRED_FIELDS = {
+    "pressure": ("time", "value"),
+    "pump": ("time", "value"),
+    "length": ("time", "value"),
+}
+
+
+@dataclass(frozen=True)
+class Repetition:
+    """One repetition's raw series as recorded (length is None without a camera)."""
+
+    index: int
+    status: str
+    reason: str
+    t_start_s: float
+    t_end_s: float
+    pressure: LogSeries
+    pump: LogSeries
+    length: LogSeries | None
+
+    @property
+    def name(self) -> str:
+        return repetition_name(self.index)
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """What a run file holds, as plain values."""
+
+    path: Path
+    title: str
+    status: str
+    reason: str
+    start_time: str
+    end_time: str
+    protocol_text: str
+    protocol: Protocol
+    rig_config_text: str
+    versions: dict[str, str]
+    zero_offset_kpa: float
+    repetitions: tuple[Repetition, ...]
+    writer_flag_set: bool
+
+
+def superblock_facts(path: Path) -> tuple[int, int, int] | None:
+    """(superblock version, consistency flags, end-of-file address) of an HDF5 file with
+    a version 2 or 3 superblock, or None when the header is not one of those.
+
+    Read directly from the header because HDF5 refuses to open exactly the files whose
+    diagnosis needs these numbers (a truncated file, one still flagged open).
+    """
+    with open(path, "rb") as handle:
+        header = handle.read(48)
+    if len(header) < 12 or header[:8] != HDF5_SIGNATURE or header[8] not in (2, 3):
+        return None
+    offsets = header[9]
+    eof_at = 12 + 2 * offsets  # after base address and superblock-extension address
+    if len(header) < eof_at + offsets:
+        return None
+    eof = int.from_bytes(header[eof_at : eof_at + offsets], "little")
+    return header[8], header[11], eof
+
+
+def _diagnose_unopenable(path: Path, error: InputError) -> InputError:
+    """A clearer message than HDF5's for the files it refuses to open."""
+    size = path.stat().st_size
+    with open(path, "rb") as handle:
+        signature = handle.read(8)
+    if signature != HDF5_SIGNATURE:
+        return InputError(
+            f"{path}: not an HDF5 file (no HDF5 signature at the start; {size} bytes); "
+            "a labrig run file is written by `labrig run`"
+        )
+    facts = superblock_facts(path)
+    if facts is not None and facts[2] > size:
+        return InputError(
+            f"{path}: truncated: {size} of the {facts[2]} bytes its header announces are "
+            "present; the end of the file is missing (copy it again from where it was "
+            "recorded)"
+        )
+    return error
+
+
+def _read(group: h5py.Group, name: str, where: str):
+    """One dataset's value, or InputError naming it when it is absent or unreadable."""
+    if name not in group:
+        raise InputError(f"{where}: missing {group.name.rstrip('/')}/{name}")
+    try:
+        return group[name][()]
+    except (OSError, KeyError, ValueError) as exc:
+        raise InputError(f"{where}: cannot read {group.name}/{name} ({exc})") from None
+
+
+def _read_log(rep: h5py.Group, log: str, where: str) -> LogSeries:
+    group = rep[log]
+    for field in REQUIRED_FIELDS[log]:
+        if field not in group:
+            raise InputError(f"{where}: missing {group.name}/{field}")
+    fields = {name: np.asarray(_read(group, name, where)) for name in group if name != "time"}
+    time_s = np.asarray(_read(group, "time", where), dtype=float)
+    for name, values in fields.items():
+        if len(values) != len(time_s):
+            raise InputError(
+                f"{where}: {group.name}/{name} has {len(values)} values for {len(time_s)} times"
+            )
+    return LogSeries(time_s, fields)
+
+
+def _read_repetitions(entry: h5py.Group, where: str) -> tuple[Repetition, ...]:
+    if "repetitions" not in entry:
+        raise InputError(f"{where}: missing /entry/repetitions")
+    reps = entry["repetitions"]
+    statuses = _read(reps, "status", where)
+    reasons = _read(reps, "reason", where)
+    n = len(statuses)
+    t_start = _read(reps, "t_start", where) if "t_start" in reps else np.full(n, np.nan)
+    t_end = _read(reps, "t_end", where) if "t_end" in reps else np.full(n, np.nan)
+    out = []
+    for index in range(1, n + 1):
+        name = repetition_name(index)
+        if name not in reps:
+            raise InputError(
+                f"{where}: missing /entry/repetitions/{name} (the run lists {n} repetitions)"
+            )
+        rep = reps[name]
+        for log in ("pressure", "pump"):
+            if log not in rep:
+                raise InputError(f"{where}: missing /entry/repetitions/{name}/{log}")
+        out.append(
+            Repetition(
+                index=index,
+                status=decode(statuses[index - 1]),
+                reason=decode(reasons[index - 1]),
+                t_start_s=float(t_start[index - 1]),
+                t_end_s=float(t_end[index - 1]),
+                pressure=_read_log(rep, "pressure", where),
+                pump=_read_log(rep, "pump", where),
+                length=_read_log(rep, "length", where) if "length" in rep else None,
+            )
+        )
+    return tuple(out)
+
+
+def _text(entry: h5py.Group, name: str, where: str) -> str:
+    return decode(_read(entry, name, where)) if name in entry else ""
+
+
+def load_run(path: str | Path) -> RunRecord:
+    """Read a run file for analysis; InputError (one line) for anything missing."""
+    path = Path(path)
+    facts = superblock_facts(path) if path.is_file() else None
+    if facts is not None and facts[2] > path.stat().st_size:
+        # SWMR read mode would open it, and fail somewhere in the middle of the data
+        raise _diagnose_unopenable(path, InputError(f"{path}: truncated"))
+    try:
+        run = open_run(path)
+    except InputError as exc:
+        if path.exists():
+            raise _diagnose_unopenable(path, exc) from None
+        raise
+    where = str(path)
+    with run:
+        if "entry" not in run:
+            found = ", ".join(sorted(run)) or "nothing"
+            raise InputError(
+                f"{where}: not a labrig run file: missing /entry (the file holds {found})"
+            )
+        entry = run["entry"]
+        protocol_text = _text(entry, "protocol", where)
+        if not protocol_text:
+            raise InputError(f"{where}: missing /entry/protocol")
+        protocol = parse_protocol(protocol_text, f"{where}:/entry/protocol")
+        versions = {}
+        if "versions" in entry:
+            versions = {name: _text(entry["versions"], name, where) for name in entry["versions"]}
+        zero = np.nan
+        if "zero" in entry and "offset_kpa" in entry["zero"]:
+            zero = float(_read(entry["zero"], "offset_kpa", where))
+        return RunRecord(
+            path=path,
+            title=_text(entry, "title", where),
+            status=_text(entry, "status", where) or "unknown",
+            reason=_text(entry, "reason", where),
+            start_time=_text(entry, "start_time", where),
+            end_time=_text(entry, "end_time", where),
+            protocol_text=protocol_text,
+            protocol=protocol,
+            rig_config_text=_text(entry, "rig_config", where),
+            versions=versions,
+            zero_offset_kpa=zero,
+            repetitions=_read_repetitions(entry, where),
+            writer_flag_set=facts is not None and facts[1] != 0,
+        )

@@ -1,0 +1,109 @@
+"""The comparison with the model: its parts by hand, and simulated runs of library
+specimens against the model's own prediction."""
+
+import numpy as np
+import pytest
+
+from labrig.analysis import analyse
+from labrig.analysis.compare import (
+    PredictedTransition,
+    TransitionMatch,
+    match_transitions,
+    predict,
+    rmse,
+)
+from labrig.analysis.curves import DEFLATE, INFLATE
+from labrig.analysis.transitions import AgreedTransition
+from labrig.model.library import analytical_segment
+
+
+def test_rmse_by_hand_over_the_points_both_have():
+    measured = np.array([1.0, 2.0, np.nan, 4.0])
+    model = np.array([2.0, 2.0, 3.0, np.nan])
+    assert rmse(measured, model) == pytest.approx(np.sqrt((1.0 + 0.0) / 2))
+    assert np.isnan(rmse(measured[2:3], model[2:3]))
+
+
+def _predicted(direction, v, stable=False):
+    return PredictedTransition(direction, v, 1, 1, stable, -0.1, 0.2, 0.01, -0.05, -2.0, 1.0)
+
+
+def _measured(direction, v):
+    return AgreedTransition(direction, v, 0.05, -1.9, 1.1, 4, 4)
+
+
+def test_snaps_pair_with_the_nearest_measurement_of_their_direction():
+    predicted = [
+        _predicted(INFLATE, 10.0, stable=True),
+        _predicted(INFLATE, 19.0),
+        _predicted(INFLATE, 22.0),
+        _predicted(DEFLATE, 12.0),
+    ]
+    measured = [
+        _measured(INFLATE, 21.5),
+        _measured(INFLATE, 19.4),
+        _measured(DEFLATE, 19.2),  # wrong direction for the 19 mL snap
+        _measured(INFLATE, 30.0),  # predicted nowhere
+    ]
+    rows = match_transitions(predicted, measured, match_ml=2.0)
+    pairs = [
+        (r.direction, r.predicted and r.predicted.v_ml, r.measured and r.measured.v_ml)
+        for r in rows
+    ]
+    assert pairs == [
+        (INFLATE, 10.0, None),  # stable: listed, never paired
+        (INFLATE, 19.0, 19.4),
+        (INFLATE, 22.0, 21.5),
+        (INFLATE, None, 30.0),
+        (DEFLATE, None, 19.2),  # deflation is listed from high volume to low
+        (DEFLATE, 12.0, None),
+    ]
+    assert rows[1].dv_ml == pytest.approx(0.4)
+    assert np.isnan(TransitionMatch(INFLATE, None, measured[0]).dv_ml)
+
+
+def test_a_single_segment_is_predicted_by_its_own_curve_both_ways():
+    curve = analytical_segment("B46-T20")
+    prediction = predict([curve], 10.0, 20.0, deflate=True)
+    assert prediction.transitions == ()
+    grid = np.linspace(0.0, 20.0, 41)
+    for phase in (INFLATE, DEFLATE):
+        np.testing.assert_allclose(prediction.on_grid(grid, phase, "p"), curve.pressure_kpa(grid))
+        np.testing.assert_allclose(
+            prediction.on_grid(grid, phase, "l"), curve.length_mm(grid) + 10.0
+        )
+    outside = prediction.on_grid(np.array([25.0]), INFLATE, "p")
+    assert np.isnan(outside[0])
+
+
+def test_single_segment_run_against_its_curve(segment_run):
+    result = analyse(segment_run.path)
+    comparison = result.comparison
+    assert comparison.prediction.segments == ("B46-T20",)
+    # the plant's sensor sits on the inlet, R Q = 0.33 kPa above the segment while
+    # infusing and below it while withdrawing, plus the 0.1 kPa offset left after
+    # zeroing: the model cannot know either
+    assert comparison.rmse_p_kpa[INFLATE] == pytest.approx(0.43, abs=0.08)
+    assert comparison.rmse_p_kpa[DEFLATE] == pytest.approx(0.23, abs=0.08)
+    assert comparison.rmse_l_mm[INFLATE] < 0.05
+    assert comparison.matches == ()
+    assert result.transitions == ()
+
+
+def test_library_actuator_run_matches_the_model(library_run):
+    pytest.importorskip("labrig.model.path", reason="the actuator path solver")
+    result = analyse(library_run.path)
+    comparison = result.comparison
+    assert comparison.prediction.segments == ("B44-T22", "B50-T20")
+    for phase in (INFLATE, DEFLATE):
+        assert comparison.rmse_p_kpa[phase] < 0.5
+        assert comparison.rmse_l_mm[phase] < 0.5
+    snaps = [m for m in comparison.matches if m.predicted is None or not m.predicted.stable]
+    assert {m.direction for m in snaps} == {INFLATE, DEFLATE}
+    for match in snaps:
+        # every predicted snap seen in every averaged repetition, nothing unpredicted
+        assert match.predicted is not None and match.measured is not None
+        assert match.measured.seen == match.measured.of == 4
+        assert abs(match.dv_ml) < 0.6
+        assert match.measured.dp_kpa == pytest.approx(match.predicted.dp_kpa, rel=0.15)
+        assert match.measured.dl_mm == pytest.approx(match.predicted.dl_mm, abs=0.15)

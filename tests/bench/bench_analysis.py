@@ -1,0 +1,87 @@
+"""Benchmark: snap-through detection against the simulated plant's own snaps, and the
+time to analyse a run. Prints numbers; asserts nothing.
+
+Each case is a library actuator run on the plant (``tests/simulated_runs.py``: pump at
+20 mL/min, 1 kHz pressure with MPX5100-like noise, 2 fps camera) for three repetitions;
+a true snap is a peak of the plant's internal flow, and the error is the detected
+volume minus the supplied volume at that peak. R is the plant's flow resistance (1 kPa
+s/mL: water through the fittings; 0.05: the slow limit where the plant follows the
+model).
+
+Run: python tests/bench/bench_analysis.py
+"""
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from simulated_runs import simulate_run
+
+from labrig.analysis import analyse
+
+CASES = [  # segments, volume (mL), R (kPa s/mL)
+    (("B46-T20", "B46-T22"), 22.0, 1.0),
+    (("B48-T28", "B50-T20"), 32.0, 1.0),
+    (("B44-T22", "B50-T20"), 36.0, 1.0),
+    (("B46-T30", "B48-T20"), 24.0, 1.0),
+    (("B40-T22", "B48-T20"), 28.0, 1.0),
+    (("B44-T26", "B48-T20"), 28.0, 1.0),
+    (("B44-T22", "B50-T20"), 36.0, 0.05),
+    (("B40-T22", "B48-T20"), 28.0, 0.05),
+    (("B46-T20",), 20.8, 1.0),  # a single segment: never snaps
+]
+
+
+def main() -> None:
+    print(f"{'actuator':18} {'R':>5} {'noise':>6} {'snaps':>6} {'found':>6} {'extra':>6} "
+          f"{'max |err| mL':>13} {'rms mL':>8} {'analyse s':>10}")  # fmt: skip
+    errors_all = []
+    with tempfile.TemporaryDirectory() as folder:
+        for k, (segments, volume_ml, resistance) in enumerate(CASES):
+            for noise_kpa in (0.05, 0.3):
+                run = simulate_run(
+                    Path(folder) / f"case{k}_{noise_kpa}.h5",
+                    segments,
+                    volume_ml=volume_ml,
+                    repetitions=3,
+                    resistance_kpa_s_per_ml=resistance,
+                    noise_kpa=noise_kpa,
+                    seed=k + 1,
+                )
+                t0 = time.perf_counter()
+                result = analyse(run.path)
+                elapsed = time.perf_counter() - t0
+                found = [t for rep in result.repetitions for t in rep.transitions]
+                errors, used = [], set()
+                for snap in run.snaps:
+                    near = [
+                        (abs(t.v_ml - snap.v_ml), i)
+                        for i, t in enumerate(found)
+                        if t.repetition == snap.repetition and t.direction == snap.direction
+                        and abs(t.v_ml - snap.v_ml) < 1.5 and i not in used
+                    ]  # fmt: skip
+                    if near:
+                        _, i = min(near)
+                        used.add(i)
+                        errors.append(found[i].v_ml - snap.v_ml)
+                errors_all += errors
+                worst = f"{np.max(np.abs(errors)):.3f}" if errors else "-"
+                rms = f"{np.sqrt(np.mean(np.square(errors))):.3f}" if errors else "-"
+                print(
+                    f"{'+'.join(segments):18} {resistance:5.2f} {noise_kpa:6.2f} "
+                    f"{len(run.snaps):6d} {len(errors):6d} {len(found) - len(used):6d} "
+                    f"{worst:>13} {rms:>8} {elapsed:10.2f}"
+                )
+    print(
+        f"all: {len(errors_all)} snaps found, max |err| {np.max(np.abs(errors_all)):.3f} mL, "
+        f"rms {np.sqrt(np.mean(np.square(errors_all))):.3f} mL"
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,96 @@
+"""``labrig library add``: a single-segment run becomes a measured segment that works
+wherever a SEG does."""
+
+import hashlib
+import json
+
+import numpy as np
+import pytest
+
+from labrig.cli import main
+from labrig.model.library import analytical_segment, load_segment
+
+
+def run(argv, capsys):
+    with pytest.raises(SystemExit) as exited:
+        main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return exited.value.code, out, err
+
+
+def test_add_makes_a_segment_with_its_provenance(segment_run, tmp_path, capsys):
+    library = tmp_path / "lib"
+    code, out, err = run(
+        ["library", "add", segment_run.path, "--name", "S46-20a", "--library", library], capsys
+    )
+    assert code == 0, err
+    assert out.startswith(f"{library}/S46-20a.csv: measured segment 'S46-20a'")
+    provenance = json.loads((library / "S46-20a.json").read_text())
+    run_file = provenance["run"]
+    assert run_file["sha256"] == hashlib.sha256(segment_run.path.read_bytes()).hexdigest()
+    assert run_file["specimen"] == ["B46-T20"]
+    assert provenance["repetitions_averaged"] == [1, 2, 4, 5]
+
+    # the measured segment reproduces the plant's segment, which the analysis never saw
+    measured = load_segment("S46-20a", library_dir=library)
+    truth = analytical_segment("B46-T20")
+    assert measured.peak.p_kpa == pytest.approx(truth.peak.p_kpa, abs=0.25)
+    assert measured.peak.v_ml == pytest.approx(truth.peak.v_ml, abs=0.5)
+    assert measured.valley.v_ml == pytest.approx(truth.valley.v_ml, abs=0.5)
+    v = np.linspace(0.5, 20.0, 40)
+    np.testing.assert_allclose(measured.pressure_kpa(v), truth.pressure_kpa(v), atol=0.6)
+    # the fittings are taken off: the segment's own length
+    np.testing.assert_allclose(measured.length_mm(v), truth.length_mm(v), atol=0.05)
+
+
+def test_a_library_segment_works_where_a_seg_does(segment_run, tmp_path, capsys, monkeypatch):
+    library = tmp_path / "lib"
+    run(["library", "add", segment_run.path, "--name", "mine", "--library", library], capsys)
+    monkeypatch.setenv("LABRIG_LIBRARY", str(library))
+    code, out, _ = run(["model", "curve", "mine"], capsys)
+    assert code == 0
+    assert out.startswith("mine: measured curve")
+    # and as the model of a comparison: the run against its own measured segment
+    code, out, _ = run(["compare", segment_run.path, "--segments", "mine"], capsys)
+    assert code == 0
+    line = next(s for s in out.splitlines() if s.strip().startswith("inflate"))
+    rmse_p, rmse_l = (float(x) for x in line.split()[1:3])
+    # 0.43 kPa as against the analytical curve (the inlet's R Q and the sensor offset,
+    # see tests/analysis/test_compare.py) plus ~0.2 kPa from the shape fit's zero,
+    # extrapolated to v = 0 from its first bins on the steep initial rise
+    assert rmse_p < 0.75 and rmse_l < 0.05
+
+
+def test_add_refuses_what_is_not_a_single_segment_run(snap_run, tmp_path, capsys):
+    code, _, err = run(["library", "add", snap_run.path, "--name", "x"], capsys)
+    assert code == 2
+    assert "the specimen has 2 segments (B46-T20 + B46-T22)" in err
+
+
+@pytest.mark.parametrize(
+    ("name", "message"),
+    [
+        ("B46-T20", "is the name of an analytical segment"),
+        ("gent-a", "is the name of an analytical segment"),
+        ("../escape", "use 1-64 letters"),
+        ("seg.csv", "use 1-64 letters"),
+    ],
+)
+def test_add_refuses_names_that_would_shadow_or_escape(
+    segment_run, tmp_path, capsys, name, message
+):
+    code, _, err = run(
+        ["library", "add", segment_run.path, "--name", name, "--library", tmp_path], capsys
+    )
+    assert code == 2 and message in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_add_does_not_overwrite_unless_asked(segment_run, tmp_path, capsys):
+    argv = ["library", "add", segment_run.path, "--name", "twice", "--library", tmp_path]
+    assert run(argv, capsys)[0] == 0
+    code, _, err = run(argv, capsys)
+    assert code == 2 and "already exists" in err and "--replace" in err
+    assert run([*argv, "--replace"], capsys)[0] == 0
+    code, out, _ = run(["library", "list", "--library", tmp_path], capsys)
+    assert out.splitlines()[0].startswith("twice\tsimulated B46-T20\t")
