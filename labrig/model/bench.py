@@ -4,19 +4,25 @@ Every solver runs on the same fixed sample of actuators (the paper's named combi
 plus pairs and triples of the library drawn with a fixed seed), inflating to the same
 volume, side by side in one process:
 
-- ``fast``: the continuation of ``labrig.model.path`` at its fold-scan settings;
+- ``fast``: the continuation of ``labrig.model.path`` at its accuracy settings (the
+  fold screen's margin, the flow's local error per step);
 - ``nelder-mead``: the paper's incremental algorithm (``labrig.model.reference``) at
   several volume increments;
 - ``grid``: the path read off the equilibria on an equispaced pressure grid
   (``labrig.model.grid_path``, the paper's Fig. S5 method) at several grid sizes.
 
-The "very fine reference" is the fast path with a fold scan 8 times denser than its
-default (``REFERENCE_SCAN_POINTS``). Its transition volumes are not samples: a fold is a
-root of sum 1/k_i (Eq. 10) to 1e-11 kPa and a peak crossing is an exact sample of the
-segment's table, so no increment or grid limits it. The dense scan only guards against a
-fold hidden between scan points. That this reference is right is not taken on trust:
-the Nelder-Mead rows converge to it as the increment shrinks (errors below one
-increment, in proportion to it), which is the independent check.
+The "very fine reference" is the fast path at its tightest settings (``REFERENCE``): the
+sum 1/k_i computed exactly at every sample pressure of every segment along every
+softening piece (no screen), and the flow after a snap integrated to 1e-3 of a sample
+spacing per step (~1e-4 mL; the flow tolerance is in units of the tables' mean sample
+spacing, ``labrig.model.descent.settle``).
+Its transition volumes are not samples: a fold is a root of sum 1/k_i (Eq. 10) to
+1e-11 kPa and a peak crossing is an exact sample of the segment's table, so no
+increment or grid limits it; the tight settings only guard against a fold hidden
+between screened points and a flow that ends in another basin. That this reference is
+right is not taken on trust: the Nelder-Mead rows, which share nothing with it but the
+curves, converge to it as the increment shrinks (errors of the order of one increment),
+which is the independent check.
 
 Errors: the largest and mean |v - v_ref| over all transitions (mL) and the largest
 |dE - dE_ref| over snaps. A stable transition's dE depends only on the increment of the
@@ -39,12 +45,15 @@ from pathlib import Path
 import numpy as np
 
 from labrig.model.actuator import Actuator
+from labrig.model.descent import FLOW_TOL
 from labrig.model.library import LIBRARY_NAMES, analytical_segment
+from labrig.model.path import SCREEN_MARGIN
 
 NAMED_PAIRS = (("B46-T20", "B46-T22"), ("B48-T30", "B50-T20"), ("B44-T30", "B48-T26"))
 NAMED_TRIPLE = ("B40-T28", "B44-T30", "B50-T24")
-DEFAULT_SCAN_POINTS = 32  # quasi_static_path's default
-REFERENCE_SCAN_POINTS = 256
+# (fold screen margin, flow tolerance in sample spacings): the defaults, the tightest
+DEFAULT_FAST = (SCREEN_MARGIN, FLOW_TOL)
+REFERENCE = (math.inf, 1e-3)
 SEED = 2016
 
 
@@ -52,7 +61,7 @@ SEED = 2016
 class BenchSettings:
     pairs: int = 10
     triples: int = 5
-    fast_scan_points: tuple[int, ...] = (8, DEFAULT_SCAN_POINTS)
+    fast_settings: tuple[tuple[float, float], ...] = ((0.05, 1.0), DEFAULT_FAST)
     nm_increments_ml: tuple[float, ...] = (0.05, 0.02, 0.01)
     grid_points: tuple[int, ...] = (250, 1000, 4000)
     scan_ns: tuple[int, ...] = (2, 3, 4)
@@ -63,7 +72,7 @@ class BenchSettings:
         return cls(
             pairs=2,
             triples=0,
-            fast_scan_points=(DEFAULT_SCAN_POINTS,),
+            fast_settings=(DEFAULT_FAST,),
             nm_increments_ml=(0.1, 0.05),
             grid_points=(250, 1000),
             scan_ns=(2,),
@@ -113,11 +122,15 @@ def _from_states(actuator: Actuator, found) -> list[Found]:
     ]
 
 
-def solve_fast(actuator: Actuator, v_end_ml: float | None, scan_points: int) -> list[Found]:
+def solve_fast(
+    actuator: Actuator, v_end_ml: float | None, setting: tuple[float, float]
+) -> list[Found]:
     from labrig.model.path import quasi_static_path
     from labrig.model.transitions import transitions
 
-    found = transitions(quasi_static_path(actuator, v_end_ml, scan_points=scan_points))
+    margin, flow_tol = setting
+    path = quasi_static_path(actuator, v_end_ml, screen_margin=margin, flow_tol=flow_tol)
+    found = transitions(path)
     return [Found(t.alpha, t.beta, t.stable, t.v_ml, math.nan if t.stable else t.dE) for t in found]
 
 
@@ -139,7 +152,7 @@ def solve_grid(actuator: Actuator, v_end_ml: float, n_points: int) -> list[Found
 class SolverRow:
     solver: str
     setting: str
-    parameter: float  # scan points, increment (mL) or grid points
+    parameter: object  # fast settings, increment (mL) or grid points
     seconds: float  # total over the sample
     actuators: int
     matched: int  # actuators with the reference's sequence of transition types
@@ -187,11 +200,14 @@ def bench_solvers(settings: BenchSettings, log=print) -> tuple[list[SolverRow], 
         a.kernels  # noqa: B018 (built before any timing: every solver shares them)
     references, v_ends = [], []
     for a in actuators:
-        first = solve_fast(a, None, REFERENCE_SCAN_POINTS)
+        first = solve_fast(a, None, REFERENCE)
         v_end = max((t.v_ml for t in first), default=20.0) + 1.0  # the story ends there
         v_ends.append(v_end)
-        references.append(solve_fast(a, v_end, REFERENCE_SCAN_POINTS))
-    solvers = [("fast", f"fold scan {k} points", solve_fast, k) for k in settings.fast_scan_points]
+        references.append(solve_fast(a, v_end, REFERENCE))
+    solvers = [
+        ("fast", f"screen margin {margin:g}, flow tol {tol:g}", solve_fast, (margin, tol))
+        for margin, tol in settings.fast_settings
+    ]
     solvers += [
         ("nelder-mead", f"dv = {dv:g} mL", solve_nelder_mead, dv)
         for dv in settings.nm_increments_ml
@@ -264,11 +280,11 @@ def bench_scans(ns, log=print) -> list[ScanRow]:
 def markdown(solvers: list[SolverRow], sample_size: int, scans: list[ScanRow]) -> str:
     """The two tables as Markdown (for the README)."""
     fast = [r for r in solvers if r.solver == "fast"]
-    # the fast path at its default fold scan is the unit of time
-    unit = next((r for r in fast if r.parameter == DEFAULT_SCAN_POINTS), fast[0] if fast else None)
+    # the fast path at its default settings is the unit of time
+    unit = next((r for r in fast if r.parameter == DEFAULT_FAST), fast[0] if fast else None)
     lines = [
         f"Solvers on {sample_size} actuators (run side by side; errors against the fast path "
-        f"with a {REFERENCE_SCAN_POINTS}-point fold scan):",
+        f"at its tightest settings: no fold screen, flow tol {REFERENCE[1]:g}):",
         "",
         "| solver | setting | ms per actuator | time / fast path | same transitions | "
         "max / mean abs error of v (mL) | max abs error of dE (snaps) |",

@@ -23,8 +23,9 @@ def test_bench_model_quick_runs_end_to_end(tmp_path, capsys):
         if line.startswith("| ") and not line.startswith("| solver")
         for cells in [[c.strip() for c in line.strip("|").split("|")]]
     }
-    fast = rows[("fast", "fold scan 32 points")]
-    assert fast[4] == "2/2" and fast[5] == "0 / 0"  # the reference's own settings but one
+    fast = rows[("fast", "screen margin 0.2, flow tol 0.5")]
+    assert fast[4] == "2/2"
+    assert float(fast[5].split(" / ")[0]) < 1e-6  # the same solver at tighter settings
     worst = {}
     for dv in ("0.1", "0.05"):
         nm = rows[("nelder-mead", f"dv = {dv} mL")]
