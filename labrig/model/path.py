@@ -407,8 +407,9 @@ class _Tracer:
         the flow ends back on the fold's own stretch (eta inside the fold's numerical
         uncertainty), or the snap is shorter than eta and the start passed its end (the
         flow then returns to it, which is fine), other eta are tried. eta is a tenth of
-        the tables' mean sample spacing first (~0.01 mL for the library): tied to the
-        curves, not to the millilitre, so that a scaled actuator snaps alike."""
+        the actuator's volume unit first (``volume_unit_ml``, 0.01 mL for the library):
+        tied to the curves, not to the millilitre, so that a scaled actuator snaps
+        alike."""
         u = [s_p / k if k != 0 else 0.0 for k in fold.k_i]
         mean = math.fsum(u) / self.n
         u = [x - mean for x in u]
