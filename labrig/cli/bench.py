@@ -27,7 +27,8 @@ def bench() -> None:
 @click.option(
     "--scans",
     default=None,
-    help="Comma-separated n of the full scans to time (default 2,3,4; '' for none).",
+    help="Comma-separated n of the full scans to time (default 2,3; 2,3,4 takes minutes; "
+    "'' for none).",
 )
 @click.option(
     "--out",

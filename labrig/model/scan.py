@@ -12,9 +12,9 @@ machine::
     futures = client.map(run_chunk, [lib] * len(chunks), chunks)
     for future in distributed.as_completed(futures): ...   # ScanFile.append in order
 
-Each process builds the library's scalar kernels once (cached by the library's digest),
-not once per actuator. A failure on one actuator is recorded with its error text and
-the scan goes on. Results are written by the parent only, chunk after chunk in order
+Every curve's scalar kernel is built once per process (``SegmentCurve.kernel``), before
+the workers fork, not once per actuator. A failure on one actuator is recorded with its
+error text and the scan goes on. Results are written by the parent only, chunk after chunk in order
 (``labrig.model.scan_file``), so the file is the same whatever the number of workers and
 an interrupted scan resumes at its first unfinished chunk.
 
@@ -41,7 +41,6 @@ import numpy as np
 
 from labrig.errors import InputError
 from labrig.model.actuator import Actuator
-from labrig.model.kernel import CurveKernel
 from labrig.model.path import quasi_static_path
 from labrig.model.segment import SegmentCurve
 from labrig.model.transitions import transitions
@@ -185,25 +184,11 @@ class ChunkResult:
     peak_rss_mib: float  # of the process that computed it
 
 
-_KERNELS: dict[str, tuple[CurveKernel, ...]] = {}
-
-
-def library_kernels(library: ScanLibrary) -> tuple[CurveKernel, ...]:
-    """The scalar kernels of every segment, built once per process and library."""
-    kernels = _KERNELS.get(library.digest)
-    if kernels is None:
-        kernels = tuple(CurveKernel(c) for c in library.curves)
-        _KERNELS.clear()  # one library at a time: a process scans one library
-        _KERNELS[library.digest] = kernels
-    return kernels
-
-
 def scan_actuator(library: ScanLibrary, combo: tuple[int, ...], *, deflate: bool = False):
-    """The transitions of the actuator made of segments ``combo`` of ``library``."""
+    """The transitions of the actuator made of segments ``combo`` of ``library``. Each
+    curve's scalar kernel is built once per process (``SegmentCurve.kernel``) and shared
+    by every actuator the curve is in."""
     actuator = Actuator([library.curves[i] for i in combo])
-    kernels = library_kernels(library)
-    # Actuator.kernels is a cached property: fill it with the process's prebuilt ones
-    actuator.__dict__["kernels"] = tuple(kernels[i] for i in combo)
     return transitions(quasi_static_path(actuator, deflate=deflate))
 
 
@@ -263,7 +248,8 @@ def _init_worker(library: ScanLibrary) -> None:
     # Ctrl-C is the parent's to handle: it stops the pool and keeps the file consistent
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _WORKER_LIBRARY = library
-    library_kernels(library)
+    for curve in library.curves:
+        curve.kernel  # noqa: B018 (built once here, before the first chunk)
 
 
 def _run_in_worker(chunk: Chunk) -> ChunkResult:
@@ -290,8 +276,9 @@ def run_chunks(
     At most 2 * workers + 2 chunks are in flight, so memory stays bounded however long
     the scan (results that finish early wait for the slower one before them).
     """
+    for curve in library.curves:  # built before any fork, so that workers inherit them
+        curve.kernel  # noqa: B018
     if workers <= 1 or len(chunks) <= 1:
-        library_kernels(library)
         for chunk in chunks:
             sink(run_chunk(library, chunk))
         return
