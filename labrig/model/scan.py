@@ -10,13 +10,14 @@ machine::
 
     lib = client.scatter(library, broadcast=True)
     futures = client.map(run_chunk, [lib] * len(chunks), chunks)
-    for future in distributed.as_completed(futures): ...   # ScanFile.append in order
+    for future in futures:  # in chunk order: the client is the only writer
+        scan_file.append(future.result())
 
 Every curve's scalar kernel is built once per process (``SegmentCurve.kernel``), before
 the workers fork, not once per actuator. A failure on one actuator is recorded with its
-error text and the scan goes on. Results are written by the parent only, chunk after chunk in order
-(``labrig.model.scan_file``), so the file is the same whatever the number of workers and
-an interrupted scan resumes at its first unfinished chunk.
+error text and the scan goes on. Results are written by the parent only, chunk after
+chunk in order (``labrig.model.scan_file``), so the file is the same whatever the
+number of workers, and an interrupted scan resumes at its first unfinished chunk.
 
 What is computed per actuator: the quasi-static path under inflation from the
 unpressurised state to ``default_end_volume_ml`` (past which no transition can happen),
