@@ -101,7 +101,12 @@ PLOT_OPTION = click.option(
     show_default=True,
     help="'analytical' (36 braided segments), 'gent', or a folder of measured CSV curves.",
 )
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True)
+@click.option(
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    required=True,
+    help="The HDF5 file the scan is streamed to.",
+)
 @click.option("--workers", type=int, default=None, help="Processes (default: every core).")
 @click.option("--resume", is_flag=True, help="Continue an interrupted scan in --out.")
 @click.option("--deflate", is_flag=True, help="Also deflate each actuator back to zero.")
