@@ -10,6 +10,9 @@ from labrig.cli import LazyGroup
 MODEL_COMMANDS: dict[str, tuple[str, str]] = {
     "curve": ("labrig.cli.model_curve", "curve"),
     "path": ("labrig.cli.model_path", "path"),
+    "rank": ("labrig.cli.model_scan", "rank"),
+    "scan": ("labrig.cli.model_scan", "scan"),
+    "scan-summary": ("labrig.cli.model_scan", "scan_summary"),
 }
 
 

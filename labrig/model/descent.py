@@ -35,6 +35,8 @@ from labrig.model.kernel import CurveKernel
 from labrig.model.roots import bracketed_root
 
 _GAMMA = 1.0 + 1.0 / math.sqrt(2.0)  # ROS2, L-stable
+# default local error per flow step, in units of the tables' sample spacing (``settle``)
+FLOW_TOL = 0.5
 
 
 class FlowError(RuntimeError):
@@ -45,30 +47,43 @@ def settle(
     kernels: Sequence[CurveKernel],
     w0: Sequence[float],
     *,
-    tol_ml: float = 5e-2,
+    tol: float = FLOW_TOL,
     max_steps: int = 200_000,
 ) -> list[float]:
     """Follow the flow from ``w0`` (volumes, mL) to the stable state where it ends.
 
-    ``tol_ml`` bounds the local error of each flow step. Only the basin the flow
-    ends in matters (the end state is an exact equilibrium either way): on 300 random
-    library triples and quadruples, tolerances from 1e-5 to 0.1 mL give the same
+    ``tol`` bounds the local error of each flow step, as a fraction of the volume unit
+    of the segments' tables (``volume_unit_ml``, 0.1 mL for the library), so that
+    actuators of microlitres and of litres are integrated alike. Only the basin
+    the flow ends in matters (the end state is an exact equilibrium either way): on 300
+    random library triples and quadruples, tolerances from 1e-5 to 0.1 mL give the same
     transitions, the same post-snap states and volumes equal to 1e-8 mL.
 
     A start on an unstable equilibrium (a symmetric state of identical segments) is
     pushed off it in a fixed direction, so the result is deterministic.
     """
+    unit = volume_unit_ml(kernels)
     w = list(w0)
     for _ in range(10):
         if len(kernels) == 2:
             w = _settle_pair(kernels, w)
         else:
-            w = _settle_flow(kernels, w, tol_ml=tol_ml, max_steps=max_steps)
+            w = _settle_flow(kernels, w, tol_ml=tol * unit, unit_ml=unit, max_steps=max_steps)
         k = [kern.slope(x) for kern, x in zip(kernels, w, strict=True)]
         if stable_scalar(k):
             return w
-        w = _escape_saddle(w, k)
+        w = _escape_saddle(w, k, 1e-2 * unit)
     raise FlowError(f"the flow keeps stalling on unstable equilibria near {w}")
+
+
+def volume_unit_ml(kernels: Sequence[CurveKernel]) -> float:
+    """The volume scale of the actuator, to which the solver's volume tolerances are
+    tied: the mean sample spacing of the segments' tables, rounded to a power of ten.
+    The rounding keeps the tolerances the solver was validated with on the library
+    (spacing ~0.1 mL: flow steps of 0.05 mL, snap starts 0.01 mL from the fold) exactly
+    as they were, and an actuator scaled by a power of ten is solved alike."""
+    spacing = sum((k.v_last - k.v_first) / (len(k.x) - 1) for k in kernels) / len(kernels)
+    return 10.0 ** round(math.log10(spacing))
 
 
 def flow_rate(kernels: Sequence[CurveKernel], w: Sequence[float]) -> list[float]:
@@ -182,7 +197,7 @@ def _newton_step_size(k: list[float], f: list[float]) -> float:
     return max(abs((a + lam) / x) for a, x in zip(f, k, strict=True))
 
 
-def _escape_saddle(w: list[float], k: list[float]) -> list[float]:
+def _escape_saddle(w: list[float], k: list[float], push_ml: float) -> list[float]:
     """Push a state stalled on a saddle along its most unstable direction, with a fixed
     sign (the first non-zero component positive), so that symmetric cases are
     deterministic."""
@@ -192,11 +207,16 @@ def _escape_saddle(w: list[float], k: list[float]) -> list[float]:
     u = u / np.max(np.abs(u))
     if u[np.flatnonzero(np.abs(u) > 1e-12)[0]] < 0:
         u = -u
-    return [x + 1e-3 * ui for x, ui in zip(w, u, strict=True)]
+    return [x + push_ml * ui for x, ui in zip(w, u, strict=True)]
 
 
 def _settle_flow(
-    kernels: Sequence[CurveKernel], w: list[float], *, tol_ml: float, max_steps: int
+    kernels: Sequence[CurveKernel],
+    w: list[float],
+    *,
+    tol_ml: float,
+    unit_ml: float,
+    max_steps: int,
 ) -> list[float]:
     n = len(w)
     h = 1e-3
@@ -206,11 +226,11 @@ def _settle_flow(
         mean = sum(p) / n
         f = [mean - x for x in p]
         at_rest = max(abs(x) for x in f) <= 1e-12 * max(1.0, abs(mean))
-        if at_rest or _newton_step_size(k, f) < 1e-10:
+        if at_rest or _newton_step_size(k, f) < 1e-9 * unit_ml:
             if stable_scalar(k):
                 return w
             if at_rest:  # an unstable equilibrium (a saddle, or extrema that coincide)
-                w = _escape_saddle(w, k)
+                w = _escape_saddle(w, k, 1e-2 * unit_ml)
                 p, k = _pressures_and_slopes(kernels, w)
                 h = 1e-3
                 continue

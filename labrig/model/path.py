@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from labrig.model.actuator import Actuator, stable_scalar
-from labrig.model.descent import FlowError, settle
+from labrig.model.descent import FLOW_TOL, FlowError, settle, volume_unit_ml
 from labrig.model.roots import bracketed_root
 
 INFLATE = 1
@@ -47,7 +47,7 @@ DEFLATE = -1
 # The fold screen computes a state exactly where the screened sum 1/k is within this
 # fraction of its terms' magnitudes from 0. At 0.05, 35 of 400 random library actuators
 # lost a small snap next to coincident peaks; at 0.2 and up, 2 of 400 (docs/actuator.md).
-_SCREEN_MARGIN = 0.2
+SCREEN_MARGIN = 0.2
 
 
 @dataclass(frozen=True)
@@ -134,10 +134,17 @@ def quasi_static_path(
     v_end_ml: float | None = None,
     *,
     deflate: bool = False,
+    screen_margin: float = SCREEN_MARGIN,
+    flow_tol: float = FLOW_TOL,
 ) -> Path:
     """Inflate from the unpressurised state to ``v_end_ml`` (default:
-    ``default_end_volume_ml``), then, if ``deflate``, withdraw back to zero."""
-    tracer = _Tracer(actuator)
+    ``default_end_volume_ml``), then, if ``deflate``, withdraw back to zero.
+
+    ``screen_margin`` and ``flow_tol`` are the solver's accuracy settings (the fold
+    screen's margin, see ``_Tracer._find_fold``, and the flow's local error per step in
+    units of the tables' sample spacing, see ``labrig.model.descent.settle``); the
+    defaults are what every command uses, the benchmark varies them."""
+    tracer = _Tracer(actuator, screen_margin=screen_margin, flow_tol=flow_tol)
     v_end = default_end_volume_ml(actuator) if v_end_ml is None else float(v_end_ml)
     start = tracer.at(tuple(0 for _ in range(actuator.n)), 0.0)
     timeline, end = tracer.follow(start, INFLATE, v_end)
@@ -149,11 +156,23 @@ def quasi_static_path(
 class _Tracer:
     """The continuation itself; holds the actuator's scalar kernels."""
 
-    def __init__(self, actuator: Actuator, *, max_events: int = 10_000) -> None:
+    def __init__(
+        self,
+        actuator: Actuator,
+        *,
+        max_events: int = 10_000,
+        screen_margin: float = SCREEN_MARGIN,
+        flow_tol: float = FLOW_TOL,
+    ) -> None:
         self.actuator = actuator
+        self.screen_margin = screen_margin
+        self.flow_tol = flow_tol
         self.kernels = actuator.kernels
         self.n = actuator.n
         self.max_events = max_events
+        # the volume scale of the actuator, to which the distances below are tied (an
+        # actuator of microlitres behaves like one of millilitres)
+        self.unit_ml = volume_unit_ml(self.kernels)
 
     # --- states on a branch combination ------------------------------------------------
     def at(self, branches: tuple[int, ...], p: float) -> State:
@@ -202,6 +221,11 @@ class _Tracer:
             fold = (
                 self._find_fold(state, falling[0], p_stop, direction) if len(falling) == 1 else None
             )
+            if fold is not None and abs(fold.p_kpa - p_stop) <= 1e-10 * max(1.0, abs(p_stop)):
+                # a fold within its root's tolerance of the branch end (sum 1/k turns
+                # to +inf only at the end, where a segment's slope is 0): the branch
+                # end decides (``_cross``, which also snaps if no way on is stable)
+                fold = None
             end = (
                 fold
                 if fold is not None
@@ -215,9 +239,18 @@ class _Tracer:
             if fold is not None:
                 event = Event("snap", "fold", direction, fold, self._snap_from_fold(fold, s_p))
             else:
-                tol = 1e-9 * max(1.0, abs(p_stop))
+                # extrema at the same pressure to rounding (the library's equal peaks);
+                # nearer ones are met one after the other
+                tol = 1e-14 * max(1.0, abs(p_stop))
                 at_limit = [i for i in range(self.n) if abs(limits[i] - p_stop) <= tol]
                 event = self._cross(end, at_limit, s_p, direction)
+            if event.kind == "snap" and _touched(timeline):
+                # the previous snap ended on a state lost at once (it only touched a
+                # fold of another combination, e.g. the mirror state of two identical
+                # segments): one snap, from where the first started
+                first = timeline[-2]
+                del timeline[-2:]
+                event = Event("snap", first.cause, direction, first.pre, event.post)
             timeline.append(event)
             state = event.post
         raise FlowError(f"more than {self.max_events} events on one path: {self.actuator.names}")
@@ -242,7 +275,10 @@ class _Tracer:
         else:
             p_end, f_end = end.p_kpa, end.v_ml - v_target
         p = bracketed_root(excess, state.p_kpa, p_end, f_start, f_end, xtol=1e-12)
-        return self.at(b, p)
+        reached = self._with_volume(self.at(b, p), v_target)
+        if reached is None:
+            raise FlowError(f"no equilibrium at v = {v_target:.6g} mL on branches {b}")
+        return reached
 
     # --- folds -------------------------------------------------------------------------
     def _find_fold(self, state: State, m: int, p_stop: float, direction: int) -> State | None:
@@ -262,8 +298,11 @@ class _Tracer:
         s_start = self.inverse_sum(state)
         if math.isnan(s_start):
             # two segments at branch ends at once (+inf - inf): start where the crossing
-            # probed this piece and found it stable (``_cross``)
-            state = self.at(b, state.p_kpa - direction * _probe_kpa(state.p_kpa))
+            # probed this piece and found it stable (``_cross``: never past the piece)
+            step = _probe_kpa(state.p_kpa)
+            if math.isfinite(p_stop):
+                step = min(step, 0.5 * abs(p_stop - state.p_kpa))
+            state = self.at(b, state.p_kpa - direction * step)
             s_start = self.inverse_sum(state)
         if not math.isfinite(p_stop):  # a falling last branch continued linearly
             kern = self.kernels[m]
@@ -301,7 +340,7 @@ class _Tracer:
                 value = _interpolate(ps, gs, p) / math.sqrt(distance)
                 total += value
                 scale += abs(value)
-            if total >= -_SCREEN_MARGIN * scale:
+            if total >= -self.screen_margin * scale:
                 flagged.append(p)
         return flagged
 
@@ -367,15 +406,18 @@ class _Tracer:
         (~1e-14 kPa); the further out, the fewer slow steps the flow needs to leave. If
         the flow ends back on the fold's own stretch (eta inside the fold's numerical
         uncertainty), or the snap is shorter than eta and the start passed its end (the
-        flow then returns to it, which is fine), other eta are tried."""
+        flow then returns to it, which is fine), other eta are tried. eta is a tenth of
+        the actuator's volume unit first (``volume_unit_ml``, 0.01 mL for the library):
+        tied to the curves, not to the millilitre, so that a scaled actuator snaps
+        alike."""
         u = [s_p / k if k != 0 else 0.0 for k in fold.k_i]
         mean = math.fsum(u) / self.n
         u = [x - mean for x in u]
         scale = 1.0 / max(abs(x) for x in u)
         u = [x * scale for x in u]
-        for eta in (1e-2, 1e-3, 1e-4, 1e-1):
+        for eta in (0.1 * self.unit_ml, 1e-2 * self.unit_ml, 1e-3 * self.unit_ml, self.unit_ml):
             w0 = [v + eta * x for v, x in zip(fold.v_i_ml, u, strict=True)]
-            post = self.polish(settle(self.kernels, w0), fold.v_ml)
+            post = self.polish(settle(self.kernels, w0, tol=self.flow_tol), fold.v_ml)
             # not back on the fold's own stable stretch (the fold is known to ~1e-11
             # kPa; a snap along the same branches can be short: 7e-5 kPa, 5e-4 mL
             # next to the near-flat dips and coincident peaks of the library)
@@ -383,18 +425,75 @@ class _Tracer:
                 1.0, abs(fold.p_kpa)
             )
             if beyond and stable_scalar(post.k_i):
-                return post
+                return self._past_semi_stable(post, fold, eta)
         raise FlowError(
             f"no state to snap to from the fold at v = {fold.v_ml:.6g} mL ({self.actuator.names})"
         )
 
-    def polish(self, w: Sequence[float], v: float) -> State:
+    def _past_semi_stable(self, post: State, fold: State, eta: float) -> State:
+        """Where a snap ends on a fold of another combination (one segment past its
+        peak and sum 1/k as near 0 as at the fold it came from: e.g. two identical
+        segments, whose states mirror each other), the flow only touches that state,
+        and every neighbour on its way leads on. Flow on from it, the way the flow
+        came, to a state that is stable with a margin (at most a few times)."""
+        zero = max(10.0 * _fold_residual(fold.k_i), 1e-9)
+        origin = fold
+        for _ in range(8):
+            if not _fold_residual(post.k_i) <= zero:
+                return post
+            u = [1.0 / k for k in post.k_i]
+            mean = math.fsum(u) / self.n
+            u = [x - mean for x in u]
+            came = [a - b for a, b in zip(post.v_i_ml, origin.v_i_ml, strict=True)]
+            sign = 1.0 if math.fsum(x * d for x, d in zip(u, came, strict=True)) >= 0 else -1.0
+            scale = sign / max(abs(x) for x in u)
+            w0 = [v + eta * x * scale for v, x in zip(post.v_i_ml, u, strict=True)]
+            settled = settle(self.kernels, w0, tol=self.flow_tol)
+            origin, post = post, self.polish(settled, post.v_ml)
+        return post
+
+    def polish(self, w: Sequence[float], v: float, near_ml: float = 0.0) -> State:
         """The equilibrium at total volume v on the branch combination of volumes w
-        (settled by the flow to ~1e-9 kPa): Newton on sum_i v_i(p) = v, falling back to
-        the nearest bracketed root if Newton leaves the combination's pressure range."""
+        (settled by the flow to ~1e-9 kPa). A flow that ends on an extremum of a curve
+        (a valley next to a near-flat dip, a peak) may be a rounding error on the wrong
+        side of it, or ``near_ml`` from it if the flow ran at another volume, so the
+        combinations with such segments on the neighbouring branch are tried next."""
+        found = []
+        for b in self._combinations_near(w, near_ml):
+            state = self._equilibrium_on(b, w, v)
+            if state is not None and stable_scalar(state.k_i):
+                return state
+            if state is not None:
+                found.append(state)
+        if found:  # no stable one: the caller decides what an unstable end means
+            return found[0]
         b = tuple(kern.branch_of(x) for kern, x in zip(self.kernels, w, strict=True))
+        raise FlowError(f"no equilibrium at v = {v:.6g} mL on branches {b}")
+
+    def _combinations_near(self, w: Sequence[float], near_ml: float) -> list[tuple[int, ...]]:
+        options = []
+        for kern, x in zip(self.kernels, w, strict=True):
+            b = kern.branch_of(x)
+            near = [b]
+            tol = max(1e-6 * kern.spacing_near(x), near_ml)
+            for other in (b - 1, b + 1):
+                if 0 <= other < kern.n_branches:
+                    branch = kern.branches[other]
+                    if branch.v_lo_ml - tol <= x <= branch.v_hi_ml + tol:
+                        near.append(other)
+            options.append(near)
+        combos = list(itertools.product(*options))
+        first = combos[0]
+        return sorted(combos, key=lambda c: sum(x != y for x, y in zip(c, first, strict=True)))
+
+    def _equilibrium_on(self, b: tuple[int, ...], w: Sequence[float], v: float) -> State | None:
+        """Newton on sum_i v_i(p) = v on combination b, falling back to the nearest
+        bracketed root if Newton leaves the combination's pressure range; None if the
+        combination holds no equilibrium at v."""
         p_lo = max(kern.branches[i].p_lo_kpa for kern, i in zip(self.kernels, b, strict=True))
         p_hi = min(kern.branches[i].p_hi_kpa for kern, i in zip(self.kernels, b, strict=True))
+        if p_lo > p_hi:
+            return None
         mean_p = (
             math.fsum(kern.pressure(x) for kern, x in zip(self.kernels, w, strict=True)) / self.n
         )
@@ -418,10 +517,40 @@ class _Tracer:
             for q in (max(p0 - width, p_lo), min(p0 + width, p_hi)):
                 f = excess_at(q)
                 if (f > 0) != (f0 > 0):
-                    return self.at(b, bracketed_root(excess_at, p0, q, f0, f, xtol=1e-12))
+                    root = bracketed_root(excess_at, p0, q, f0, f, xtol=1e-12)
+                    return self._with_volume(self.at(b, root), v)
             if p0 - width <= p_lo and p0 + width >= p_hi:
-                raise FlowError(f"no equilibrium at v = {v:.6g} mL on branches {b}")
+                return None
             width *= 4.0
+
+    def _with_volume(self, state: State, v: float) -> State | None:
+        """``state``, a root in p of sum_i v_i(p) = v, with the volume made exact.
+
+        Where a segment's p(v) is flat (a plateau) or so nearly flat that a change of p
+        at rounding level moves its volume visibly, sum_i v_i(p) jumps at that pressure
+        and the root lands on the jump. The segment that can take the difference on its
+        branch with the least change of pressure (no more than rounding) then takes it:
+        the state is an equilibrium at the right volume. None if no segment can."""
+        residual = v - state.v_ml
+        if abs(residual) <= 1e-9 * max(1.0, abs(v)):
+            return state
+        best = None
+        for i, (kern, b) in enumerate(zip(self.kernels, state.branches, strict=True)):
+            branch = kern.branches[b]
+            v_i = state.v_i_ml[i] + residual
+            if not branch.v_lo_ml <= v_i <= branch.v_hi_ml:
+                continue
+            p_i, k_i = kern.pressure_and_slope(v_i)
+            change = abs(p_i - state.p_kpa)
+            if best is None or change < best[0]:
+                k_i = max(k_i, 0.0) if branch.rising else min(k_i, 0.0)
+                best = (change, i, v_i, k_i)
+        if best is None or best[0] > 1e-9 * max(1.0, abs(state.p_kpa)):
+            return None
+        _, i, v_i, k_i = best
+        volumes, slopes = list(state.v_i_ml), list(state.k_i)
+        volumes[i], slopes[i] = v_i, k_i
+        return State(state.branches, state.p_kpa, tuple(volumes), tuple(slopes))
 
     # --- branch ends -------------------------------------------------------------------
     def _switched(self, i: int, branch: int, s_p: int) -> int | None:
@@ -455,7 +584,17 @@ class _Tracer:
                 falling = sum(not self._rising(i, new[i]) for i in range(self.n))
                 if falling > 1 or (direction if falling == 0 else -direction) != -s_p:
                     continue
-                probe = self.at(new, end.p_kpa - s_p * delta)
+                # within the pressure range of every branch (a near-flat dip's falling
+                # branch can span less than the default probe distance)
+                room = min(
+                    (kern.branches[bi].p_hi_kpa - end.p_kpa)
+                    if s_p < 0
+                    else (end.p_kpa - kern.branches[bi].p_lo_kpa)
+                    for kern, bi in zip(self.kernels, new, strict=True)
+                )
+                if not room > 0:
+                    continue
+                probe = self.at(new, end.p_kpa - s_p * min(delta, 0.5 * room))
                 moved = direction * (probe.v_ml - end.v_ml)
                 if stable_scalar(probe.k_i) and moved > 0:
                     candidates.append((moved, subset, new))
@@ -469,13 +608,18 @@ class _Tracer:
         # No stable way on: the state is lost here. Feed a little more volume into the
         # segments at their limits and let the flow decide; then back to this volume.
         # Past an extremum the pressures differ only to second order in the volume, so
-        # the extra volume must be large enough to lift that above rounding.
-        extra = 1e-3
-        w0 = list(end.v_i_ml)
-        for i in at_limit:
-            w0[i] += direction * extra / len(at_limit)
-        post = self.polish(settle(self.kernels, w0), end.v_ml)
-        if not stable_scalar(post.k_i):
+        # the extra volume must be large enough to lift that above rounding; where
+        # extrema crowd within rounding of each other (near-flat dips next to a common
+        # peak), a larger one is tried.
+        for extra in (1e-2 * self.unit_ml, 1e-1 * self.unit_ml):
+            w0 = list(end.v_i_ml)
+            for i in at_limit:
+                w0[i] += direction * extra / len(at_limit)
+            settled = settle(self.kernels, w0, tol=self.flow_tol)
+            post = self.polish(settled, end.v_ml, near_ml=2.0 * extra)
+            if stable_scalar(post.k_i):
+                break
+        else:
             raise FlowError(
                 f"the flow from coincident branch ends at v = {end.v_ml:.6g} mL did not settle"
             )
@@ -493,6 +637,15 @@ def _interpolate(xs: list[float], ys: list[float], x: float) -> float:
     return ys[j - 1] + (ys[j] - ys[j - 1]) * (x - x0) / (x1 - x0) if x1 != x0 else ys[j]
 
 
+def _fold_residual(k: Sequence[float]) -> float:
+    """|sum 1/k| relative to its terms where exactly one segment is past its peak (0 at
+    a fold); inf for any other state (not a fold)."""
+    if sum(x < 0 for x in k) != 1 or 0.0 in k:
+        return math.inf
+    inverse = [1.0 / x for x in k]
+    return abs(math.fsum(inverse)) / math.fsum(abs(x) for x in inverse)
+
+
 def _probe_kpa(p_kpa: float) -> float:
     """How far past a point where segments reach branch ends the ways on are tried:
     far enough that the slopes there are not rounding, close enough to be asymptotic."""
@@ -505,6 +658,18 @@ def _rebranch(state: State, branches: tuple[int, ...], at_limit: Sequence[int]) 
     slopes are set so, whatever rounding gave on the branch they arrived on."""
     k = tuple(0.0 if i in at_limit else x for i, x in enumerate(state.k_i))
     return State(branches, state.p_kpa, state.v_i_ml, k)
+
+
+def _touched(timeline: list[Piece | Event]) -> bool:
+    """The timeline ends with a snap and then a piece too short to be a state of its own
+    (within the solver's rounding of the snap's end)."""
+    if len(timeline) < 2:
+        return False
+    snap, piece = timeline[-2], timeline[-1]
+    if not (isinstance(snap, Event) and snap.kind == "snap" and isinstance(piece, Piece)):
+        return False
+    size = max(abs(piece.v_from_ml), abs(piece.v_to_ml))
+    return abs(piece.v_to_ml - piece.v_from_ml) <= 1e-10 * size
 
 
 def _piece(start: State, end: State, direction: int) -> Piece:

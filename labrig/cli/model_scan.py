@@ -1,0 +1,225 @@
+"""``labrig model scan``, ``scan-summary`` and ``rank``: every actuator of n segments from
+a library, streamed to HDF5, what it found, and the designs with the largest snap."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import click
+
+from labrig.errors import InputError
+
+_TYPE_NAMES = {True: "stable", False: "snap"}
+
+
+def _console():
+    """A console; when the output is not a terminal (a pipe, a file, a test) it is wide
+    enough for the tables, which rich would otherwise squeeze into 80 columns."""
+    from rich.console import Console
+
+    console = Console()
+    return console if console.is_terminal else Console(width=160)
+
+
+def print_summary(data, plot_png: Path | None = None) -> None:
+    """The summary table of a scan (and its Fig. 4 if asked)."""
+    from rich import box
+    from rich.table import Table
+
+    from labrig.model.scan_summary import METRICS, summarise
+
+    summary = summarise(data)
+    console = _console()
+    state = "complete" if data.complete else "INCOMPLETE (--resume continues it)"
+    console.print(
+        f"{data.path}: n = {data.n}, {summary.actuators_done:,} of "
+        f"{summary.actuators_total:,} actuators ({state}), {summary.transitions:,} "
+        f"transitions, {summary.actuators_with_snap:,} actuators snap, {summary.failed} failed"
+    )
+    table = Table(box=box.SIMPLE_HEAD, pad_edge=False)
+    for heading in ("direction", "(α, β)", "kind", "count", "actuators"):
+        table.add_column(heading, justify="right" if heading[0] in "ca" else "left", no_wrap=True)
+    for metric in METRICS:
+        table.add_column(f"{metric} min … max", justify="right", no_wrap=True)
+    for t in summary.types:
+        table.add_row(
+            "inflate" if t.direction > 0 else "deflate",
+            f"({t.alpha}, {t.beta})",
+            _TYPE_NAMES[t.stable],
+            f"{t.count:,}",
+            f"{t.actuators:,}",
+            *(_span(metric, *t.ranges[metric]) for metric in METRICS),
+        )
+    console.print(table)
+    if summary.failed:
+        console.print(
+            f"first failure: actuator {data.failed_actuator[0]} "
+            f"({' + '.join(data.segment_names(data.failed_segments[0]))}): "
+            f"{data.failed_error[0]}"
+        )
+    if data.elapsed_s > 0:
+        console.print(
+            f"computed in {data.elapsed_s:.1f} s with {data.workers} worker(s); peak memory "
+            f"{data.parent_peak_rss_mib:.0f} MiB (parent), {data.worker_peak_rss_mib:.0f} MiB "
+            "(largest worker)"
+        )
+    if plot_png is not None:
+        from labrig.model.scan_summary import plot_fig4
+
+        plot_fig4(data, plot_png)
+        console.print(f"plot: {plot_png}")
+
+
+def _span(metric: str, lo: float, hi: float) -> str:
+    if math.isnan(lo):
+        return "–"
+    if metric == "dE":
+        return f"{lo:+.2e} … {hi:+.2e}"
+    return f"{lo:+.4f} … {hi:+.4f}"
+
+
+def _check_png(plot_png: Path | None) -> None:
+    if plot_png is not None and not plot_png.parent.is_dir():
+        raise InputError(f"--plot {plot_png}: the folder {plot_png.parent} does not exist")
+
+
+PLOT_OPTION = click.option(
+    "--plot",
+    "plot_png",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Draw the paper's Fig. 4 A-C (dv, dl, dp against dE) for the scan to this PNG.",
+)
+
+
+@click.command("scan")
+@click.option("--n", "n", type=int, required=True, help="Segments per actuator (2-6).")
+@click.option(
+    "--library",
+    "library_spec",
+    default="analytical",
+    show_default=True,
+    help="'analytical' (36 braided segments), 'gent', or a folder of measured CSV curves.",
+)
+@click.option(
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    required=True,
+    help="The HDF5 file the scan is streamed to.",
+)
+@click.option("--workers", type=int, default=None, help="Processes (default: every core).")
+@click.option("--resume", is_flag=True, help="Continue an interrupted scan in --out.")
+@click.option("--deflate", is_flag=True, help="Also deflate each actuator back to zero.")
+@PLOT_OPTION
+def scan(
+    n: int,
+    library_spec: str,
+    out: Path,
+    workers: int | None,
+    resume: bool,
+    deflate: bool,
+    plot_png: Path | None,
+) -> None:
+    """Every actuator of N segments from a library: the transitions of each, streamed to
+    the HDF5 file OUT as they are computed, then a summary per transition type."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from labrig.model.scan import load_library, run_scan
+    from labrig.model.scan_file import read_scan
+
+    _check_png(plot_png)
+    library = load_library(library_spec)
+    columns = (
+        TextColumn(f"n = {n}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[rate]}"),
+        TimeElapsedColumn(),
+        TextColumn("left"),
+        TimeRemainingColumn(),
+    )
+    # no refresh thread: the pool forks after the bar exists, and a fork must not copy a
+    # running thread; the bar is redrawn on every finished chunk instead
+    with Progress(*columns, auto_refresh=False, console=_console(), transient=False) as bar:
+        task = bar.add_task("scan", total=None, rate="")
+
+        def show(p) -> None:
+            speed = bar.tasks[0].speed
+            rate = f"{speed:,.0f} actuators/s" if speed else ""
+            bar.update(
+                task, completed=p.actuators_done, total=p.actuators_total, rate=rate, refresh=True
+            )
+
+        try:
+            run_scan(
+                library, n, out, workers=workers, resume=resume, deflate=deflate, progress=show
+            )
+        except KeyboardInterrupt:
+            bar.stop()
+            click.echo(
+                f"interrupted: the finished chunks are in {out}; the same command with "
+                "--resume continues it",
+                err=True,
+            )
+            raise click.Abort() from None
+    print_summary(read_scan(out), plot_png)
+
+
+@click.command("scan-summary")
+@click.argument("scan_file", type=click.Path(dir_okay=False, path_type=Path))
+@PLOT_OPTION
+def scan_summary(scan_file: Path, plot_png: Path | None) -> None:
+    """Per transition type of the scan in SCAN_FILE: the count and the ranges of dE,
+    dv, dl, dp."""
+    from labrig.model.scan_file import read_scan
+
+    _check_png(plot_png)
+    print_summary(read_scan(scan_file), plot_png)
+
+
+@click.command("rank")
+@click.argument("scan_file", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--by", type=click.Choice(["dl", "dv", "dp", "dE"]), default="dl", show_default=True)
+@click.option("--top", type=int, default=20, show_default=True)
+def rank(scan_file: Path, by: str, top: int) -> None:
+    """The designs of SCAN_FILE with the largest snap by a metric (its magnitude): one
+    row per actuator, with the transition that has it."""
+    from rich import box
+    from rich.table import Table
+
+    from labrig.model.scan_file import read_scan
+    from labrig.model.scan_summary import METRICS, rank_designs
+
+    if top < 1:
+        raise InputError(f"--top {top}: must be at least 1")
+    data = read_scan(scan_file)
+    designs = rank_designs(data, by, top)
+    table = Table(
+        title=f"{scan_file}: the {len(designs)} designs with the largest |{by}|",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    for heading in ("#", "segments", "v (mL)", "direction", "(α, β)", "kind", *METRICS):
+        table.add_column(
+            heading + (" ◂" if heading == by else ""),
+            justify="left" if heading in ("segments", "direction", "kind") else "right",
+            no_wrap=True,
+        )
+    for d in designs:
+        table.add_row(
+            str(d.rank),
+            " + ".join(d.segments),
+            f"{d.v_ml:.3f}",
+            "inflate" if d.direction > 0 else "deflate",
+            f"({d.alpha}, {d.beta})",
+            _TYPE_NAMES[d.stable],
+            *(f"{d.metrics[m]:+.2e}" if m == "dE" else f"{d.metrics[m]:+.4f}" for m in METRICS),
+        )
+    _console().print(table)

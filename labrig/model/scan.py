@@ -1,0 +1,379 @@
+"""Scans: every actuator that can be built from n segments of a library, and its
+transitions.
+
+The unit of work is a ``Chunk``: a run of consecutive combinations in lexicographic
+order, named by its index and its first and last rank. ``run_chunk(library, chunk)`` is a
+pure function, chunk in, ``ChunkResult`` (plain numpy arrays) out: it never touches the
+file, so the same chunks run in-process, on a local process pool (``run_scan``) or on a
+distributed engine. With Dask, for a library of measured segments that outgrows one
+machine::
+
+    lib = client.scatter(library, broadcast=True)
+    futures = client.map(run_chunk, [lib] * len(chunks), chunks)
+    for future in futures:  # in chunk order: the client is the only writer
+        scan_file.append(future.result())
+
+Every curve's scalar kernel is built once per process (``SegmentCurve.kernel``), before
+the workers fork, not once per actuator. A failure on one actuator is recorded with its
+error text and the scan goes on. Results are written by the parent only, chunk after
+chunk in order (``labrig.model.scan_file``), so the file is the same whatever the
+number of workers, and an interrupted scan resumes at its first unfinished chunk.
+
+What is computed per actuator: the quasi-static path under inflation from the
+unpressurised state to ``default_end_volume_ml`` (past which no transition can happen),
+optionally followed by deflation back to zero, and its transitions
+(``labrig.model.transitions``), the fields of ``labrig model path --json``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import resource
+import time
+from collections import deque
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from labrig.errors import InputError
+from labrig.model.actuator import Actuator
+from labrig.model.path import quasi_static_path
+from labrig.model.segment import SegmentCurve
+from labrig.model.transitions import transitions
+
+ANALYTICAL = "analytical"
+GENT = "gent"
+# the most segments an actuator of a scan may have; the 36-segment library gives
+# 376,992 actuators at n = 5 and 1.9 million at n = 6
+MAX_N = 6
+
+
+@dataclass(frozen=True)
+class ScanLibrary:
+    """The segments a scan combines, in a fixed order (their index is their number in
+    the scan file)."""
+
+    label: str  # "analytical", "gent" or the folder of measured curves
+    curves: tuple[SegmentCurve, ...]
+
+    @property
+    def names(self) -> list[str]:
+        return [c.name for c in self.curves]
+
+    @cached_property
+    def digest(self) -> str:
+        """SHA-256 of the names and tables: a resumed scan must use the same segments."""
+        h = hashlib.sha256()
+        for c in self.curves:
+            h.update(c.name.encode())
+            for array in (c.v_ml, c.p_kpa, c.l_mm):
+                h.update(np.ascontiguousarray(array, dtype="<f8").tobytes())
+        return h.hexdigest()
+
+
+def load_library(spec: str | None) -> ScanLibrary:
+    """``analytical`` (default: the 36 braided segments), ``gent`` (the three membranes
+    of Fig. S1) or a folder of measured curves (every ``*.csv`` in it, by file name)."""
+    from labrig.model import library
+
+    if spec is None or spec.strip().lower() == ANALYTICAL:
+        names = library.LIBRARY_NAMES
+        return ScanLibrary(ANALYTICAL, tuple(library.analytical_segment(n) for n in names))
+    if spec.strip().lower() == GENT:
+        from labrig.model.gent import GENT_NAMES, gent_membrane
+
+        return ScanLibrary(GENT, tuple(gent_membrane(n) for n in sorted(GENT_NAMES)))
+    folder = Path(spec)
+    if not folder.is_dir():
+        raise InputError(
+            f"--library {spec!r}: use 'analytical' (the 36 braided segments), 'gent', or a "
+            "folder of measured curves (CSV files volume_ml,pressure_kpa,length_mm)"
+        )
+    from labrig.model.measured import load_csv
+
+    files = sorted(folder.glob("*.csv"))
+    if len(files) < 2:
+        raise InputError(
+            f"--library {spec}: {len(files)} CSV file(s) in the folder; a scan needs at "
+            "least two segments"
+        )
+    return ScanLibrary(str(folder), tuple(load_csv(f, name=f.stem) for f in files))
+
+
+# --- combinations ------------------------------------------------------------------------
+def combination_at(rank: int, n_items: int, k: int) -> tuple[int, ...]:
+    """The combination of rank ``rank`` among all k-subsets of range(n_items) in
+    lexicographic order (the order of ``itertools.combinations``)."""
+    out = []
+    x = 0
+    for i in range(k):
+        while True:
+            count = math.comb(n_items - x - 1, k - i - 1)
+            if rank < count:
+                break
+            rank -= count
+            x += 1
+        out.append(x)
+        x += 1
+    return tuple(out)
+
+
+def combinations_between(start: int, stop: int, n_items: int, k: int) -> Iterator[tuple[int, ...]]:
+    """Combinations of ranks start..stop-1, without enumerating the ones before."""
+    if start >= stop:
+        return
+    combo = list(combination_at(start, n_items, k))
+    for _ in range(stop - start - 1):
+        yield tuple(combo)
+        i = k - 1
+        while combo[i] == n_items - k + i:
+            i -= 1
+        combo[i] += 1
+        for j in range(i + 1, k):
+            combo[j] = combo[j - 1] + 1
+    yield tuple(combo)
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """Combinations of ranks start..stop-1 of n segments; the scan's unit of work."""
+
+    index: int
+    start: int
+    stop: int
+    n: int
+    deflate: bool = False
+
+
+def default_chunk_size(total: int) -> int:
+    """About 200 chunks per scan, 16 to 512 actuators each: enough to keep every core
+    busy to the end and to lose at most a second or so of work on an interruption."""
+    return min(512, max(16, math.ceil(total / 200)))
+
+
+def make_chunks(n_items: int, n: int, chunk_size: int, *, deflate: bool = False) -> list[Chunk]:
+    total = math.comb(n_items, n)
+    return [
+        Chunk(i, start, min(start + chunk_size, total), n, deflate)
+        for i, start in enumerate(range(0, total, chunk_size))
+    ]
+
+
+# --- the pure chunk function -------------------------------------------------------------
+TRANSITION_FIELDS = ("direction", "v_ml", "alpha", "beta", "stable", "dE", "dv", "dl", "dp")
+
+
+@dataclass(frozen=True)
+class ChunkResult:
+    """One row per transition (actuator rank, segment indices, the transition's fields)
+    and one per failed actuator; plain arrays, cheap to pickle."""
+
+    index: int
+    n_actuators: int
+    actuator: np.ndarray  # (m,) int64 rank of the combination
+    segments: np.ndarray  # (m, n) int16
+    columns: dict[str, np.ndarray]  # TRANSITION_FIELDS -> (m,)
+    failed_actuator: np.ndarray  # (f,) int64
+    failed_segments: np.ndarray  # (f, n) int16
+    failed_error: tuple[str, ...]
+    seconds: float
+    peak_rss_mib: float  # of the process that computed it
+
+
+def scan_actuator(library: ScanLibrary, combo: tuple[int, ...], *, deflate: bool = False):
+    """The transitions of the actuator made of segments ``combo`` of ``library``. Each
+    curve's scalar kernel is built once per process (``SegmentCurve.kernel``) and shared
+    by every actuator the curve is in."""
+    actuator = Actuator([library.curves[i] for i in combo])
+    return transitions(quasi_static_path(actuator, deflate=deflate))
+
+
+def run_chunk(library: ScanLibrary, chunk: Chunk) -> ChunkResult:
+    """Every actuator of ``chunk``: chunk in, arrays out (see the module docstring)."""
+    started = time.perf_counter()
+    n_items = len(library.curves)
+    rows: list[tuple] = []
+    row_actuator: list[int] = []
+    row_segments: list[tuple[int, ...]] = []
+    failed: list[tuple[int, tuple[int, ...], str]] = []
+    for rank, combo in enumerate(
+        combinations_between(chunk.start, chunk.stop, n_items, chunk.n), chunk.start
+    ):
+        try:
+            found = scan_actuator(library, combo, deflate=chunk.deflate)
+        except Exception as exc:  # recorded in the file; one actuator never stops a scan
+            failed.append((rank, combo, f"{type(exc).__name__}: {exc}"))
+            continue
+        for t in found:
+            row_actuator.append(rank)
+            row_segments.append(combo)
+            rows.append((t.direction, t.v_ml, t.alpha, t.beta, t.stable, t.dE, t.dv, t.dl, t.dp))
+    dtypes = (np.int8, np.float64, np.int8, np.int8, np.bool_, *(np.float64,) * 4)
+    columns = {
+        name: np.array([r[j] for r in rows], dtype=dtype)
+        for j, (name, dtype) in enumerate(zip(TRANSITION_FIELDS, dtypes, strict=True))
+    }
+    return ChunkResult(
+        index=chunk.index,
+        n_actuators=chunk.stop - chunk.start,
+        actuator=np.array(row_actuator, dtype=np.int64),
+        segments=np.array(row_segments, dtype=np.int16).reshape(-1, chunk.n),
+        columns=columns,
+        failed_actuator=np.array([f[0] for f in failed], dtype=np.int64),
+        failed_segments=np.array([f[1] for f in failed], dtype=np.int16).reshape(-1, chunk.n),
+        failed_error=tuple(f[2] for f in failed),
+        seconds=time.perf_counter() - started,
+        peak_rss_mib=peak_rss_mib(),
+    )
+
+
+def peak_rss_mib() -> float:
+    """Peak resident memory of this process (Linux reports KiB, macOS bytes)."""
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / (1024 * 1024) if os.uname().sysname == "Darwin" else peak / 1024
+
+
+# --- running chunks on local processes ----------------------------------------------------
+_WORKER_LIBRARY: ScanLibrary | None = None
+
+
+def _init_worker(library: ScanLibrary) -> None:
+    import signal
+
+    global _WORKER_LIBRARY
+    # Ctrl-C is the parent's to handle: it stops the pool and keeps the file consistent
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _WORKER_LIBRARY = library
+    for curve in library.curves:
+        curve.kernel  # noqa: B018 (built once here, before the first chunk)
+
+
+def _run_in_worker(chunk: Chunk) -> ChunkResult:
+    assert _WORKER_LIBRARY is not None
+    return run_chunk(_WORKER_LIBRARY, chunk)
+
+
+def default_workers() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def run_chunks(
+    library: ScanLibrary,
+    chunks: list[Chunk],
+    sink: Callable[[ChunkResult], None],
+    *,
+    workers: int,
+) -> None:
+    """Run ``chunks`` and hand every result to ``sink`` in chunk order.
+
+    At most 2 * workers + 2 chunks are in flight, so memory stays bounded however long
+    the scan (results that finish early wait for the slower one before them).
+    """
+    for curve in library.curves:  # built before any fork, so that workers inherit them
+        curve.kernel  # noqa: B018
+    if workers <= 1 or len(chunks) <= 1:
+        for chunk in chunks:
+            sink(run_chunk(library, chunk))
+        return
+    import multiprocessing
+
+    methods = multiprocessing.get_all_start_methods()
+    # fork: the workers inherit the imported modules and the curves (0.5 s saved per
+    # worker); elsewhere the library is pickled to each worker once
+    context = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
+    window = 2 * workers + 2
+    todo = iter(chunks)
+    with context.Pool(workers, initializer=_init_worker, initargs=(library,)) as pool:
+        pending = deque(pool.apply_async(_run_in_worker, (c,)) for c in _take(todo, window))
+        while pending:
+            result = pending.popleft().get()
+            for chunk in _take(todo, 1):
+                pending.append(pool.apply_async(_run_in_worker, (chunk,)))
+            sink(result)
+
+
+def _take(iterator: Iterator[Chunk], count: int) -> list[Chunk]:
+    out = []
+    for _ in range(count):
+        item = next(iterator, None)
+        if item is None:
+            break
+        out.append(item)
+    return out
+
+
+# --- a whole scan into a file ---------------------------------------------------------------
+@dataclass(frozen=True)
+class ScanProgress:
+    actuators_done: int
+    actuators_total: int
+    chunks_done: int
+    chunks_total: int
+
+
+def run_scan(
+    library: ScanLibrary,
+    n: int,
+    out: Path,
+    *,
+    workers: int | None = None,
+    resume: bool = False,
+    deflate: bool = False,
+    chunk_size: int | None = None,
+    progress: Callable[[ScanProgress], None] | None = None,
+) -> Path:
+    """Scan every combination of ``n`` segments of ``library`` into ``out`` (HDF5).
+
+    With ``resume`` the file must hold an interrupted scan of the same library, n and
+    ``deflate``; its finished chunks are kept and the rest computed. On any exception
+    (Ctrl-C included) the file is closed with every finished chunk in it.
+    """
+    from labrig.model.scan_file import ScanFile
+
+    if not 2 <= n <= min(MAX_N, len(library.curves)):
+        raise InputError(
+            f"--n {n}: choose 2..{min(MAX_N, len(library.curves))} "
+            f"({len(library.curves)} segments in the library)"
+        )
+    workers = default_workers() if workers is None else workers
+    if workers < 1:
+        raise InputError(f"--workers {workers}: must be at least 1")
+    total = math.comb(len(library.curves), n)
+    if resume:
+        if not out.is_file():
+            raise InputError(f"--resume: {out} does not exist; start the scan without --resume")
+        scan = ScanFile.resume(out, library, n, deflate=deflate)
+    else:
+        if out.exists():
+            raise InputError(
+                f"--out {out}: the file exists; --resume continues it, or remove it first"
+            )
+        if not out.parent.is_dir():
+            raise InputError(f"--out {out}: the folder {out.parent} does not exist")
+        size = default_chunk_size(total) if chunk_size is None else chunk_size
+        scan = ScanFile.create(out, library, n, chunk_size=size, deflate=deflate)
+    chunks = scan.pending_chunks()
+    done = {"chunks": scan.chunks_done, "actuators": total - sum(c.stop - c.start for c in chunks)}
+
+    def sink(result: ChunkResult) -> None:
+        scan.append(result)
+        done["chunks"] += 1
+        done["actuators"] += result.n_actuators
+        if progress is not None:
+            progress(ScanProgress(done["actuators"], total, done["chunks"], scan.n_chunks))
+
+    if progress is not None:
+        progress(ScanProgress(done["actuators"], total, done["chunks"], scan.n_chunks))
+    try:
+        run_chunks(library, chunks, sink, workers=workers)
+    finally:
+        scan.close(workers=workers, parent_peak_rss_mib=peak_rss_mib())
+    return out

@@ -1,0 +1,300 @@
+"""The HDF5 file of a scan: its layout, appending chunk results, resuming, reading.
+
+Layout (created before the first chunk; every chunk appended and flushed as it comes)::
+
+    /                      attrs: kind, labrig version, n, deflate, chunk_size,
+                           n_combinations, library label and digest, complete,
+                           elapsed_s, workers, parent/worker peak memory (MiB)
+    /segments/name         (S,) the library's segment names; a row's segment indices
+                           point here
+    /segments/tables/<i>   v_ml, p_kpa, l_mm of segment i as scanned
+    /chunks/done           (C,) bool: chunk i is complete in the file
+    /chunks/row_start|row_stop, failure_start|failure_stop  (C,) its rows
+    /chunks/seconds        (C,) compute time of the chunk
+    /transitions/actuator  (M,) rank of the combination (itertools.combinations order)
+    /transitions/segments  (M, n) segment indices
+    /transitions/direction, v_ml, alpha, beta, stable, dE, dv, dl, dp   (M,)
+    /failures/actuator, segments, error   actuators whose path failed, with the reason
+
+Chunks are written in order by the parent process only, so ``done`` is always a prefix
+and rows are sorted by actuator. A chunk's rows are written before it is marked done; a
+scan killed in between leaves rows past the last done chunk, which ``resume`` drops.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+import labrig
+from labrig.errors import InputError
+from labrig.model.scan import (
+    TRANSITION_FIELDS,
+    Chunk,
+    ChunkResult,
+    ScanLibrary,
+    make_chunks,
+)
+
+KIND = "labrig model scan"
+_UNITS = {"v_ml": "mL", "dE": "1", "dv": "1", "dl": "1", "dp": "1"}
+_DTYPES = {
+    "direction": np.int8,
+    "alpha": np.int8,
+    "beta": np.int8,
+    "stable": np.bool_,
+}
+_ROWS_PER_HDF5_CHUNK = 65536
+
+
+def _growing(group, name: str, dtype, width: int | None = None):
+    shape = (0,) if width is None else (0, width)
+    maxshape = (None,) if width is None else (None, width)
+    chunks = (_ROWS_PER_HDF5_CHUNK,) if width is None else (_ROWS_PER_HDF5_CHUNK // width, width)
+    return group.create_dataset(name, shape, maxshape=maxshape, dtype=dtype, chunks=chunks)
+
+
+def _append(dataset, values) -> None:
+    start = dataset.shape[0]
+    dataset.resize(start + len(values), axis=0)
+    dataset[start:] = values
+
+
+class ScanFile:
+    """A scan's HDF5 file open for writing (``create`` or ``resume``)."""
+
+    def __init__(self, h5, path: Path) -> None:
+        self.h5 = h5
+        self.path = path
+        self.n = int(h5.attrs["n"])
+        self.chunk_size = int(h5.attrs["chunk_size"])
+        self.deflate = bool(h5.attrs["deflate"])
+        self.n_segments = len(h5["segments/name"])
+        self._started = time.perf_counter()
+        self._elapsed_before = float(h5.attrs["elapsed_s"])
+
+    # --- opening ------------------------------------------------------------------------
+    @classmethod
+    def create(
+        cls, path: Path, library: ScanLibrary, n: int, *, chunk_size: int, deflate: bool
+    ) -> ScanFile:
+        import h5py
+
+        total = math.comb(len(library.curves), n)
+        n_chunks = len(make_chunks(len(library.curves), n, chunk_size))
+        h5 = h5py.File(path, "w")
+        attrs = h5.attrs
+        attrs["kind"] = KIND
+        attrs["labrig_version"] = labrig.__version__
+        attrs["n"] = n
+        attrs["deflate"] = deflate
+        attrs["chunk_size"] = chunk_size
+        attrs["n_combinations"] = total
+        attrs["library"] = library.label
+        attrs["library_digest"] = library.digest
+        attrs["created"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+        attrs["complete"] = False
+        attrs["elapsed_s"] = 0.0
+        attrs["workers"] = 0
+        attrs["parent_peak_rss_mib"] = 0.0
+        attrs["worker_peak_rss_mib"] = 0.0
+        segments = h5.create_group("segments")
+        segments.create_dataset(
+            "name", data=np.array(library.names, dtype=object), dtype=h5py.string_dtype()
+        )
+        tables = segments.create_group("tables")
+        for i, curve in enumerate(library.curves):
+            table = tables.create_group(str(i))
+            table.attrs["name"] = curve.name
+            table.attrs["source"] = curve.source
+            for key, values, unit in (
+                ("v_ml", curve.v_ml, "mL"),
+                ("p_kpa", curve.p_kpa, "kPa"),
+                ("l_mm", curve.l_mm, "mm"),
+            ):
+                table.create_dataset(key, data=np.asarray(values)).attrs["units"] = unit
+        chunks = h5.create_group("chunks")
+        chunks.create_dataset("done", data=np.zeros(n_chunks, dtype=bool))
+        for key in ("row_start", "row_stop", "failure_start", "failure_stop"):
+            chunks.create_dataset(key, data=np.zeros(n_chunks, dtype=np.int64))
+        chunks.create_dataset("seconds", data=np.zeros(n_chunks))
+        rows = h5.create_group("transitions")
+        _growing(rows, "actuator", np.int64)
+        _growing(rows, "segments", np.int16, n)
+        for name in TRANSITION_FIELDS:
+            dataset = _growing(rows, name, _DTYPES.get(name, np.float64))
+            if name in _UNITS:
+                dataset.attrs["units"] = _UNITS[name]
+        rows["direction"].attrs["meaning"] = "+1 inflate, -1 deflate"
+        failures = h5.create_group("failures")
+        _growing(failures, "actuator", np.int64)
+        _growing(failures, "segments", np.int16, n)
+        _growing(failures, "error", h5py.string_dtype())
+        h5.flush()
+        return cls(h5, path)
+
+    @classmethod
+    def resume(cls, path: Path, library: ScanLibrary, n: int, *, deflate: bool) -> ScanFile:
+        """Open an interrupted scan to continue it; InputError unless it is a scan of the
+        same library, n and direction(s)."""
+        import h5py
+
+        try:
+            h5 = h5py.File(path, "r+")
+        except OSError as exc:
+            raise InputError(f"{path}: cannot open it to resume ({exc})") from None
+        try:
+            attrs = h5.attrs
+            if attrs.get("kind") != KIND:
+                raise InputError(f"{path}: not a labrig scan file; cannot resume it")
+            wanted = {"n": n, "deflate": deflate, "library_digest": library.digest}
+            for key, value in wanted.items():
+                stored = attrs[key].item() if hasattr(attrs[key], "item") else attrs[key]
+                if stored != value:
+                    what = (
+                        "other segments' tables"
+                        if key == "library_digest"
+                        else f"{key} = {stored}, not {value}"
+                    )
+                    raise InputError(
+                        f"{path}: scanned with {what}; resume with the same --n, --library "
+                        "and --deflate, or start a new file"
+                    )
+            done = h5["chunks/done"][:]
+            kept = int(np.argmin(done)) if not done.all() else len(done)
+            if done[kept:].any():
+                raise InputError(f"{path}: chunks were not written in order; cannot resume")
+            # rows of a chunk that was being written when the scan stopped
+            row_stop = int(h5["chunks/row_stop"][kept - 1]) if kept else 0
+            failure_stop = int(h5["chunks/failure_stop"][kept - 1]) if kept else 0
+            for name in ("actuator", "segments", *TRANSITION_FIELDS):
+                h5["transitions"][name].resize(row_stop, axis=0)
+            for name in ("actuator", "segments", "error"):
+                h5["failures"][name].resize(failure_stop, axis=0)
+        except BaseException:
+            h5.close()
+            raise
+        return cls(h5, path)
+
+    # --- writing ------------------------------------------------------------------------
+    def pending_chunks(self) -> list[Chunk]:
+        done = self.h5["chunks/done"][:]
+        chunks = make_chunks(self.n_segments, self.n, self.chunk_size, deflate=self.deflate)
+        return [c for c in chunks if not done[c.index]]
+
+    @property
+    def chunks_done(self) -> int:
+        return int(self.h5["chunks/done"][:].sum())
+
+    @property
+    def n_chunks(self) -> int:
+        return len(self.h5["chunks/done"])
+
+    def append(self, result: ChunkResult) -> None:
+        """Write one chunk's rows, then mark it done, then flush."""
+        rows, failures, chunks = self.h5["transitions"], self.h5["failures"], self.h5["chunks"]
+        row_start = rows["actuator"].shape[0]
+        failure_start = failures["actuator"].shape[0]
+        _append(rows["actuator"], result.actuator)
+        _append(rows["segments"], result.segments)
+        for name in TRANSITION_FIELDS:
+            _append(rows[name], result.columns[name])
+        _append(failures["actuator"], result.failed_actuator)
+        _append(failures["segments"], result.failed_segments)
+        _append(failures["error"], np.array(result.failed_error, dtype=object))
+        i = result.index
+        chunks["row_start"][i] = row_start
+        chunks["row_stop"][i] = rows["actuator"].shape[0]
+        chunks["failure_start"][i] = failure_start
+        chunks["failure_stop"][i] = failures["actuator"].shape[0]
+        chunks["seconds"][i] = result.seconds
+        chunks["done"][i] = True
+        attrs = self.h5.attrs
+        attrs["worker_peak_rss_mib"] = max(float(attrs["worker_peak_rss_mib"]), result.peak_rss_mib)
+        attrs["elapsed_s"] = self._elapsed_before + time.perf_counter() - self._started
+        self.h5.flush()
+
+    def close(self, *, workers: int, parent_peak_rss_mib: float) -> None:
+        attrs = self.h5.attrs
+        attrs["complete"] = bool(self.h5["chunks/done"][:].all())
+        attrs["elapsed_s"] = self._elapsed_before + time.perf_counter() - self._started
+        attrs["workers"] = workers
+        attrs["parent_peak_rss_mib"] = max(float(attrs["parent_peak_rss_mib"]), parent_peak_rss_mib)
+        self.h5.close()
+
+
+# --- reading ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ScanData:
+    """A scan file's rows in memory (sorted by actuator, as written)."""
+
+    path: Path
+    names: list[str]
+    n: int
+    n_combinations: int
+    actuators_done: int
+    complete: bool
+    deflate: bool
+    elapsed_s: float
+    workers: int
+    parent_peak_rss_mib: float
+    worker_peak_rss_mib: float
+    actuator: np.ndarray
+    segments: np.ndarray
+    columns: dict[str, np.ndarray]
+    failed_actuator: np.ndarray
+    failed_segments: np.ndarray
+    failed_error: list[str]
+
+    def segment_names(self, row_segments) -> list[str]:
+        return [self.names[i] for i in row_segments]
+
+
+def read_scan(path: Path) -> ScanData:
+    """Load a scan file (complete or not); InputError for anything else."""
+    import h5py
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    try:
+        h5 = h5py.File(path, "r")
+    except OSError:
+        raise InputError(f"{path}: not an HDF5 file") from None
+    with h5:
+        attrs = h5.attrs
+        if attrs.get("kind") != KIND:
+            raise InputError(f"{path}: not a labrig scan file (made by `labrig model scan`)")
+        done = h5["chunks/done"][:]
+        chunk_size = int(attrs["chunk_size"])
+        total = int(attrs["n_combinations"])
+        kept = int(np.argmin(done)) if not done.all() else len(done)
+        row_stop = int(h5["chunks/row_stop"][kept - 1]) if kept else 0
+        failure_stop = int(h5["chunks/failure_stop"][kept - 1]) if kept else 0
+        rows = h5["transitions"]
+        failures = h5["failures"]
+        return ScanData(
+            path=path,
+            names=[s.decode() if isinstance(s, bytes) else s for s in h5["segments/name"][:]],
+            n=int(attrs["n"]),
+            n_combinations=total,
+            actuators_done=min(kept * chunk_size, total),
+            complete=bool(attrs["complete"]),
+            deflate=bool(attrs["deflate"]),
+            elapsed_s=float(attrs["elapsed_s"]),
+            workers=int(attrs["workers"]),
+            parent_peak_rss_mib=float(attrs["parent_peak_rss_mib"]),
+            worker_peak_rss_mib=float(attrs["worker_peak_rss_mib"]),
+            actuator=rows["actuator"][:row_stop],
+            segments=rows["segments"][:row_stop],
+            columns={name: rows[name][:row_stop] for name in TRANSITION_FIELDS},
+            failed_actuator=failures["actuator"][:failure_stop],
+            failed_segments=failures["segments"][:failure_stop],
+            failed_error=[
+                e.decode() if isinstance(e, bytes) else e for e in failures["error"][:failure_stop]
+            ],
+        )
