@@ -88,7 +88,7 @@ class Timing:
     clock cannot turn a loop into a busy spin."""
 
     pressure_period_s: float = 0.2
-    pump_period_s: float = 0.5
+    pump_period_s: float = 0.2
     progress_period_s: float = 0.5
     real_floor_s: float = 0.002
     max_marker_loss_s: float = 10.0
