@@ -26,6 +26,7 @@ from labrig.analysis.curves import (
     phase_curves,
     repetitions_to_average,
     volume_grid,
+    with_motion_corners,
 )
 from labrig.analysis.results import AnalysisResult, AnalysisSettings, RepetitionAnalysis, stamp
 from labrig.analysis.runfile import Repetition, RunRecord, load_run
@@ -62,7 +63,7 @@ def _analyse_repetition(
     rep: Repetition, grid_ml: np.ndarray, settings: AnalysisSettings, used: bool
 ) -> RepetitionAnalysis:
     pt, p, n_flagged = _pressure(rep)
-    pump_t, pump_v = rep.pump.time_s, np.asarray(rep.pump.fields["value"], dtype=float)
+    pump_t, pump_v = with_motion_corners(rep.pump.time_s, rep.pump.fields["value"])
     length = _length(rep)
     moving = len(pump_t) >= 2
     p_curves = (

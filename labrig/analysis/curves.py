@@ -8,6 +8,14 @@ of the pump interval a sample falls in splits a repetition into its inflation (v
 rising) and deflation (volume falling); samples while the pump holds still belong to
 neither curve.
 
+The pump starts and stops between two polls, so a straight line between those two
+readings would smear the start over a whole poll period: the specimen is still at rest
+for part of it, yet those samples would be given volumes up to one poll's worth of
+flow (0.2 mL at 60 mL/min). Where the specimen is stiffest, at v = 0, that bends the
+first bins of every curve down by a kPa or two. ``with_motion_corners`` puts the start
+and the end of each one-way motion back where the constant rate of the motion's inner
+polls says they were.
+
 On the grid (step ``step_ml``, from 0), each curve is the mean of its samples per grid
 bin, placed at the mean volume of those samples and then interpolated linearly onto the
 grid points. Placing the mean at its own volume keeps the curve unbiased however the
@@ -27,6 +35,58 @@ DEFLATE = -1
 PHASES = {INFLATE: "inflate", DEFLATE: "deflate"}
 # a pump interval that moves less than this is a hold (pump counters are quantised)
 MIN_MOVE_ML = 1e-6
+
+
+# polls next to a motion's start or end used to estimate its rate there
+RATE_POLLS = 5
+
+
+def runs_of_true(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) indices of the runs of True in ``mask``."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1, strict=True))
+
+
+def with_motion_corners(pump_t_s: np.ndarray, pump_v_ml: np.ndarray):
+    """The pump log with a reading added where each one-way motion really started and
+    ended (see the module docstring), as ``(time_s, volume_ml)``.
+
+    The first and last intervals of a motion hold its start and its end. The motion's
+    rate is the median of its inner intervals' rates; each of the (up to
+    ``RATE_POLLS`` + 1) readings nearest the start then says when the motion started
+    (its volume moved at that rate), and the median of those is taken, likewise for
+    the end. Medians, because a poll whose time stamp came late (a busy computer; a
+    fast simulated clock) would otherwise move the corner. A motion too short to have
+    a whole poll interval inside it is left as logged.
+    """
+    pump_t_s = np.asarray(pump_t_s, dtype=float)
+    pump_v_ml = np.asarray(pump_v_ml, dtype=float)
+    if len(pump_t_s) < 4:
+        return pump_t_s, pump_v_ml
+    direction = motion_at(0.5 * (pump_t_s[1:] + pump_t_s[:-1]), pump_t_s, pump_v_ml)
+    corners = []
+    for value in (INFLATE, DEFLATE):
+        for first, last in runs_of_true(direction == value):
+            inner = slice(first + 1, last + 1)  # readings inside the motion
+            if last - first < 2:
+                continue
+            rate = float(np.median(np.diff(pump_v_ml[inner]) / np.diff(pump_t_s[inner])))
+            if value * rate <= 0:
+                continue
+            for edge, near in (
+                (first, slice(first + 1, min(first + 2 + RATE_POLLS, last + 1))),
+                (last + 1, slice(max(last - RATE_POLLS, first + 1), last + 1)),
+            ):
+                moved_s = (pump_v_ml[near] - pump_v_ml[edge]) / rate
+                t_corner = float(np.median(pump_t_s[near] - moved_s))
+                lo, hi = sorted((pump_t_s[edge], pump_t_s[first + 1 if edge == first else last]))
+                if lo < t_corner < hi:
+                    corners.append((t_corner, pump_v_ml[edge]))
+    if not corners:
+        return pump_t_s, pump_v_ml
+    t_add, v_add = np.array(corners).T
+    order = np.argsort(np.concatenate([pump_t_s, t_add]), kind="stable")
+    return np.concatenate([pump_t_s, t_add])[order], np.concatenate([pump_v_ml, v_add])[order]
 
 
 def volume_at(t_s: np.ndarray, pump_t_s: np.ndarray, pump_v_ml: np.ndarray) -> np.ndarray:

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from labrig.analysis.curves import PHASES, volume_at
+from labrig.analysis.curves import PHASES, volume_at, with_motion_corners
 from labrig.analysis.results import AnalysisResult
 from labrig.analysis.runfile import RunRecord
 
@@ -73,9 +73,8 @@ def export_csv(record: RunRecord, result: AnalysisResult, directory: Path) -> li
                 if field in series.fields:
                     columns[name] = series.fields[field]
             if log == "pressure":  # the supplied volume, aligned as the analysis does
-                columns["volume_ml"] = volume_at(
-                    series.time_s, rep.pump.time_s, rep.pump.fields["value"]
-                )
+                pump_path = with_motion_corners(rep.pump.time_s, rep.pump.fields["value"])
+                columns["volume_ml"] = volume_at(series.time_s, *pump_path)
             path = directory / f"{rep.name}_{log}.csv"
             write_columns(path, columns)
             written.append(path)

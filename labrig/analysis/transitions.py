@@ -44,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from labrig.analysis.curves import motion_at, volume_at
+from labrig.analysis.curves import motion_at, runs_of_true, volume_at
 
 
 @dataclass(frozen=True)
@@ -185,16 +185,10 @@ def bump_excess(steepness: np.ndarray, gap: int, span: int) -> np.ndarray:
     return np.fmin(over_medians, over_lines)
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """(first, last) indices of the runs of True in ``mask``."""
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1, strict=True))
-
-
 def _events(excess: np.ndarray, threshold: float) -> list[tuple[int, int, int]]:
     """(first, last, peak) of each run above ``threshold``, extended while above half."""
     out = []
-    for first, last in _runs(np.nan_to_num(excess, nan=-np.inf) > 0.5 * threshold):
+    for first, last in runs_of_true(np.nan_to_num(excess, nan=-np.inf) > 0.5 * threshold):
         peak = first + int(np.nanargmax(excess[first : last + 1]))
         if excess[peak] > threshold:
             out.append((first, last, peak))
@@ -301,7 +295,7 @@ def _motions(pump_t_s: np.ndarray, pump_v_ml: np.ndarray) -> list[tuple[float, f
     direction = motion_at(0.5 * (pump_t_s[1:] + pump_t_s[:-1]), pump_t_s, pump_v_ml)
     out = []
     for value in (1, -1):
-        for first, last in _runs(direction == value):
+        for first, last in runs_of_true(direction == value):
             # the pump started and stopped somewhere inside the first and last intervals,
             # and the inlet's flow-resistance offset steps there: keep the readings inside
             t0, t1 = pump_t_s[first + 1], pump_t_s[last]

@@ -1,6 +1,8 @@
 """Alignment, resampling and averaging against cases computed by hand."""
 
 import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from labrig.analysis.curves import (
     DEFLATE,
@@ -12,6 +14,7 @@ from labrig.analysis.curves import (
     resample,
     volume_at,
     volume_grid,
+    with_motion_corners,
 )
 
 PUMP_T = np.array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0])
@@ -100,3 +103,66 @@ def test_the_mean_takes_the_last_completed_repetitions():
     assert repetitions_to_average(statuses, 4) == [2, 4, 5, 6]
     assert repetitions_to_average(statuses, 10) == [1, 2, 4, 5, 6]
     assert repetitions_to_average(["aborted", "pending"], 4) == []
+
+
+def _polled_motion(start_s, stop_s, rate_ml_s, period_s, phase_s, v0_ml=1.0):
+    """The pump log of one motion between rests, polled every ``period_s``."""
+    t = phase_s + period_s * np.arange(int((stop_s + 3.0) / period_s))
+    v = v0_ml + rate_ml_s * np.clip(t - start_s, 0.0, stop_s - start_s)
+    return t, v
+
+
+def test_corners_put_a_start_and_stop_between_polls_back_where_they_were():
+    # polls at 0.1, 0.3, 0.5, ...; the pump starts at 1.23 s and stops at 4.87 s
+    t, v = _polled_motion(1.23, 4.87, 0.5, 0.2, 0.1)
+    tc, vc = with_motion_corners(t, v)
+    assert len(tc) == len(t) + 2
+    added = sorted(set(tc) - set(t))
+    np.testing.assert_allclose(added, [1.23, 4.87], atol=1e-9)
+    # the interval before the start is a hold now: the specimen was at rest
+    assert motion_at(np.array([1.2, 1.24]), tc, vc).tolist() == [0, 1]
+    assert volume_at(np.array([1.2]), tc, vc)[0] == 1.0
+    # a straight line between the straddling polls (1.1 s: 1.0 mL, 1.3 s: 1.035 mL)
+    # would have put 0.0175 mL into the specimen at rest
+    np.testing.assert_allclose(volume_at(np.array([1.2]), t, v), [1.0175])
+
+
+def test_a_late_time_stamp_does_not_move_the_corner():
+    t, v = _polled_motion(1.23, 4.87, 0.5, 0.2, 0.1)
+    first_moving = np.flatnonzero(t > 1.23)[0]
+    t = t.copy()
+    t[first_moving] += 0.15  # this poll's stamp came 0.15 s late
+    tc, _ = with_motion_corners(t, v)
+    np.testing.assert_allclose(sorted(set(tc) - set(t)), [1.23, 4.87], atol=1e-9)
+
+
+def test_a_withdrawal_gets_its_corners_too():
+    t, v = _polled_motion(0.95, 3.05, -0.4, 0.25, 0.0, v0_ml=2.0)
+    tc, vc = with_motion_corners(t, v)
+    np.testing.assert_allclose(sorted(set(tc) - set(t)), [0.95, 3.05], atol=1e-9)
+    assert motion_at(np.array([0.9, 1.0, 3.0, 3.1]), tc, vc).tolist() == [0, -1, -1, 0]
+
+
+def test_a_motion_with_no_whole_interval_inside_is_left_as_logged():
+    t = np.array([0.0, 0.2, 0.4, 0.6])
+    v = np.array([0.0, 0.0, 0.05, 0.05])  # started and stopped between two polls
+    tc, vc = with_motion_corners(t, v)
+    np.testing.assert_array_equal(tc, t)
+    np.testing.assert_array_equal(vc, v)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    start_s=st.floats(0.5, 2.0),
+    duration_s=st.floats(1.5, 20.0),
+    rate_ml_s=st.floats(0.01, 2.0) | st.floats(-2.0, -0.01),
+    period_s=st.floats(0.05, 0.5),
+    phase_s=st.floats(0.0, 0.05),
+)
+def test_corners_of_an_exact_log_are_exact(start_s, duration_s, rate_ml_s, period_s, phase_s):
+    t, v = _polled_motion(start_s, start_s + duration_s, rate_ml_s, period_s, phase_s, 5.0)
+    tc, vc = with_motion_corners(t, v)
+    # the corrected log is the true volume at every time, polls or not
+    probe = np.linspace(t[0], t[-1], 997)
+    truth = 5.0 + rate_ml_s * np.clip(probe - start_s, 0.0, duration_s)
+    np.testing.assert_allclose(volume_at(probe, tc, vc), truth, atol=1e-9)

@@ -36,11 +36,11 @@ def test_a_characterised_segment_reproduces_the_specimen(tmp_path, monkeypatch):
     add_from_run(outcome.path, "MEASURED-B46", library)
     monkeypatch.setenv("LABRIG_LIBRARY", str(library))
     measured, truth = load_segment("MEASURED-B46"), analytical_segment("B46-T20")
-    # Known limit (issue 8 note): the mean curve's first millilitre depends on how the
-    # pump polls straddle the start of each inflation, and the measured-curve loader
-    # re-zeroes p(0) from those first bins: the whole curve can shift by ~1-2 kPa
-    # (seen 38.2..41.7 kPa against 39.55). The shape must hold: volumes and the drop.
-    assert measured.peak.p_kpa == pytest.approx(truth.peak.p_kpa, abs=2.0)
+    # p(0) is extrapolated from the first bins, where the curve is steepest: the pump's
+    # start, between two polls, is reconstructed from its rate (analysis.curves), else
+    # that bent the first bins and shifted the curve by 1-3 kPa. Left: the curvature
+    # of the first bins and the inlet's flow resistance (0.3-0.7 kPa low, seen).
+    assert measured.peak.p_kpa == pytest.approx(truth.peak.p_kpa, abs=1.0)
     drop_measured = measured.peak.p_kpa - measured.valley.p_kpa
     drop_truth = truth.peak.p_kpa - truth.valley.p_kpa
     assert drop_measured == pytest.approx(drop_truth, abs=0.5)
