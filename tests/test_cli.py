@@ -58,7 +58,7 @@ def test_help_imports_no_heavy_module():
         "import sys\n"
         "from labrig.cli import main\n"
         "try:\n    main(['--help'])\nexcept SystemExit:\n    pass\n"
-        "names = ('cv2', 'matplotlib', 'nidaqmx', 'scipy', 'h5py')\n"
+        "names = ('cv2', 'matplotlib', 'nidaqmx', 'scipy', 'h5py', 'numba')\n"
         "heavy = [m for m in names if m in sys.modules]\n"
         "print('HEAVY=' + ','.join(heavy))\n"
     )

@@ -1,24 +1,25 @@
-"""Scalar, pure-Python evaluation of a SegmentCurve for the path solver.
+"""Scalar evaluation of a SegmentCurve for the path solver.
 
 The quasi-static path evaluates a handful of numbers at a time, thousands of times (a
 root search on a fold, one flow step, one energy difference). numpy's per-call overhead
 (about a microsecond per array operation, tens of microseconds per interpolant call)
-would dominate that work, so the PCHIP pieces are copied once into Python lists and
-evaluated with Horner's rule. The numbers are those of ``SegmentCurve`` (same cubic
-pieces, same linear continuation past both ends); ``SegmentCurve.volume_on_branch`` is
-the vectorised counterpart of ``volume_on_branch`` here and the tests hold them equal.
+would dominate that work, so the PCHIP pieces are copied once into Python lists (for
+the energies and lengths, evaluated with Horner's rule here) and into packed arrays for
+the compiled pressure, slope and branch inversion (``labrig.model.curve_tables``, the
+hottest calls). The numbers are those of ``SegmentCurve`` (same cubic pieces, same
+linear continuation past both ends); ``SegmentCurve.volume_on_branch`` is the vectorised
+counterpart of ``volume_on_branch`` here and the tests hold them equal.
 """
 
 from __future__ import annotations
 
 import math
-from bisect import bisect_right
 
+import numpy as np
+
+from labrig.model import curve_tables
 from labrig.model.segment import SegmentCurve
 
-# Newton on a branch's cubic piece stops when the step is below this fraction of the
-# sample spacing (the interpolant itself is only defined to rounding, ~1e-16).
-_T_TOL = 1e-13
 # fractions of a sample interval at which slope profiles close in on an extremum
 _TOWARD_END = (0.5, 0.25, 0.1, 0.03, 0.01, 0.003, 0.001)
 
@@ -54,19 +55,13 @@ class CurveKernel:
         self.n_branches = len(self.branches)
         self.peak_branch = curve.peak_branch
         self.extremum_volumes = [b.v_hi_ml for b in self.branches[:-1]]
-        # per branch: sample pressures in ascending order, for bisection
+        # per branch: its slope profile (``slope_profile``), computed on first use
         self._profiles: dict[int, tuple[list[float], list[float]]] = {}
-        self._ascending = []
-        for b in self.branches:
-            run = self.samples[b.first : b.last + 1]
-            self._ascending.append(run if b.rising else run[::-1])
+        self.tables = curve_tables.pack([self])
 
     # --- forward evaluation ----------------------------------------------------------
     def _piece(self, v: float) -> int:
-        j = bisect_right(self.x, v) - 1
-        if j < 0:
-            return 0
-        return j if j < self.last_piece else self.last_piece
+        return curve_tables.piece_index(self.tables, 0, v)
 
     def _piece_integral(self, j: int, t: float) -> float:
         return (
@@ -74,32 +69,13 @@ class CurveKernel:
         ) * t
 
     def pressure(self, v: float) -> float:
-        if v > self.v_last:
-            return self.p_last + self.slope_last * (v - self.v_last)
-        if v < self.v_first:
-            return self.p_first + self.slope_first * (v - self.v_first)
-        j = self._piece(v)
-        t = v - self.x[j]
-        return ((self.c3[j] * t + self.c2[j]) * t + self.c1[j]) * t + self.c0[j]
+        return curve_tables.pressure_and_slope(self.tables, 0, v)[0]
 
     def slope(self, v: float) -> float:
-        if v > self.v_last:
-            return self.slope_last
-        if v < self.v_first:
-            return self.slope_first
-        j = self._piece(v)
-        t = v - self.x[j]
-        return (3.0 * self.c3[j] * t + 2.0 * self.c2[j]) * t + self.c1[j]
+        return curve_tables.pressure_and_slope(self.tables, 0, v)[1]
 
     def pressure_and_slope(self, v: float) -> tuple[float, float]:
-        if v > self.v_last:
-            return self.p_last + self.slope_last * (v - self.v_last), self.slope_last
-        if v < self.v_first:
-            return self.p_first + self.slope_first * (v - self.v_first), self.slope_first
-        j = self._piece(v)
-        t = v - self.x[j]
-        c3, c2, c1 = self.c3[j], self.c2[j], self.c1[j]
-        return ((c3 * t + c2) * t + c1) * t + self.c0[j], (3.0 * c3 * t + 2.0 * c2) * t + c1
+        return curve_tables.pressure_and_slope(self.tables, 0, v)
 
     def energy(self, v: float) -> float:
         """E(v) = integral of p from 0 (Eq. 1), mJ."""
@@ -199,51 +175,19 @@ class CurveKernel:
     def singular_distance(self, branch: int, p: float) -> float:
         """Pressure distance from p to the nearer end of the branch that is an
         extremum of the curve (where the slope is 0); 1.0 kPa if neither is."""
+        return float(self.singular_distances(branch, np.array([p]))[0])
+
+    def singular_distances(self, branch: int, p: np.ndarray) -> np.ndarray:
+        """``singular_distance`` at each of the pressures ``p``."""
         b = self.branches[branch]
-        ends = []
+        distance = np.full(len(p), np.inf)
         if b.first > 0:
-            ends.append(abs(p - self.samples[b.first]))
+            distance = np.minimum(distance, np.abs(p - self.samples[b.first]))
         if b.last < len(self.x) - 1:
-            ends.append(abs(p - self.samples[b.last]))
-        return min(ends) if ends else 1.0
+            distance = np.minimum(distance, np.abs(p - self.samples[b.last]))
+        return np.where(np.isinf(distance), 1.0, distance)
 
     def volume_on_branch(self, branch: int, p: float) -> tuple[float, float]:
         """(v, dp/dv) on ``branch`` at pressure ``p``; the caller keeps ``p`` within the
         branch's pressure range (values outside are clamped to its ends)."""
-        b = self.branches[branch]
-        last_sample = len(self.x) - 1
-        if b.last == last_sample and ((p > self.p_last) if b.rising else (p < self.p_last)):
-            return self.v_last + (p - self.p_last) / self.slope_last, self.slope_last
-        ascending = self._ascending[branch]
-        position = bisect_right(ascending, p) - 1
-        position = min(max(position, 0), b.last - b.first - 1)
-        j = b.first + position if b.rising else b.last - 1 - position
-        c3, c2, c1, c0 = self.c3[j], self.c2[j], self.c1[j], self.c0[j]
-        h = self.x[j + 1] - self.x[j]
-        rhs = p - c0
-        p0, p1 = self.samples[j], self.samples[j + 1]
-        t = (p - p0) / (p1 - p0) * h if p1 != p0 else 0.5 * h
-        t = min(max(t, 0.0), h)
-        lo, hi = 0.0, h
-        sign = 1.0 if b.rising else -1.0
-        d = 0.0
-        for _ in range(100):
-            f = ((c3 * t + c2) * t + c1) * t - rhs
-            if f == 0.0:
-                break
-            if sign * f > 0:
-                hi = t
-            else:
-                lo = t
-            d = (3.0 * c3 * t + 2.0 * c2) * t + c1
-            step = t - f / d if d != 0.0 else -1.0
-            if not lo < step < hi:
-                step = 0.5 * (lo + hi)
-            if abs(step - t) <= _T_TOL * h:
-                t = step
-                break
-            t = step
-        d = (3.0 * c3 * t + 2.0 * c2) * t + c1
-        # at a branch's extremum the slope is 0 up to rounding; never let rounding give
-        # it the sign of the neighbouring branch
-        return self.x[j] + t, max(d, 0.0) if b.rising else min(d, 0.0)
+        return curve_tables.volume_on_branch(self.tables, 0, branch, p)

@@ -39,6 +39,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from labrig.model.actuator import Actuator, stable_scalar
+from labrig.model.curve_tables import (
+    excess_volume,
+    inverse_slope_sum,
+    tables_of,
+    volumes_on_branches,
+)
 from labrig.model.descent import FLOW_TOL, FlowError, settle, volume_unit_ml
 from labrig.model.roots import bracketed_root
 
@@ -173,11 +179,12 @@ class _Tracer:
         # the volume scale of the actuator, to which the distances below are tied (an
         # actuator of microlitres behaves like one of millilitres)
         self.unit_ml = volume_unit_ml(self.kernels)
+        self.tables = tables_of(self.kernels)
 
     # --- states on a branch combination ------------------------------------------------
     def at(self, branches: tuple[int, ...], p: float) -> State:
-        vk = [kern.volume_on_branch(b, p) for kern, b in zip(self.kernels, branches, strict=True)]
-        return State(branches, p, tuple(v for v, _ in vk), tuple(k for _, k in vk))
+        v, k = volumes_on_branches(self.tables, np.array(branches), p)
+        return State(branches, p, tuple(v.tolist()), tuple(k.tolist()))
 
     def at_volume_of(self, branches: tuple[int, ...], m: int, v_m: float) -> State:
         """The state on ``branches`` where segment m holds v_m (its pressure sets the
@@ -261,8 +268,10 @@ class _Tracer:
         if state.v_ml == v_target:
             return state
 
+        args = (self.tables, np.array(b), v_target)
+
         def excess(p: float) -> float:
-            return self.at(b, p).v_ml - v_target
+            return excess_volume(p, args)
 
         f_start = state.v_ml - v_target
         if end is None:  # an unbounded branch: walk out until the target is passed
@@ -271,10 +280,10 @@ class _Tracer:
             while (excess(p_far) > 0) == (f_start > 0):
                 step *= 2.0
                 p_far = state.p_kpa + s_p * step
-            p_end, f_end = p_far, None
+            p_end, f_end = p_far, math.nan
         else:
             p_end, f_end = end.p_kpa, end.v_ml - v_target
-        p = bracketed_root(excess, state.p_kpa, p_end, f_start, f_end, xtol=1e-12)
+        p = bracketed_root(excess_volume, args, state.p_kpa, p_end, f_start, f_end, 1e-12)
         reached = self._with_volume(self.at(b, p), v_target)
         if reached is None:
             raise FlowError(f"no equilibrium at v = {v_target:.6g} mL on branches {b}")
@@ -321,28 +330,27 @@ class _Tracer:
 
     def _screen(self, start: State, end: State, m: int) -> list[float]:
         """Pressures between start and end (in the order the path meets them) where
-        the screened sum 1/k comes near 0 (see ``_find_fold``)."""
+        the screened sum 1/k comes near 0 (see ``_find_fold``); vectorised over the
+        pressures, the one numpy-sized job of the path."""
         p_a, p_b = start.p_kpa, end.p_kpa
         lo, hi = min(p_a, p_b), max(p_a, p_b)
         branches = start.branches
         profiles = [kern.slope_profile(b) for kern, b in zip(self.kernels, branches, strict=True)]
-        pressures = set()
-        for ps, _ in profiles:
-            pressures.update(ps[bisect_right(ps, lo) : bisect_left(ps, hi)])
-        flagged = []
-        for p in sorted(pressures, reverse=p_b < p_a):
-            total = 0.0
-            scale = 0.0
-            for kern, b, (ps, gs) in zip(self.kernels, branches, profiles, strict=True):
-                distance = kern.singular_distance(b, p)
-                if distance <= 0.0:
-                    continue
-                value = _interpolate(ps, gs, p) / math.sqrt(distance)
-                total += value
-                scale += abs(value)
-            if total >= -self.screen_margin * scale:
-                flagged.append(p)
-        return flagged
+        inside = [ps[bisect_right(ps, lo) : bisect_left(ps, hi)] for ps, _ in profiles]
+        pressures = np.unique(np.concatenate(inside)) if any(inside) else np.empty(0)
+        if len(pressures) == 0:
+            return []
+        total = np.zeros(len(pressures))
+        scale = np.zeros(len(pressures))
+        for kern, b, (ps, gs) in zip(self.kernels, branches, profiles, strict=True):
+            distance = kern.singular_distances(b, pressures)
+            counted = distance > 0.0
+            value = np.zeros(len(pressures))
+            value[counted] = np.interp(pressures[counted], ps, gs) / np.sqrt(distance[counted])
+            total += value
+            scale += np.abs(value)
+        flagged = pressures[total >= -self.screen_margin * scale]
+        return (flagged[::-1] if p_b < p_a else flagged).tolist()
 
     def _check(self, prev, s_prev, cur, s_cur, m, direction) -> State | None:
         """The first fold between two exact states, if sum 1/k reaches 0 between them
@@ -375,14 +383,16 @@ class _Tracer:
         sample scale sum 1/k can cross zero more than once)."""
         b = a.branches
 
+        args = (self.tables, np.array(b))
+
         def inverse_sum_at(p: float) -> float:
-            return self.inverse_sum(self.at(b, p))
+            return inverse_slope_sum(p, args)
 
         lo, s_lo, hi, s_hi = a.p_kpa, s_a, c.p_kpa, s_c
         if not s_lo < 0:  # lost already at the start of the piece (a degenerate point)
             return a
         for _ in range(6):
-            root = bracketed_root(inverse_sum_at, lo, hi, s_lo, s_hi, xtol=1e-11)
+            root = bracketed_root(inverse_slope_sum, args, lo, hi, s_lo, s_hi, 1e-11)
             earlier = None
             for k in range(1, 16):
                 q = lo + (root - lo) * k / 16
@@ -508,8 +518,10 @@ class _Tracer:
             if not p_lo <= p <= p_hi:
                 break
 
+        args = (self.tables, np.array(b), v)
+
         def excess_at(q: float) -> float:
-            return self.at(b, q).v_ml - v
+            return excess_volume(q, args)
 
         f0 = excess_at(p0)
         width = 1e-6 * max(1.0, abs(p0))
@@ -517,7 +529,7 @@ class _Tracer:
             for q in (max(p0 - width, p_lo), min(p0 + width, p_hi)):
                 f = excess_at(q)
                 if (f > 0) != (f0 > 0):
-                    root = bracketed_root(excess_at, p0, q, f0, f, xtol=1e-12)
+                    root = bracketed_root(excess_volume, args, p0, q, f0, f, 1e-12)
                     return self._with_volume(self.at(b, root), v)
             if p0 - width <= p_lo and p0 + width >= p_hi:
                 return None
@@ -624,17 +636,6 @@ class _Tracer:
                 f"the flow from coincident branch ends at v = {end.v_ml:.6g} mL did not settle"
             )
         return Event("snap", "coincident", direction, end, post)
-
-
-def _interpolate(xs: list[float], ys: list[float], x: float) -> float:
-    """Linear interpolation in points sorted by x; constant beyond the ends."""
-    j = bisect_right(xs, x)
-    if j == 0:
-        return ys[0]
-    if j == len(xs):
-        return ys[-1]
-    x0, x1 = xs[j - 1], xs[j]
-    return ys[j - 1] + (ys[j] - ys[j - 1]) * (x - x0) / (x1 - x0) if x1 != x0 else ys[j]
 
 
 def _fold_residual(k: Sequence[float]) -> float:

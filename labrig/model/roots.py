@@ -1,39 +1,38 @@
-"""A bracketed scalar root on floats (Brent-Dekker), for the path solver's inner loops.
+"""A bracketed scalar root (Brent-Dekker), compiled, for the path solver's inner loops.
 
 scipy's ``brentq`` does the same in C but needs finite values at both ends and costs a
 few tens of microseconds per call in overhead; here an infinite end value (the slope
-term 1/k at a branch end where k = 0) is allowed and only its sign is used.
+term 1/k at a branch end where k = 0) is allowed and only its sign is used. The
+function whose root is sought is itself compiled (``labrig.model.curve_tables``:
+``excess_volume``, ``inverse_slope_sum``, ``pair_imbalance``) and takes one tuple of
+arguments, so a whole root search runs without returning to Python.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+
+from numba import njit
 
 
-def bracketed_root(
-    f: Callable[[float], float],
-    a: float,
-    b: float,
-    fa: float | None = None,
-    fb: float | None = None,
-    *,
-    xtol: float = 1e-12,
-    rtol: float = 4e-16,
-    max_iter: int = 200,
-) -> float:
-    """A root of ``f`` between ``a`` and ``b``, where f changes sign (or is zero).
+@njit(cache=True)
+def bracketed_root(f, args, a, b, fa, fb, xtol=1e-12, rtol=4e-16, max_iter=200):
+    """A root of ``f(x, args)`` between ``a`` and ``b``, where f changes sign (or is
+    zero); ``fa``, ``fb`` are f at the ends, NaN to have them computed.
 
     ``xtol`` is an absolute tolerance on the root, added to ``rtol`` times its size.
+    Raises ValueError without a sign change.
     """
-    fa = f(a) if fa is None else fa
-    fb = f(b) if fb is None else fb
+    if math.isnan(fa):
+        fa = f(a, args)
+    if math.isnan(fb):
+        fb = f(b, args)
     if fa == 0.0:
         return a
     if fb == 0.0:
         return b
     if (fa > 0) == (fb > 0):
-        raise ValueError(f"no sign change between {a} and {b} ({fa}, {fb})")
+        raise ValueError("no sign change between the ends of the bracket")
     c, fc = a, fa
     d = e = b - a
     for _ in range(max_iter):
@@ -72,5 +71,5 @@ def bracketed_root(
             d = e = m
         a, fa = b, fb
         b += d if abs(d) > tol else math.copysign(tol, m)
-        fb = f(b)
+        fb = f(b, args)
     return b

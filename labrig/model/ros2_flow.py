@@ -1,0 +1,184 @@
+"""The n >= 3 flow integrator of ``labrig.model.descent``, compiled with numba.
+
+The flow after a snap is where a scan spends most of its time: about 4 flows per
+quadruple, 50-150 Rosenbrock steps each, each step a handful of piecewise-cubic
+evaluations and three Sherman-Morrison solves on n floats. In CPython that is ~5 ms per
+flow (60 % of a quadruple); compiled, ~0.1 ms. The algorithm is the one described in
+``labrig.model.descent`` (ROS2, Shampine's filtered error estimate, the energy check,
+the step limit from the secular equation); the sums that the pure-Python version took
+with ``math.fsum`` are compensated (Neumaier) sums here, so the rounding is the same.
+
+It reads the actuator's curves as packed arrays (``labrig.model.curve_tables``).
+Compilation takes a few seconds once; the machine code is cached next to this file
+(``cache=True``) and reused by every later process, including scan workers.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from labrig.model.curve_tables import compensated_sum, pressure_and_slope
+
+GAMMA = 1.0 + 1.0 / math.sqrt(2.0)  # ROS2, L-stable
+
+SETTLED = 0  # a stable equilibrium
+SADDLE = 1  # at rest on an unstable equilibrium: the caller pushes it off
+MAX_STEPS = 2  # the step budget ran out
+
+
+@njit(cache=True)
+def _state(tables, w, p, k):
+    for i in range(len(w)):
+        p[i], k[i] = pressure_and_slope(tables, i, w[i])
+
+
+@njit(cache=True)
+def stable(k):
+    """``labrig.model.actuator.stable_scalar`` on an array."""
+    soft = 0
+    soft_value = 0.0
+    for a in k:
+        if a <= 0:
+            soft += 1
+            soft_value = a
+    if soft == 0:
+        return True
+    if soft > 1:
+        return False
+    if soft_value == 0:
+        return True
+    total = 0.0
+    for a in k:
+        total += 1.0 / a
+    return total < 0
+
+
+@njit(cache=True)
+def _step_limit(h, k):
+    """See ``descent``: h, or less so that gamma h |mu| <= 1/2 for the flow's fastest
+    unstable rate mu (the secular equation sum 1/(k_i - mu) = 0)."""
+    k_sorted = np.sort(k)
+    lo = k_sorted[0]
+    if lo >= 0:
+        return h
+    hi = min(k_sorted[1], 0.0)
+    mu = -0.5 / (GAMMA * h)
+    if mu <= lo:
+        return h
+    if mu < hi:
+        total = 0.0
+        for a in k:
+            total += 1.0 / (a - mu)
+        if total <= 0:
+            return h
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        total = 0.0
+        for a in k:
+            if a != mid:
+                total += 1.0 / (a - mid)
+        if total > 0:
+            hi = mid
+        else:
+            lo = mid
+        if hi - lo <= 0.01 * abs(lo):
+            break
+    return min(h, 0.5 / (GAMMA * -lo)) if lo < 0 else h
+
+
+@njit(cache=True)
+def _solve(h, k, rhs, out):
+    """(I - gamma h J) out = rhs by Sherman-Morrison (see ``descent``); False if the
+    matrix is (nearly) singular for this step size."""
+    n = len(k)
+    gh = GAMMA * h
+    inverse = np.empty(n)
+    biggest = 0.0
+    for i in range(n):
+        d = 1.0 + gh * k[i]
+        if abs(d) < 1e-12:
+            return False
+        inverse[i] = 1.0 / d
+        biggest = max(biggest, abs(inverse[i]))
+    denominator = compensated_sum(inverse) / n
+    if abs(denominator) < 1e-12 * biggest:
+        return False
+    y = rhs * inverse
+    scale = (gh / n) * compensated_sum(k * y) / denominator
+    for i in range(n):
+        out[i] = y[i] + scale * inverse[i]
+    return True
+
+
+@njit(cache=True)
+def _newton_step_size(k, f):
+    """Max-norm length of the Newton step to the nearest equilibrium (see ``descent``)."""
+    for a in k:
+        if a == 0.0:
+            return math.inf
+    inverse_sum = compensated_sum(1.0 / k)
+    if inverse_sum == 0.0:
+        return math.inf
+    lam = -compensated_sum(f / k) / inverse_sum
+    return np.max(np.abs((f + lam) / k))
+
+
+@njit(cache=True)
+def settle_flow(tables, w0, tol_ml, unit_ml, max_steps):
+    """Integrate the flow from ``w0`` until it rests. Returns (status, w): SETTLED on a
+    stable equilibrium, SADDLE at rest on an unstable one, MAX_STEPS otherwise."""
+    n = len(w0)
+    w = w0.copy()
+    h = 1e-3
+    rejected = False
+    p, k = np.empty(n), np.empty(n)
+    p_new, k_new = np.empty(n), np.empty(n)
+    k1, k2, filtered = np.empty(n), np.empty(n), np.empty(n)
+    _state(tables, w, p, k)
+    for _ in range(max_steps):
+        mean = np.sum(p) / n
+        f = mean - p
+        at_rest = np.max(np.abs(f)) <= 1e-12 * max(1.0, abs(mean))
+        if at_rest or _newton_step_size(k, f) < 1e-9 * unit_ml:
+            if stable(k):
+                return SETTLED, w
+            if at_rest:
+                return SADDLE, w
+        h = _step_limit(h, k)
+        if not _solve(h, k, f, k1):
+            h *= 0.25
+            continue
+        w_mid = w + h * k1
+        _state(tables, w_mid, p_new, k_new)
+        f_mid = np.sum(p_new) / n - p_new
+        if not _solve(h, k, f_mid - 2.0 * k1, k2):
+            h *= 0.25
+            continue
+        # Shampine's filtered error estimate: relaxed stiff components do not count
+        if _solve(h, k, 0.5 * h * (k1 + k2), filtered):
+            error = np.max(np.abs(filtered))
+        else:
+            error = 4.0 * tol_ml
+        step = h * (1.5 * k1 + 0.5 * k2)
+        step -= np.sum(step) / n  # the exact step keeps sum w; rounding would not
+        w_new = w + step
+        _state(tables, w_new, p_new, k_new)
+        # a gradient flow only loses energy: a step that gains some is wrong (Hermite
+        # rule for the integral of p dw from both ends' p and p')
+        gained = np.sum(step * (0.5 * (p + p_new) + step * (k - k_new) / 12.0))
+        lost_energy = gained <= 1e-12 * np.sum(np.abs(step * p))
+        accepted = error <= tol_ml and lost_energy
+        if accepted:
+            w = w_new
+            p, p_new = p_new, p
+            k, k_new = k_new, k
+        elif not lost_energy:
+            error = max(error, 4.0 * tol_ml)
+        factor = 0.8 * math.sqrt(tol_ml / error) if error > 0 else 5.0
+        # no growth right after a rejection (avoids alternating reject/accept)
+        h *= min(5.0 if accepted and not rejected else 1.0, max(0.2, factor))
+        rejected = not accepted
+    return MAX_STEPS, w
