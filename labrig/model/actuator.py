@@ -35,6 +35,7 @@ from functools import cached_property
 
 import numpy as np
 
+from labrig.model.curve_tables import tables_of, total_energy, total_length
 from labrig.model.kernel import CurveKernel
 from labrig.model.segment import SegmentCurve
 
@@ -103,11 +104,11 @@ class Actuator:
 
     def energy_mj(self, v_i_ml: Sequence[float]) -> float:
         """Total stored energy, Eq. 3 (from the unpressurised state)."""
-        return sum(kern.energy(v) for kern, v in zip(self.kernels, v_i_ml, strict=True))
+        return total_energy(tables_of(self.kernels), np.asarray(v_i_ml, dtype=float))
 
     def length_mm(self, v_i_ml: Sequence[float]) -> float:
         """Actuator length: the sum of the segment lengths."""
-        return sum(kern.length(v) for kern, v in zip(self.kernels, v_i_ml, strict=True))
+        return total_length(tables_of(self.kernels), np.asarray(v_i_ml, dtype=float))
 
     def alpha(self, branches: Sequence[int]) -> int:
         """Number of segments to the right of their pressure peak (the paper's alpha,

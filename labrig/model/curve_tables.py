@@ -7,7 +7,7 @@ CPython spends ~6 us on one branch inversion, so these run compiled (numba): ~0.
 plus ~0.6 us to call from Python.
 
 ``pack`` copies the PCHIP pieces of one or more segments into arrays padded to one
-length (a ``CurveTables``); ``CurveKernel`` holds the tables of its own segment, a path
+length (a tuple of arrays, ``pack``); ``CurveKernel`` holds the tables of its own segment, a path
 solver those of its actuator (``tables_of``), and the post-snap flow
 (``labrig.model.ros2_flow``) reads the same arrays. The numbers are those of
 ``SegmentCurve``: the same cubic pieces, the same linear continuation past both ends.
@@ -21,7 +21,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from functools import lru_cache
-from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -30,33 +29,33 @@ from numba import njit
 # sample spacing (the interpolant itself is only defined to rounding, ~1e-16).
 T_TOL = 1e-13
 
-# columns of CurveTables.ends
+# columns of the ENDS table
 V_FIRST, V_LAST, P_FIRST, P_LAST, SLOPE_FIRST, SLOPE_LAST = range(6)
 
 
-class CurveTables(NamedTuple):
-    """n segments' curves, padded to one length W (a tuple, so compiled code takes it
-    as one argument).
+# The tables are a plain tuple of arrays, for n segments padded to one length W
+# (compiled code takes it as one argument; a plain tuple crosses from Python to
+# compiled code in half the time of a NamedTuple, and these calls are the solver's
+# hottest). Its fields, by index:
+BREAKPOINTS = 0  # (n, W) breakpoints x, +inf past a segment's last
+COEFFS = 1  # (n, 4, W-1) coefficients c3..c0 of each piece in powers of (v - x_j)
+SAMPLES = 2  # (n, W) pressures at the breakpoints
+ENDS = 3  # (n, 6) columns V_FIRST..SLOPE_LAST: the linear continuations past the ends
+LAST_PIECE = 4  # (n,)
+BRANCH_FIRST = 5  # (n, B) first sample index of each monotone branch
+BRANCH_LAST = 6  # (n, B) last sample index of each monotone branch
+BRANCH_RISING = 7  # (n, B)
+# (n, W-1) the exact integral of p over each piece, and (n, W) their running sum from
+# the first sample: energy differences are sums of small numbers rather than
+# differences of large ones (model-notes, trap 3)
+PIECE_ENERGY = 8
+CUMULATIVE_ENERGY = 9
+LENGTH_COEFFS = 10  # (n, 4, W-1) the length's cubic pieces
 
-    x: (n, W) breakpoints, +inf past a segment's last; c: (n, 4, W-1) coefficients
-    c3..c0 of each piece in powers of (v - x_j); samples: (n, W) pressures at the
-    breakpoints; ends: (n, 6) v_first, v_last, p_first, p_last, slope_first,
-    slope_last (the linear continuations); last_piece: (n,); branch_first,
-    branch_last: (n, B) sample indices of each monotone branch; branch_rising: (n, B).
-    """
 
-    x: np.ndarray
-    c: np.ndarray
-    samples: np.ndarray
-    ends: np.ndarray
-    last_piece: np.ndarray
-    branch_first: np.ndarray
-    branch_last: np.ndarray
-    branch_rising: np.ndarray
-
-
-def pack(kernels: Sequence) -> CurveTables:
-    """The tables of ``kernels`` (objects with a ``CurveKernel``'s list attributes)."""
+def pack(kernels: Sequence) -> tuple:
+    """The tables of ``kernels`` (objects with a ``CurveKernel``'s list attributes);
+    ``tables_of`` stacks those of single kernels, which is faster."""
     n = len(kernels)
     width = max(len(k.x) for k in kernels)
     n_branches = max(len(k.branches) for k in kernels)
@@ -68,6 +67,7 @@ def pack(kernels: Sequence) -> CurveTables:
     branch_first = np.zeros((n, n_branches), dtype=np.int64)
     branch_last = np.zeros((n, n_branches), dtype=np.int64)
     branch_rising = np.zeros((n, n_branches), dtype=np.bool_)
+    lc = np.zeros((n, 4, width - 1))
     for i, k in enumerate(kernels):
         m = len(k.x)
         x[i, :m] = k.x
@@ -75,37 +75,141 @@ def pack(kernels: Sequence) -> CurveTables:
         samples[i, :m] = k.samples
         ends[i] = (k.v_first, k.v_last, k.p_first, k.p_last, k.slope_first, k.slope_last)
         last_piece[i] = k.last_piece
+        lc[i, :, : m - 1] = (k.lc3, k.lc2, k.lc1, k.lc0)
         for j, b in enumerate(k.branches):
             branch_first[i, j], branch_last[i, j], branch_rising[i, j] = b.first, b.last, b.rising
-    return CurveTables(
-        x, c, samples, ends, last_piece, branch_first, branch_last, branch_rising
+    piece_energy, cumulative_energy = _energies(x, c, last_piece)
+    return (
+        x, c, samples, ends, last_piece, branch_first, branch_last, branch_rising,
+        piece_energy, cumulative_energy, lc,
     )  # fmt: skip
 
 
+# what pads each table past a segment's own length (x: +inf keeps bisection inside)
+_PADDING = {BREAKPOINTS: np.inf}
+
+
 @lru_cache(maxsize=256)
-def tables_of(kernels: tuple) -> CurveTables:
-    """``pack(kernels)``, once per tuple of kernels (an actuator's)."""
-    return pack(kernels)
+def tables_of(kernels: tuple) -> tuple:
+    """The tables of an actuator's kernels (once per tuple of kernels): their own
+    one-segment tables (``CurveKernel.tables``) stacked and padded to one length."""
+    out = []
+    for field, rows in enumerate(zip(*(k.tables for k in kernels), strict=True)):
+        shape = tuple(max(sizes) for sizes in zip(*(r.shape for r in rows), strict=True))
+        table = np.full((len(rows), *shape[1:]), _PADDING.get(field, 0), dtype=rows[0].dtype)
+        for i, row in enumerate(rows):
+            table[(i, *(slice(0, size) for size in row.shape[1:]))] = row[0]
+        out.append(table)
+    return tuple(out)
+
+
+# The slope profiles (``CurveKernel.slope_profile``) of every branch of n segments, a
+# plain tuple too: pressures and values (n, B, P) padded, and their counts (n, B).
+PROFILE_P, PROFILE_G, PROFILE_COUNT = range(3)
+
+
+@lru_cache(maxsize=256)
+def profiles_of(kernels: tuple) -> tuple:
+    """The slope profiles of every branch of ``kernels``, packed (once per tuple)."""
+    profiles = [[k.slope_profile(b) for b in range(k.n_branches)] for k in kernels]
+    n_branches = max(len(row) for row in profiles)
+    width = max(len(ps) for row in profiles for ps, _ in row)
+    p = np.zeros((len(kernels), n_branches, width))
+    g = np.zeros_like(p)
+    count = np.zeros((len(kernels), n_branches), dtype=np.int64)
+    for i, row in enumerate(profiles):
+        for b, (ps, gs) in enumerate(row):
+            p[i, b, : len(ps)], g[i, b, : len(gs)], count[i, b] = ps, gs, len(ps)
+    return p, g, count
 
 
 @njit(cache=True)
 def piece_index(tables, i, v):
     """The piece of segment i that holds v (bisect_right - 1, clamped to the pieces)."""
-    x = tables.x
-    lo, hi = 0, tables.last_piece[i] + 2
+    x = tables[BREAKPOINTS]
+    lo, hi = 0, tables[LAST_PIECE][i] + 2
     while lo < hi:
         mid = (lo + hi) // 2
         if v < x[i, mid]:
             hi = mid
         else:
             lo = mid + 1
-    return min(max(lo - 1, 0), tables.last_piece[i])
+    return min(max(lo - 1, 0), tables[LAST_PIECE][i])
+
+
+@njit(cache=True)
+def piece_integral(c, i, j, t):
+    """Integral of segment i's pressure over its piece j from its start to t in."""
+    return (
+        ((c[i, 0, j] * 0.25 * t + c[i, 1, j] / 3.0) * t + c[i, 2, j] * 0.5) * t + c[i, 3, j]
+    ) * t
+
+
+@njit(cache=True)
+def _energies(x, c, last_piece):
+    """The PIECE_ENERGY and CUMULATIVE_ENERGY tables."""
+    n, width = x.shape
+    pieces = np.zeros((n, width - 1))
+    cumulative = np.zeros((n, width))
+    for i in range(n):
+        for j in range(last_piece[i] + 1):
+            pieces[i, j] = piece_integral(c, i, j, x[i, j + 1] - x[i, j])
+            cumulative[i, j + 1] = cumulative[i, j] + pieces[i, j]
+    return pieces, cumulative
+
+
+@njit(cache=True)
+def energy(tables, i, v):
+    """E(v) = integral of p from the first sample (Eq. 1), mJ."""
+    ends = tables[ENDS]
+    if v > ends[i, V_LAST]:
+        d = v - ends[i, V_LAST]
+        return (
+            tables[CUMULATIVE_ENERGY][i, tables[LAST_PIECE][i] + 1]
+            + ends[i, P_LAST] * d
+            + 0.5 * ends[i, SLOPE_LAST] * d * d
+        )
+    if v < ends[i, V_FIRST]:
+        d = v - ends[i, V_FIRST]
+        return ends[i, P_FIRST] * d + 0.5 * ends[i, SLOPE_FIRST] * d * d
+    j = piece_index(tables, i, v)
+    return tables[CUMULATIVE_ENERGY][i, j] + piece_integral(
+        tables[COEFFS], i, j, v - tables[BREAKPOINTS][i, j]
+    )
+
+
+@njit(cache=True)
+def length(tables, i, v):
+    """l(v) in mm; constant past the table's ends."""
+    v = min(max(v, tables[ENDS][i, V_FIRST]), tables[ENDS][i, V_LAST])
+    j = piece_index(tables, i, v)
+    t = v - tables[BREAKPOINTS][i, j]
+    lc = tables[LENGTH_COEFFS]
+    return ((lc[i, 0, j] * t + lc[i, 1, j]) * t + lc[i, 2, j]) * t + lc[i, 3, j]
+
+
+@njit(cache=True)
+def total_energy(tables, v):
+    """Energy stored in all segments at volumes v (Eq. 3), mJ."""
+    total = 0.0
+    for i in range(len(v)):
+        total += energy(tables, i, v[i])
+    return total
+
+
+@njit(cache=True)
+def total_length(tables, v):
+    """Sum of the segments' lengths at volumes v, mm."""
+    total = 0.0
+    for i in range(len(v)):
+        total += length(tables, i, v[i])
+    return total
 
 
 @njit(cache=True)
 def pressure_and_slope(tables, i, v):
     """(p, dp/dv) of segment i at volume v."""
-    ends = tables.ends
+    ends = tables[ENDS]
     if v > ends[i, V_LAST]:
         return ends[i, P_LAST] + ends[i, SLOPE_LAST] * (v - ends[i, V_LAST]), ends[i, SLOPE_LAST]
     if v < ends[i, V_FIRST]:
@@ -114,8 +218,8 @@ def pressure_and_slope(tables, i, v):
             ends[i, SLOPE_FIRST],
         )
     j = piece_index(tables, i, v)
-    t = v - tables.x[i, j]
-    c = tables.c
+    t = v - tables[BREAKPOINTS][i, j]
+    c = tables[COEFFS]
     c3, c2, c1 = c[i, 0, j], c[i, 1, j], c[i, 2, j]
     return ((c3 * t + c2) * t + c1) * t + c[i, 3, j], (3.0 * c3 * t + 2.0 * c2) * t + c1
 
@@ -125,12 +229,12 @@ def volume_on_branch(tables, i, branch, p):
     """(v, dp/dv) of segment i on ``branch`` at pressure ``p``; values outside the
     branch's pressure range are clamped to its ends (the caller keeps p inside), except
     past the table's last sample, where the linear continuation is inverted."""
-    first = tables.branch_first[i, branch]
-    last = tables.branch_last[i, branch]
-    rising = tables.branch_rising[i, branch]
-    samples = tables.samples
-    ends = tables.ends
-    last_sample = tables.last_piece[i] + 1
+    first = tables[BRANCH_FIRST][i, branch]
+    last = tables[BRANCH_LAST][i, branch]
+    rising = tables[BRANCH_RISING][i, branch]
+    samples = tables[SAMPLES]
+    ends = tables[ENDS]
+    last_sample = tables[LAST_PIECE][i] + 1
     if last == last_sample and ((p > ends[i, P_LAST]) if rising else (p < ends[i, P_LAST])):
         return ends[i, V_LAST] + (p - ends[i, P_LAST]) / ends[i, SLOPE_LAST], ends[i, SLOPE_LAST]
     # position = bisect_right(branch samples in ascending order, p) - 1
@@ -144,9 +248,9 @@ def volume_on_branch(tables, i, branch, p):
             lo = mid + 1
     position = min(max(lo - 1, 0), last - first - 1)
     j = first + position if rising else last - 1 - position
-    c = tables.c
+    c = tables[COEFFS]
     c3, c2, c1, c0 = c[i, 0, j], c[i, 1, j], c[i, 2, j], c[i, 3, j]
-    h = tables.x[i, j + 1] - tables.x[i, j]
+    h = tables[BREAKPOINTS][i, j + 1] - tables[BREAKPOINTS][i, j]
     rhs = p - c0
     p0, p1 = samples[i, j], samples[i, j + 1]
     t = (p - p0) / (p1 - p0) * h if p1 != p0 else 0.5 * h
@@ -172,7 +276,7 @@ def volume_on_branch(tables, i, branch, p):
     d = (3.0 * c3 * t + 2.0 * c2) * t + c1
     # at a branch's extremum the slope is 0 up to rounding; never let rounding give it
     # the sign of the neighbouring branch
-    return tables.x[i, j] + t, max(d, 0.0) if rising else min(d, 0.0)
+    return tables[BREAKPOINTS][i, j] + t, max(d, 0.0) if rising else min(d, 0.0)
 
 
 @njit(cache=True)
@@ -209,18 +313,24 @@ def excess_volume(p, args):
 
 
 @njit(cache=True)
-def inverse_slope_sum(p, args):
-    """dv/dp = sum_i 1/k_i(p) on a branch combination, a branch end (k = 0) counting as
-    +-inf by its side; args = (tables, branches)."""
-    tables, branches = args
+def inverse_sum_of(tables, branches, k):
+    """dv/dp = sum_i 1/k_i of a state on ``branches`` with slopes k; a branch end
+    (k = 0) counts as +-inf by its side."""
     total = 0.0
     for i in range(len(branches)):
-        k = volume_on_branch(tables, i, branches[i], p)[1]
-        if k == 0.0:
-            total += math.inf if tables.branch_rising[i, branches[i]] else -math.inf
+        if k[i] == 0.0:
+            total += math.inf if tables[BRANCH_RISING][i, branches[i]] else -math.inf
         else:
-            total += 1.0 / k
+            total += 1.0 / k[i]
     return total
+
+
+@njit(cache=True)
+def inverse_slope_sum(p, args):
+    """``inverse_sum_of`` the state at pressure p on a branch combination;
+    args = (tables, branches)."""
+    tables, branches = args
+    return inverse_sum_of(tables, branches, volumes_on_branches(tables, branches, p)[1])
 
 
 @njit(cache=True)
@@ -228,3 +338,71 @@ def pair_imbalance(w1, args):
     """p_1(w1) - p_2(v - w1) of two segments holding v together; args = (tables, v)."""
     tables, v = args
     return pressure_and_slope(tables, 0, w1)[0] - pressure_and_slope(tables, 1, v - w1)[0]
+
+
+@njit(cache=True)
+def singular_distance(tables, i, branch, p):
+    """Pressure distance from p to the nearer end of segment i's ``branch`` that is an
+    extremum of the curve (where the slope is 0); 1.0 kPa if neither is."""
+    first = tables[BRANCH_FIRST][i, branch]
+    last = tables[BRANCH_LAST][i, branch]
+    distance = math.inf
+    if first > 0:
+        distance = abs(p - tables[SAMPLES][i, first])
+    if last < tables[LAST_PIECE][i] + 1:
+        distance = min(distance, abs(p - tables[SAMPLES][i, last]))
+    return 1.0 if distance == math.inf else distance
+
+
+@njit(cache=True)
+def fold_screen(tables, profiles, branches, p_from, p_to, margin):
+    """Pressures strictly between p_from and p_to, in the order the path meets them,
+    where the screened sum of 1/k comes within ``margin`` of its terms' magnitudes
+    from 0 (``labrig.model.path``, ``_find_fold``): each segment's slope profile,
+    interpolated linearly in p and divided by sqrt of the distance to the branch's
+    extremum, summed over the segments, at every profile pressure of every segment."""
+    lo, hi = min(p_from, p_to), max(p_from, p_to)
+    n = len(branches)
+    total_points = 0
+    for i in range(n):
+        total_points += profiles[PROFILE_COUNT][i, branches[i]]
+    candidates = np.empty(total_points)
+    m = 0
+    for i in range(n):
+        ps = profiles[PROFILE_P][i, branches[i], : profiles[PROFILE_COUNT][i, branches[i]]]
+        for j in range(np.searchsorted(ps, lo, side="right"), np.searchsorted(ps, hi)):
+            candidates[m] = ps[j]
+            m += 1
+    pressures = np.unique(candidates[:m])
+    total = np.zeros(len(pressures))
+    scale = np.zeros(len(pressures))
+    for i in range(n):
+        b = branches[i]
+        ps = profiles[PROFILE_P][i, b, : profiles[PROFILE_COUNT][i, b]]
+        gs = profiles[PROFILE_G][i, b, : profiles[PROFILE_COUNT][i, b]]
+        values = np.interp(pressures, ps, gs)
+        for j in range(len(pressures)):
+            distance = singular_distance(tables, i, b, pressures[j])
+            if distance > 0.0:
+                value = values[j] / math.sqrt(distance)
+                total[j] += value
+                scale[j] += abs(value)
+    flagged = pressures[total >= -margin * scale]
+    return flagged[::-1] if p_to < p_from else flagged
+
+
+# The functions whose roots the solver seeks (``labrig.model.roots``), by number: a
+# compiled function passed as an argument would cost ~7 us per call to type and could
+# not be cached.
+EXCESS_VOLUME, INVERSE_SLOPE_SUM, PAIR_IMBALANCE = range(3)
+
+
+@njit(cache=True)
+def objective(kind, x, tables, branches, v):
+    """``excess_volume`` (x a pressure), ``inverse_slope_sum`` (x a pressure; v unused)
+    or ``pair_imbalance`` (x the first segment's volume; branches unused)."""
+    if kind == EXCESS_VOLUME:
+        return excess_volume(x, (tables, branches, v))
+    if kind == INVERSE_SLOPE_SUM:
+        return inverse_slope_sum(x, (tables, branches))
+    return pair_imbalance(x, (tables, v))

@@ -33,7 +33,7 @@ import numpy as np
 
 from labrig.model import ros2_flow
 from labrig.model.actuator import hessian, stable_scalar
-from labrig.model.curve_tables import pair_imbalance, tables_of
+from labrig.model.curve_tables import PAIR_IMBALANCE, pair_imbalance, tables_of
 from labrig.model.kernel import CurveKernel
 from labrig.model.roots import bracketed_root
 
@@ -41,6 +41,7 @@ from labrig.model.roots import bracketed_root
 MAX_SADDLE_ESCAPES = 100
 # default local error per flow step, in units of the tables' sample spacing (``settle``)
 FLOW_TOL = 0.5
+_NO_BRANCHES = np.zeros(0, dtype=np.int64)  # the pair's root needs none
 
 
 class FlowError(RuntimeError):
@@ -133,7 +134,7 @@ def _settle_pair(kernels: Sequence[CurveKernel], w: list[float]) -> list[float]:
         j = crossed[0]
         a = w[0] if j == 0 else float(points[j - 1])
         b = float(points[j])
-    w1 = bracketed_root(pair_imbalance, args, a, b, math.nan, math.nan)
+    w1 = bracketed_root(PAIR_IMBALANCE, args[0], _NO_BRANCHES, v, a, b)
     return [w1, v - w1]
 
 

@@ -15,8 +15,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from labrig.model import curve_tables
 from labrig.model.segment import SegmentCurve
 
@@ -40,15 +38,6 @@ class CurveKernel:
         self.p_last = self.samples[-1]
         self.slope_first = float(curve._start_slope_kpa_per_ml)
         self.slope_last = float(curve._end_slope_kpa_per_ml)
-        # exact integral of each cubic piece, so that energy differences are sums of
-        # small numbers rather than differences of large ones (model-notes, trap 3)
-        self.piece_energy = [
-            self._piece_integral(j, self.x[j + 1] - self.x[j]) for j in range(len(self.x) - 1)
-        ]
-        cumulative = [0.0]
-        for e in self.piece_energy:
-            cumulative.append(cumulative[-1] + e)
-        self.cumulative_energy = cumulative
         lp = curve._l
         self.lc3, self.lc2, self.lc1, self.lc0 = (row.tolist() for row in lp.c)
         self.branches = curve.branches
@@ -58,15 +47,17 @@ class CurveKernel:
         # per branch: its slope profile (``slope_profile``), computed on first use
         self._profiles: dict[int, tuple[list[float], list[float]]] = {}
         self.tables = curve_tables.pack([self])
+        # exact integral of each cubic piece (model-notes, trap 3; ``curve_tables``)
+        self.piece_energy = self.tables[curve_tables.PIECE_ENERGY][
+            0, : self.last_piece + 1
+        ].tolist()
 
     # --- forward evaluation ----------------------------------------------------------
     def _piece(self, v: float) -> int:
         return curve_tables.piece_index(self.tables, 0, v)
 
     def _piece_integral(self, j: int, t: float) -> float:
-        return (
-            ((self.c3[j] * 0.25 * t + self.c2[j] / 3.0) * t + self.c1[j] * 0.5) * t + self.c0[j]
-        ) * t
+        return curve_tables.piece_integral(self.tables[curve_tables.COEFFS], 0, j, t)
 
     def pressure(self, v: float) -> float:
         return curve_tables.pressure_and_slope(self.tables, 0, v)[0]
@@ -79,14 +70,7 @@ class CurveKernel:
 
     def energy(self, v: float) -> float:
         """E(v) = integral of p from 0 (Eq. 1), mJ."""
-        if v > self.v_last:
-            d = v - self.v_last
-            return self.cumulative_energy[-1] + self.p_last * d + 0.5 * self.slope_last * d * d
-        if v < self.v_first:
-            d = v - self.v_first
-            return self.p_first * d + 0.5 * self.slope_first * d * d
-        j = self._piece(v)
-        return self.cumulative_energy[j] + self._piece_integral(j, v - self.x[j])
+        return curve_tables.energy(self.tables, 0, v)
 
     def energy_between(self, v_from: float, v_to: float) -> float:
         """E(v_to) - E(v_from), summed piece by piece from small terms (trap 3)."""
@@ -113,10 +97,7 @@ class CurveKernel:
 
     def length(self, v: float) -> float:
         """l(v) in mm; constant past the table's ends."""
-        v = min(max(v, self.v_first), self.v_last)
-        j = self._piece(v)
-        t = v - self.x[j]
-        return ((self.lc3[j] * t + self.lc2[j]) * t + self.lc1[j]) * t + self.lc0[j]
+        return curve_tables.length(self.tables, 0, v)
 
     def spacing_near(self, v: float) -> float:
         """Width of the table interval around v (the resolution of the curve there)."""
@@ -175,17 +156,7 @@ class CurveKernel:
     def singular_distance(self, branch: int, p: float) -> float:
         """Pressure distance from p to the nearer end of the branch that is an
         extremum of the curve (where the slope is 0); 1.0 kPa if neither is."""
-        return float(self.singular_distances(branch, np.array([p]))[0])
-
-    def singular_distances(self, branch: int, p: np.ndarray) -> np.ndarray:
-        """``singular_distance`` at each of the pressures ``p``."""
-        b = self.branches[branch]
-        distance = np.full(len(p), np.inf)
-        if b.first > 0:
-            distance = np.minimum(distance, np.abs(p - self.samples[b.first]))
-        if b.last < len(self.x) - 1:
-            distance = np.minimum(distance, np.abs(p - self.samples[b.last]))
-        return np.where(np.isinf(distance), 1.0, distance)
+        return curve_tables.singular_distance(self.tables, 0, branch, p)
 
     def volume_on_branch(self, branch: int, p: float) -> tuple[float, float]:
         """(v, dp/dv) on ``branch`` at pressure ``p``; the caller keeps ``p`` within the

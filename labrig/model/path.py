@@ -32,20 +32,23 @@ from __future__ import annotations
 
 import itertools
 import math
-from bisect import bisect_left, bisect_right
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from labrig.model.actuator import Actuator, stable_scalar
 from labrig.model.curve_tables import (
+    EXCESS_VOLUME,
     excess_volume,
-    inverse_slope_sum,
+    inverse_sum_of,
+    profiles_of,
     tables_of,
     volumes_on_branches,
 )
 from labrig.model.descent import FLOW_TOL, FlowError, settle, volume_unit_ml
+from labrig.model.fold_search import AT_PRESSURE, AT_VOLUME, START, at_volume_of, find_fold
 from labrig.model.roots import bracketed_root
 
 INFLATE = 1
@@ -189,24 +192,12 @@ class _Tracer:
     def at_volume_of(self, branches: tuple[int, ...], m: int, v_m: float) -> State:
         """The state on ``branches`` where segment m holds v_m (its pressure sets the
         others'): one inversion fewer than ``at``, for scans along m's branch."""
-        kern = self.kernels[m]
-        p, k_m = kern.pressure_and_slope(v_m)
-        k_m = max(k_m, 0.0) if kern.branches[branches[m]].rising else min(k_m, 0.0)
-        vk = [
-            (v_m, k_m) if i == m else other.volume_on_branch(b, p)
-            for i, (other, b) in enumerate(zip(self.kernels, branches, strict=True))
-        ]
-        return State(branches, p, tuple(v for v, _ in vk), tuple(k for _, k in vk))
+        p, v, k = at_volume_of(self.tables, np.array(branches), m, v_m)
+        return State(branches, p, tuple(v.tolist()), tuple(k.tolist()))
 
     def inverse_sum(self, state: State) -> float:
         """dv/dp = sum_i 1/k_i; a branch end (k = 0) counts as +-inf by its side."""
-        total = 0.0
-        for kern, b, k in zip(self.kernels, state.branches, state.k_i, strict=True):
-            if k == 0.0:
-                total += math.inf if kern.branches[b].rising else -math.inf
-            else:
-                total += 1.0 / k
-        return total
+        return inverse_sum_of(self.tables, np.array(state.branches), np.array(state.k_i))
 
     def _rising(self, i: int, branch: int) -> bool:
         return self.kernels[i].branches[branch].rising
@@ -283,7 +274,7 @@ class _Tracer:
             p_end, f_end = p_far, math.nan
         else:
             p_end, f_end = end.p_kpa, end.v_ml - v_target
-        p = bracketed_root(excess_volume, args, state.p_kpa, p_end, f_start, f_end, 1e-12)
+        p = bracketed_root(EXCESS_VOLUME, *args, state.p_kpa, p_end, f_start, f_end, 1e-12)
         reached = self._with_volume(self.at(b, p), v_target)
         if reached is None:
             raise FlowError(f"no equilibrium at v = {v_target:.6g} mL on branches {b}")
@@ -316,98 +307,24 @@ class _Tracer:
         if not math.isfinite(p_stop):  # a falling last branch continued linearly
             kern = self.kernels[m]
             p_stop = kern.pressure(kern.v_last + (kern.v_last - kern.v_first))
-        end = self.at(b, p_stop)
-        s_end = self.inverse_sum(end)
-        prev, s_prev = state, s_start
-        for p in self._screen(state, end, m):
-            point = self.at(b, p)
-            s_point = self.inverse_sum(point)
-            found = self._check(prev, s_prev, point, s_point, m, direction)
-            if found is not None:
-                return found
-            prev, s_prev = point, s_point
-        return self._check(prev, s_prev, end, s_end, m, direction)
+        kind, p, v_m = find_fold(
+            self.tables,
+            profiles_of(self.kernels),
+            np.array(b),
+            m,
+            direction,
+            self.screen_margin,
+            state.p_kpa,
+            np.array(state.v_i_ml),
+            s_start,
+            p_stop,
+        )
+        if kind == AT_PRESSURE:
+            return self.at(b, p)
+        if kind == AT_VOLUME:
+            return self.at_volume_of(b, m, v_m)
+        return state if kind == START else None
 
-    def _screen(self, start: State, end: State, m: int) -> list[float]:
-        """Pressures between start and end (in the order the path meets them) where
-        the screened sum 1/k comes near 0 (see ``_find_fold``); vectorised over the
-        pressures, the one numpy-sized job of the path."""
-        p_a, p_b = start.p_kpa, end.p_kpa
-        lo, hi = min(p_a, p_b), max(p_a, p_b)
-        branches = start.branches
-        profiles = [kern.slope_profile(b) for kern, b in zip(self.kernels, branches, strict=True)]
-        inside = [ps[bisect_right(ps, lo) : bisect_left(ps, hi)] for ps, _ in profiles]
-        pressures = np.unique(np.concatenate(inside)) if any(inside) else np.empty(0)
-        if len(pressures) == 0:
-            return []
-        total = np.zeros(len(pressures))
-        scale = np.zeros(len(pressures))
-        for kern, b, (ps, gs) in zip(self.kernels, branches, profiles, strict=True):
-            distance = kern.singular_distances(b, pressures)
-            counted = distance > 0.0
-            value = np.zeros(len(pressures))
-            value[counted] = np.interp(pressures[counted], ps, gs) / np.sqrt(distance[counted])
-            total += value
-            scale += np.abs(value)
-        flagged = pressures[total >= -self.screen_margin * scale]
-        return (flagged[::-1] if p_b < p_a else flagged).tolist()
-
-    def _check(self, prev, s_prev, cur, s_cur, m, direction) -> State | None:
-        """The first fold between two exact states, if sum 1/k reaches 0 between them
-        or v turns back (then a fold pair hides between them): look closer at 8 points
-        while the bracket is wider than two samples of m's table."""
-        if not (s_cur >= 0 or direction * (cur.v_ml - prev.v_ml) < 0):
-            return None
-        kern = self.kernels[m]
-        a_m, c_m = prev.v_i_ml[m], cur.v_i_ml[m]
-        if abs(c_m - a_m) > 2.0 * kern.spacing_near(a_m):
-            inner_prev, inner_s = prev, s_prev
-            for k in range(1, 9):
-                point = (
-                    cur
-                    if k == 8
-                    else self.at_volume_of(prev.branches, m, a_m + (c_m - a_m) * k / 8)
-                )
-                s_point = s_cur if k == 8 else self.inverse_sum(point)
-                found = self._check(inner_prev, inner_s, point, s_point, m, direction)
-                if found is not None:
-                    return found
-                inner_prev, inner_s = point, s_point
-        if s_cur >= 0:
-            return self._fold_between(prev, cur, s_prev, s_cur)
-        return None
-
-    def _fold_between(self, a: State, c: State, s_a: float, s_c: float) -> State:
-        """The first root of sum 1/k between a (negative) and c (not): Brent's root,
-        then a look at 16 points before it for an earlier sign change (on a curve's
-        sample scale sum 1/k can cross zero more than once)."""
-        b = a.branches
-
-        args = (self.tables, np.array(b))
-
-        def inverse_sum_at(p: float) -> float:
-            return inverse_slope_sum(p, args)
-
-        lo, s_lo, hi, s_hi = a.p_kpa, s_a, c.p_kpa, s_c
-        if not s_lo < 0:  # lost already at the start of the piece (a degenerate point)
-            return a
-        for _ in range(6):
-            root = bracketed_root(inverse_slope_sum, args, lo, hi, s_lo, s_hi, 1e-11)
-            earlier = None
-            for k in range(1, 16):
-                q = lo + (root - lo) * k / 16
-                s_q = inverse_sum_at(q)
-                if s_q >= 0:
-                    earlier = q, s_q
-                    break
-                lo_next, s_lo_next = q, s_q
-            if earlier is None:
-                return self.at(b, root)
-            lo, s_lo = (lo_next, s_lo_next) if k > 1 else (lo, s_lo)
-            hi, s_hi = earlier
-        return self.at(b, root)
-
-    # --- snaps -------------------------------------------------------------------------
     def _snap_from_fold(self, fold: State, s_p: int) -> State:
         """Settle from a fold. The flow starts a distance eta along the fold's null
         vector (u_i = 1/k_i, sum u_i = 0 there), the way the path was going, i.e. on the
@@ -529,7 +446,7 @@ class _Tracer:
             for q in (max(p0 - width, p_lo), min(p0 + width, p_hi)):
                 f = excess_at(q)
                 if (f > 0) != (f0 > 0):
-                    root = bracketed_root(excess_volume, args, p0, q, f0, f, 1e-12)
+                    root = bracketed_root(EXCESS_VOLUME, *args, p0, q, f0, f, 1e-12)
                     return self._with_volume(self.at(b, root), v)
             if p0 - width <= p_lo and p0 + width >= p_hi:
                 return None
@@ -677,9 +594,16 @@ def _piece(start: State, end: State, direction: int) -> Piece:
     return Piece(start.branches, start.p_kpa, end.p_kpa, start.v_ml, end.v_ml, direction)
 
 
+@lru_cache(maxsize=8)
+def _default_tracer(actuator: Actuator) -> _Tracer:
+    """A tracer with the default settings, shared by the lookups on one actuator's path
+    (``transitions`` makes a few per path)."""
+    return _Tracer(actuator)
+
+
 def state_on_piece(actuator: Actuator, piece: Piece, v_ml: float) -> State:
     """The path's state at volume ``v_ml`` on ``piece``, clamped to the piece's ends."""
-    tracer = _Tracer(actuator)
+    tracer = _default_tracer(actuator)
     start = tracer.at(piece.branches, piece.p_from_kpa)
     end = tracer.at(piece.branches, piece.p_to_kpa)
     lo, hi = sorted((piece.v_from_ml, piece.v_to_ml))

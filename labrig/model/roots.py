@@ -3,9 +3,9 @@
 scipy's ``brentq`` does the same in C but needs finite values at both ends and costs a
 few tens of microseconds per call in overhead; here an infinite end value (the slope
 term 1/k at a branch end where k = 0) is allowed and only its sign is used. The
-function whose root is sought is itself compiled (``labrig.model.curve_tables``:
-``excess_volume``, ``inverse_slope_sum``, ``pair_imbalance``) and takes one tuple of
-arguments, so a whole root search runs without returning to Python.
+function whose root is sought is one of the compiled ``labrig.model.curve_tables``
+objectives (``excess_volume``, ``inverse_slope_sum``, ``pair_imbalance``), named by
+its number, so a whole root search runs without returning to Python.
 """
 
 from __future__ import annotations
@@ -14,19 +14,24 @@ import math
 
 from numba import njit
 
+from labrig.model.curve_tables import objective
+
 
 @njit(cache=True)
-def bracketed_root(f, args, a, b, fa, fb, xtol=1e-12, rtol=4e-16, max_iter=200):
-    """A root of ``f(x, args)`` between ``a`` and ``b``, where f changes sign (or is
-    zero); ``fa``, ``fb`` are f at the ends, NaN to have them computed.
+def bracketed_root(
+    kind, tables, branches, v, a, b, fa=math.nan, fb=math.nan, xtol=1e-12, rtol=4e-16, max_iter=200
+):
+    """A root of f(x) = ``objective(kind, x, tables, branches, v)`` between ``a`` and
+    ``b``, where f changes sign (or is zero); ``fa``, ``fb`` are f at the ends, NaN to
+    have them computed.
 
     ``xtol`` is an absolute tolerance on the root, added to ``rtol`` times its size.
     Raises ValueError without a sign change.
     """
     if math.isnan(fa):
-        fa = f(a, args)
+        fa = objective(kind, a, tables, branches, v)
     if math.isnan(fb):
-        fb = f(b, args)
+        fb = objective(kind, b, tables, branches, v)
     if fa == 0.0:
         return a
     if fb == 0.0:
@@ -71,5 +76,5 @@ def bracketed_root(f, args, a, b, fa, fb, xtol=1e-12, rtol=4e-16, max_iter=200):
             d = e = m
         a, fa = b, fb
         b += d if abs(d) > tol else math.copysign(tol, m)
-        fb = f(b, args)
+        fb = objective(kind, b, tables, branches, v)
     return b

@@ -60,11 +60,15 @@ def stable(k):
 def _step_limit(h, k):
     """See ``descent``: h, or less so that gamma h |mu| <= 1/2 for the flow's fastest
     unstable rate mu (the secular equation sum 1/(k_i - mu) = 0)."""
-    k_sorted = np.sort(k)
-    lo = k_sorted[0]
+    lo, second = math.inf, math.inf  # the two smallest k
+    for a in k:
+        if a < lo:
+            lo, second = a, lo
+        elif a < second:
+            second = a
     if lo >= 0:
         return h
-    hi = min(k_sorted[1], 0.0)
+    hi = min(second, 0.0)
     mu = -0.5 / (GAMMA * h)
     if mu <= lo:
         return h
@@ -90,12 +94,12 @@ def _step_limit(h, k):
 
 
 @njit(cache=True)
-def _solve(h, k, rhs, out):
+def _solve(h, k, rhs, out, inverse, work):
     """(I - gamma h J) out = rhs by Sherman-Morrison (see ``descent``); False if the
-    matrix is (nearly) singular for this step size."""
+    matrix is (nearly) singular for this step size. ``inverse`` and ``work`` are
+    scratch arrays of length n (no allocation in the flow's loop)."""
     n = len(k)
     gh = GAMMA * h
-    inverse = np.empty(n)
     biggest = 0.0
     for i in range(n):
         d = 1.0 + gh * k[i]
@@ -106,73 +110,110 @@ def _solve(h, k, rhs, out):
     denominator = compensated_sum(inverse) / n
     if abs(denominator) < 1e-12 * biggest:
         return False
-    y = rhs * inverse
-    scale = (gh / n) * compensated_sum(k * y) / denominator
     for i in range(n):
-        out[i] = y[i] + scale * inverse[i]
+        out[i] = rhs[i] * inverse[i]  # y
+        work[i] = k[i] * out[i]
+    scale = (gh / n) * compensated_sum(work) / denominator
+    for i in range(n):
+        out[i] = out[i] + scale * inverse[i]
     return True
 
 
 @njit(cache=True)
-def _newton_step_size(k, f):
+def _newton_step_size(k, f, work):
     """Max-norm length of the Newton step to the nearest equilibrium (see ``descent``)."""
+    n = len(k)
     for a in k:
         if a == 0.0:
             return math.inf
-    inverse_sum = compensated_sum(1.0 / k)
+    for i in range(n):
+        work[i] = 1.0 / k[i]
+    inverse_sum = compensated_sum(work)
     if inverse_sum == 0.0:
         return math.inf
-    lam = -compensated_sum(f / k) / inverse_sum
-    return np.max(np.abs((f + lam) / k))
+    for i in range(n):
+        work[i] = f[i] / k[i]
+    lam = -compensated_sum(work) / inverse_sum
+    size = 0.0
+    for i in range(n):
+        size = max(size, abs((f[i] + lam) / k[i]))
+    return size
+
+
+@njit(cache=True)
+def _mean(values):
+    total = 0.0
+    for a in values:
+        total += a
+    return total / len(values)
 
 
 @njit(cache=True)
 def settle_flow(tables, w0, tol_ml, unit_ml, max_steps):
     """Integrate the flow from ``w0`` until it rests. Returns (status, w): SETTLED on a
-    stable equilibrium, SADDLE at rest on an unstable one, MAX_STEPS otherwise."""
+    stable equilibrium, SADDLE at rest on an unstable one, MAX_STEPS otherwise. Every
+    array is allocated once, before the loop."""
     n = len(w0)
     w = w0.copy()
     h = 1e-3
     rejected = False
-    p, k = np.empty(n), np.empty(n)
-    p_new, k_new = np.empty(n), np.empty(n)
-    k1, k2, filtered = np.empty(n), np.empty(n), np.empty(n)
+    p, k, p_new, k_new = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    f, k1, k2, filtered = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    rhs, trial, step = np.empty(n), np.empty(n), np.empty(n)
+    inverse, work = np.empty(n), np.empty(n)
     _state(tables, w, p, k)
     for _ in range(max_steps):
-        mean = np.sum(p) / n
-        f = mean - p
-        at_rest = np.max(np.abs(f)) <= 1e-12 * max(1.0, abs(mean))
-        if at_rest or _newton_step_size(k, f) < 1e-9 * unit_ml:
+        mean = _mean(p)
+        largest = 0.0
+        for i in range(n):
+            f[i] = mean - p[i]
+            largest = max(largest, abs(f[i]))
+        at_rest = largest <= 1e-12 * max(1.0, abs(mean))
+        if at_rest or _newton_step_size(k, f, work) < 1e-9 * unit_ml:
             if stable(k):
                 return SETTLED, w
             if at_rest:
                 return SADDLE, w
         h = _step_limit(h, k)
-        if not _solve(h, k, f, k1):
+        if not _solve(h, k, f, k1, inverse, work):
             h *= 0.25
             continue
-        w_mid = w + h * k1
-        _state(tables, w_mid, p_new, k_new)
-        f_mid = np.sum(p_new) / n - p_new
-        if not _solve(h, k, f_mid - 2.0 * k1, k2):
+        for i in range(n):
+            trial[i] = w[i] + h * k1[i]
+        _state(tables, trial, p_new, k_new)
+        mean_mid = _mean(p_new)
+        for i in range(n):
+            rhs[i] = (mean_mid - p_new[i]) - 2.0 * k1[i]
+        if not _solve(h, k, rhs, k2, inverse, work):
             h *= 0.25
             continue
         # Shampine's filtered error estimate: relaxed stiff components do not count
-        if _solve(h, k, 0.5 * h * (k1 + k2), filtered):
-            error = np.max(np.abs(filtered))
+        for i in range(n):
+            rhs[i] = 0.5 * h * (k1[i] + k2[i])
+        if _solve(h, k, rhs, filtered, inverse, work):
+            error = 0.0
+            for i in range(n):
+                error = max(error, abs(filtered[i]))
         else:
             error = 4.0 * tol_ml
-        step = h * (1.5 * k1 + 0.5 * k2)
-        step -= np.sum(step) / n  # the exact step keeps sum w; rounding would not
-        w_new = w + step
-        _state(tables, w_new, p_new, k_new)
+        for i in range(n):
+            step[i] = h * (1.5 * k1[i] + 0.5 * k2[i])
+        drift = _mean(step)  # the exact step keeps sum w; rounding would not
+        for i in range(n):
+            step[i] = step[i] - drift
+            trial[i] = w[i] + step[i]
+        _state(tables, trial, p_new, k_new)
         # a gradient flow only loses energy: a step that gains some is wrong (Hermite
         # rule for the integral of p dw from both ends' p and p')
-        gained = np.sum(step * (0.5 * (p + p_new) + step * (k - k_new) / 12.0))
-        lost_energy = gained <= 1e-12 * np.sum(np.abs(step * p))
+        gained = 0.0
+        moved = 0.0
+        for i in range(n):
+            gained += step[i] * (0.5 * (p[i] + p_new[i]) + step[i] * (k[i] - k_new[i]) / 12.0)
+            moved += abs(step[i] * p[i])
+        lost_energy = gained <= 1e-12 * moved
         accepted = error <= tol_ml and lost_energy
         if accepted:
-            w = w_new
+            w, trial = trial, w
             p, p_new = p_new, p
             k, k_new = k_new, k
         elif not lost_energy:
