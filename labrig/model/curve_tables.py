@@ -57,8 +57,8 @@ def pack(kernels: Sequence) -> tuple:
     """The tables of ``kernels`` (objects with a ``CurveKernel``'s list attributes);
     ``tables_of`` stacks those of single kernels, which is faster."""
     n = len(kernels)
-    width = max(len(k.x) for k in kernels)
-    n_branches = max(len(k.branches) for k in kernels)
+    width = _capacity(max(len(k.x) for k in kernels))
+    n_branches = max(MAX_BRANCHES, *(len(k.branches) for k in kernels))
     x = np.full((n, width), np.inf)
     c = np.zeros((n, 4, width - 1))
     samples = np.zeros((n, width))
@@ -85,22 +85,40 @@ def pack(kernels: Sequence) -> tuple:
     )  # fmt: skip
 
 
+# A segment's tables are padded to a multiple of this many samples, and to this many
+# branches (rise, fall, rise), so that the tables of most actuators stack without
+# padding: np.concatenate per table, 4x faster than padding row by row.
+_CAPACITY_STEP = 64
+MAX_BRANCHES = 3
 # what pads each table past a segment's own length (x: +inf keeps bisection inside)
 _PADDING = {BREAKPOINTS: np.inf}
+
+
+def _capacity(size: int) -> int:
+    return -(-size // _CAPACITY_STEP) * _CAPACITY_STEP
+
+
+def _stacked(parts: list[tuple], padding: dict[int, float]) -> tuple:
+    """One table per field from the one-row tables of ``parts``: concatenated where
+    their shapes agree, else padded to the largest with ``padding[field]`` (or 0)."""
+    out = []
+    for field, rows in enumerate(zip(*parts, strict=True)):
+        if all(r.shape == rows[0].shape for r in rows):
+            out.append(np.concatenate(rows))
+            continue
+        shape = tuple(max(sizes) for sizes in zip(*(r.shape for r in rows), strict=True))
+        table = np.full((len(rows), *shape[1:]), padding.get(field, 0), dtype=rows[0].dtype)
+        for i, row in enumerate(rows):
+            table[(i, *(slice(0, size) for size in row.shape[1:]))] = row[0]
+        out.append(table)
+    return tuple(out)
 
 
 @lru_cache(maxsize=256)
 def tables_of(kernels: tuple) -> tuple:
     """The tables of an actuator's kernels (once per tuple of kernels): their own
-    one-segment tables (``CurveKernel.tables``) stacked and padded to one length."""
-    out = []
-    for field, rows in enumerate(zip(*(k.tables for k in kernels), strict=True)):
-        shape = tuple(max(sizes) for sizes in zip(*(r.shape for r in rows), strict=True))
-        table = np.full((len(rows), *shape[1:]), _PADDING.get(field, 0), dtype=rows[0].dtype)
-        for i, row in enumerate(rows):
-            table[(i, *(slice(0, size) for size in row.shape[1:]))] = row[0]
-        out.append(table)
-    return tuple(out)
+    one-segment tables (``CurveKernel.tables``) stacked."""
+    return _stacked([k.tables for k in kernels], _PADDING)
 
 
 # The slope profiles (``CurveKernel.slope_profile``) of every branch of n segments, a
@@ -108,19 +126,22 @@ def tables_of(kernels: tuple) -> tuple:
 PROFILE_P, PROFILE_G, PROFILE_COUNT = range(3)
 
 
+def pack_profiles(kernel) -> tuple:
+    """The slope profiles of every branch of one kernel, as one-row tables."""
+    profiles = [kernel.slope_profile(b) for b in range(kernel.n_branches)]
+    width = _capacity(max(len(ps) for ps, _ in profiles))
+    p = np.zeros((1, max(MAX_BRANCHES, len(profiles)), width))
+    g = np.zeros_like(p)
+    count = np.zeros((1, p.shape[1]), dtype=np.int64)
+    for b, (ps, gs) in enumerate(profiles):
+        p[0, b, : len(ps)], g[0, b, : len(gs)], count[0, b] = ps, gs, len(ps)
+    return p, g, count
+
+
 @lru_cache(maxsize=256)
 def profiles_of(kernels: tuple) -> tuple:
-    """The slope profiles of every branch of ``kernels``, packed (once per tuple)."""
-    profiles = [[k.slope_profile(b) for b in range(k.n_branches)] for k in kernels]
-    n_branches = max(len(row) for row in profiles)
-    width = max(len(ps) for row in profiles for ps, _ in row)
-    p = np.zeros((len(kernels), n_branches, width))
-    g = np.zeros_like(p)
-    count = np.zeros((len(kernels), n_branches), dtype=np.int64)
-    for i, row in enumerate(profiles):
-        for b, (ps, gs) in enumerate(row):
-            p[i, b, : len(ps)], g[i, b, : len(gs)], count[i, b] = ps, gs, len(ps)
-    return p, g, count
+    """The slope profiles of every branch of ``kernels``, stacked (once per tuple)."""
+    return _stacked([k.profile_tables for k in kernels], {})
 
 
 @njit(cache=True)

@@ -35,7 +35,7 @@ from labrig.model import ros2_flow
 from labrig.model.actuator import hessian, stable_scalar
 from labrig.model.curve_tables import PAIR_IMBALANCE, pair_imbalance, tables_of
 from labrig.model.kernel import CurveKernel
-from labrig.model.roots import bracketed_root
+from labrig.model.roots import XTOL, bracketed_root
 
 # pushes off unstable equilibria before a flow is declared stuck
 MAX_SADDLE_ESCAPES = 100
@@ -134,7 +134,7 @@ def _settle_pair(kernels: Sequence[CurveKernel], w: list[float]) -> list[float]:
         j = crossed[0]
         a = w[0] if j == 0 else float(points[j - 1])
         b = float(points[j])
-    w1 = bracketed_root(PAIR_IMBALANCE, args[0], _NO_BRANCHES, v, a, b)
+    w1 = bracketed_root(PAIR_IMBALANCE, args[0], _NO_BRANCHES, v, a, b, math.nan, math.nan, XTOL)
     return [w1, v - w1]
 
 

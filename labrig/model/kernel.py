@@ -14,6 +14,7 @@ counterpart of ``volume_on_branch`` here and the tests hold them equal.
 from __future__ import annotations
 
 import math
+from functools import cached_property
 
 from labrig.model import curve_tables
 from labrig.model.segment import SegmentCurve
@@ -152,6 +153,11 @@ class CurveKernel:
         profile = ([p for p, _ in points], [r for _, r in points])
         self._profiles[branch] = profile
         return profile
+
+    @cached_property
+    def profile_tables(self) -> tuple:
+        """Every branch's slope profile as arrays (``curve_tables.pack_profiles``)."""
+        return curve_tables.pack_profiles(self)
 
     def singular_distance(self, branch: int, p: float) -> float:
         """Pressure distance from p to the nearer end of the branch that is an

@@ -49,7 +49,7 @@ from labrig.model.curve_tables import (
 )
 from labrig.model.descent import FLOW_TOL, FlowError, settle, volume_unit_ml
 from labrig.model.fold_search import AT_PRESSURE, AT_VOLUME, START, at_volume_of, find_fold
-from labrig.model.roots import bracketed_root
+from labrig.model.roots import XTOL, bracketed_root
 
 INFLATE = 1
 DEFLATE = -1
@@ -258,23 +258,30 @@ class _Tracer:
         b = state.branches
         if state.v_ml == v_target:
             return state
-
-        args = (self.tables, np.array(b), v_target)
-
-        def excess(p: float) -> float:
-            return excess_volume(p, args)
-
         f_start = state.v_ml - v_target
         if end is None:  # an unbounded branch: walk out until the target is passed
+            args = (self.tables, np.array(b), v_target)
             step = max(1.0, abs(state.p_kpa))
             p_far = state.p_kpa + s_p * step
-            while (excess(p_far) > 0) == (f_start > 0):
+            while (excess_volume(p_far, args) > 0) == (f_start > 0):
                 step *= 2.0
                 p_far = state.p_kpa + s_p * step
-            p_end, f_end = p_far, math.nan
-        else:
-            p_end, f_end = end.p_kpa, end.v_ml - v_target
-        p = bracketed_root(EXCESS_VOLUME, *args, state.p_kpa, p_end, f_start, f_end, 1e-12)
+            return self.reach_between(b, state.p_kpa, p_far, v_target, f_start)
+        return self.reach_between(b, state.p_kpa, end.p_kpa, v_target, f_start, end.v_ml - v_target)
+
+    def reach_between(
+        self,
+        b: tuple[int, ...],
+        p_a: float,
+        p_b: float,
+        v_target: float,
+        f_a: float = math.nan,
+        f_b: float = math.nan,
+    ) -> State:
+        """The state at v_target on combination b at a pressure between p_a and p_b,
+        where sum_i v_i - v_target (f_a, f_b if known) changes sign."""
+        branches = np.array(b)
+        p = bracketed_root(EXCESS_VOLUME, self.tables, branches, v_target, p_a, p_b, f_a, f_b, XTOL)
         reached = self._with_volume(self.at(b, p), v_target)
         if reached is None:
             raise FlowError(f"no equilibrium at v = {v_target:.6g} mL on branches {b}")
@@ -446,7 +453,7 @@ class _Tracer:
             for q in (max(p0 - width, p_lo), min(p0 + width, p_hi)):
                 f = excess_at(q)
                 if (f > 0) != (f0 > 0):
-                    root = bracketed_root(EXCESS_VOLUME, *args, p0, q, f0, f, 1e-12)
+                    root = bracketed_root(EXCESS_VOLUME, *args, p0, q, f0, f, XTOL)
                     return self._with_volume(self.at(b, root), v)
             if p0 - width <= p_lo and p0 + width >= p_hi:
                 return None
@@ -604,16 +611,13 @@ def _default_tracer(actuator: Actuator) -> _Tracer:
 def state_on_piece(actuator: Actuator, piece: Piece, v_ml: float) -> State:
     """The path's state at volume ``v_ml`` on ``piece``, clamped to the piece's ends."""
     tracer = _default_tracer(actuator)
-    start = tracer.at(piece.branches, piece.p_from_kpa)
-    end = tracer.at(piece.branches, piece.p_to_kpa)
     lo, hi = sorted((piece.v_from_ml, piece.v_to_ml))
     v = min(max(v_ml, lo), hi)
     if v == piece.v_from_ml:
-        return start
+        return tracer.at(piece.branches, piece.p_from_kpa)
     if v == piece.v_to_ml:
-        return end
-    s_p = 1 if piece.p_to_kpa > piece.p_from_kpa else -1
-    return tracer._reach(start, v, end, s_p)
+        return tracer.at(piece.branches, piece.p_to_kpa)
+    return tracer.reach_between(piece.branches, piece.p_from_kpa, piece.p_to_kpa, v)
 
 
 @dataclass(frozen=True)

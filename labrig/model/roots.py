@@ -16,17 +16,22 @@ from numba import njit
 
 from labrig.model.curve_tables import objective
 
+# absolute and relative tolerances on a root (added), and the most iterations
+XTOL = 1e-12
+RTOL = 4e-16
+MAX_ITER = 200
+
 
 @njit(cache=True)
-def bracketed_root(
-    kind, tables, branches, v, a, b, fa=math.nan, fb=math.nan, xtol=1e-12, rtol=4e-16, max_iter=200
-):
+def bracketed_root(kind, tables, branches, v, a, b, fa, fb, xtol):
     """A root of f(x) = ``objective(kind, x, tables, branches, v)`` between ``a`` and
     ``b``, where f changes sign (or is zero); ``fa``, ``fb`` are f at the ends, NaN to
     have them computed.
 
-    ``xtol`` is an absolute tolerance on the root, added to ``rtol`` times its size.
-    Raises ValueError without a sign change.
+    ``xtol`` is an absolute tolerance on the root (``XTOL`` usually), added to ``RTOL``
+    times its size. Raises ValueError without a sign change. Every argument is
+    required: numba calls a compiled function with omitted arguments through a slow
+    path (~50 us), longer than the search itself.
     """
     if math.isnan(fa):
         fa = objective(kind, a, tables, branches, v)
@@ -40,14 +45,14 @@ def bracketed_root(
         raise ValueError("no sign change between the ends of the bracket")
     c, fc = a, fa
     d = e = b - a
-    for _ in range(max_iter):
+    for _ in range(MAX_ITER):
         if (fb > 0) == (fc > 0):
             c, fc = a, fa
             d = e = b - a
         if abs(fc) < abs(fb) or math.isinf(fb):
             a, b, c = b, c, b
             fa, fb, fc = fb, fc, fb
-        tol = 2.0 * rtol * abs(b) + 0.5 * xtol
+        tol = 2.0 * RTOL * abs(b) + 0.5 * xtol
         m = 0.5 * (c - b)
         if abs(m) <= tol or fb == 0.0:
             return b
