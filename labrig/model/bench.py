@@ -258,7 +258,7 @@ def bench_scan(n: int, folder: Path) -> ScanRow:
     return ScanRow(
         n,
         data.n_combinations,
-        len(data.actuator),
+        data.row_stop,
         len(data.failed_actuator),
         wall,
         data.elapsed_s,

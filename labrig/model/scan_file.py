@@ -25,7 +25,9 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -228,9 +230,16 @@ class ScanFile:
 
 
 # --- reading ---------------------------------------------------------------------------
+# rows read at a time by ``ScanData.row_blocks`` (a block of all fields is ~60 MB)
+BLOCK_ROWS = 1 << 20
+
+
 @dataclass(frozen=True)
 class ScanData:
-    """A scan file's rows in memory (sorted by actuator, as written)."""
+    """A scan file: its metadata and failures in memory, its rows (sorted by actuator,
+    as written) read from the file when first asked for (``actuator``, ``segments``,
+    one column of ``columns`` at a time) or block by block (``row_blocks``), so that a
+    summary of the 5 million rows of n = 5 does not hold them all at once."""
 
     path: Path
     names: list[str]
@@ -243,9 +252,7 @@ class ScanData:
     workers: int
     parent_peak_rss_mib: float
     worker_peak_rss_mib: float
-    actuator: np.ndarray
-    segments: np.ndarray
-    columns: dict[str, np.ndarray]
+    row_stop: int
     failed_actuator: np.ndarray
     failed_segments: np.ndarray
     failed_error: list[str]
@@ -253,9 +260,62 @@ class ScanData:
     def segment_names(self, row_segments) -> list[str]:
         return [self.names[i] for i in row_segments]
 
+    def _read(self, name: str, start: int = 0, stop: int | None = None) -> np.ndarray:
+        import h5py
+
+        stop = self.row_stop if stop is None else min(stop, self.row_stop)
+        with h5py.File(self.path, "r") as h5:
+            return h5["transitions"][name][start:stop]
+
+    @cached_property
+    def actuator(self) -> np.ndarray:
+        return self._read("actuator")
+
+    @cached_property
+    def segments(self) -> np.ndarray:
+        return self._read("segments")
+
+    @cached_property
+    def columns(self) -> Mapping[str, np.ndarray]:
+        """TRANSITION_FIELDS -> the whole column, each read on first use."""
+        return _LazyColumns(self)
+
+    def row_blocks(self, size: int = BLOCK_ROWS) -> Iterator[tuple[np.ndarray, dict]]:
+        """(actuator, {field: column}) for consecutive blocks of at most ``size`` rows."""
+        import h5py
+
+        with h5py.File(self.path, "r") as h5:
+            rows = h5["transitions"]
+            for start in range(0, self.row_stop, size):
+                stop = min(start + size, self.row_stop)
+                yield (
+                    rows["actuator"][start:stop],
+                    {name: rows[name][start:stop] for name in TRANSITION_FIELDS},
+                )
+
+
+class _LazyColumns(Mapping):
+    def __init__(self, data: ScanData) -> None:
+        self._data = data
+        self._loaded: dict[str, np.ndarray] = {}
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name not in TRANSITION_FIELDS:
+            raise KeyError(name)
+        if name not in self._loaded:
+            self._loaded[name] = self._data._read(name)
+        return self._loaded[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(TRANSITION_FIELDS)
+
+    def __len__(self) -> int:
+        return len(TRANSITION_FIELDS)
+
 
 def read_scan(path: Path) -> ScanData:
-    """Load a scan file (complete or not); InputError for anything else."""
+    """Open a scan file (complete or not); InputError for anything else. The rows stay
+    in the file until asked for (``ScanData``)."""
     import h5py
 
     path = Path(path)
@@ -275,7 +335,6 @@ def read_scan(path: Path) -> ScanData:
         kept = int(np.argmin(done)) if not done.all() else len(done)
         row_stop = int(h5["chunks/row_stop"][kept - 1]) if kept else 0
         failure_stop = int(h5["chunks/failure_stop"][kept - 1]) if kept else 0
-        rows = h5["transitions"]
         failures = h5["failures"]
         return ScanData(
             path=path,
@@ -289,9 +348,7 @@ def read_scan(path: Path) -> ScanData:
             workers=int(attrs["workers"]),
             parent_peak_rss_mib=float(attrs["parent_peak_rss_mib"]),
             worker_peak_rss_mib=float(attrs["worker_peak_rss_mib"]),
-            actuator=rows["actuator"][:row_stop],
-            segments=rows["segments"][:row_stop],
-            columns={name: rows[name][:row_stop] for name in TRANSITION_FIELDS},
+            row_stop=row_stop,
             failed_actuator=failures["actuator"][:failure_stop],
             failed_segments=failures["segments"][:failure_stop],
             failed_error=[

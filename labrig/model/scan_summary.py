@@ -9,12 +9,13 @@ module works on ``ScanData`` arrays and leaves files and terminals to others.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from labrig.model.scan_file import ScanData
+from labrig.model.scan_file import BLOCK_ROWS, ScanData
 
 METRICS = ("dE", "dv", "dl", "dp")
 # the paper's colours for its three n = 2 types; anything else gets its own
@@ -44,42 +45,92 @@ class ScanSummary:
     ranges: dict[str, tuple[float, float]]  # over every transition
 
 
-def summarise(data: ScanData) -> ScanSummary:
-    c = data.columns
-    keys = np.stack([-c["direction"].astype(int), c["alpha"], c["beta"], ~c["stable"]], axis=1)
-    types = []
-    if len(keys):
-        unique, inverse = np.unique(keys, axis=0, return_inverse=True)
-        inverse = inverse.reshape(-1)
-        for j, (neg_direction, alpha, beta, unstable) in enumerate(unique):
-            rows = inverse == j
-            types.append(
-                TypeSummary(
-                    direction=-int(neg_direction),
-                    alpha=int(alpha),
-                    beta=int(beta),
-                    stable=not bool(unstable),
-                    count=int(rows.sum()),
-                    actuators=len(np.unique(data.actuator[rows])),
-                    ranges={m: _range(c[m][rows]) for m in METRICS},
-                )
+def summarise(data: ScanData, block_rows: int = BLOCK_ROWS) -> ScanSummary:
+    """Counts and ranges per transition type, read block by block (memory bounded by
+    the block, not by the scan). Rows are sorted by actuator, so an actuator is counted
+    once per type even when its rows straddle two blocks."""
+    types: dict[tuple, _TypeTally] = {}
+    overall = {m: (math.inf, -math.inf) for m in METRICS}
+    snapping = _ActuatorTally()
+    transitions = 0
+    for actuator, c in data.row_blocks(block_rows):
+        transitions += len(actuator)
+        for m in METRICS:
+            overall[m] = _merge(overall[m], c[m])
+        snapping.add(actuator[~c["stable"]])
+        code = (
+            (c["direction"].astype(np.int64) + 1) * 1_000_000
+            + c["alpha"].astype(np.int64) * 1_000
+            + c["beta"].astype(np.int64) * 2
+            + ~c["stable"]
+        )
+        for value in np.unique(code):
+            rows = code == value
+            first = int(np.flatnonzero(rows)[0])
+            key = (
+                -int(c["direction"][first]),
+                int(c["alpha"][first]),
+                int(c["beta"][first]),
+                not bool(c["stable"][first]),
             )
-    snaps = ~c["stable"]
+            tally = types.setdefault(key, _TypeTally())
+            tally.count += int(rows.sum())
+            tally.actuators.add(actuator[rows])
+            for m in METRICS:
+                tally.ranges[m] = _merge(tally.ranges[m], c[m][rows])
     return ScanSummary(
         actuators_done=data.actuators_done,
         actuators_total=data.n_combinations,
         failed=len(data.failed_actuator),
-        transitions=len(data.actuator),
-        actuators_with_snap=len(np.unique(data.actuator[snaps])),
-        types=types,
-        ranges={m: _range(c[m]) for m in METRICS},
+        transitions=transitions,
+        actuators_with_snap=snapping.count,
+        types=[
+            TypeSummary(
+                direction=-neg_direction,
+                alpha=alpha,
+                beta=beta,
+                stable=not unstable,
+                count=tally.count,
+                actuators=tally.actuators.count,
+                ranges={m: _finite(tally.ranges[m]) for m in METRICS},
+            )
+            for (neg_direction, alpha, beta, unstable), tally in sorted(types.items())
+        ],
+        ranges={m: _finite(overall[m]) for m in METRICS},
     )
 
 
-def _range(values: np.ndarray) -> tuple[float, float]:
+class _ActuatorTally:
+    """How many distinct actuators, from blocks of sorted actuator numbers."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.last = None
+
+    def add(self, sorted_actuators: np.ndarray) -> None:
+        if len(sorted_actuators) == 0:
+            return
+        distinct = np.unique(sorted_actuators)
+        self.count += len(distinct) - int(distinct[0] == self.last)
+        self.last = distinct[-1]
+
+
+class _TypeTally:
+    def __init__(self) -> None:
+        self.count = 0
+        self.actuators = _ActuatorTally()
+        self.ranges = {m: (math.inf, -math.inf) for m in METRICS}
+
+
+def _merge(span: tuple[float, float], values: np.ndarray) -> tuple[float, float]:
     if len(values) == 0:
-        return (float("nan"), float("nan"))
-    return (float(values.min()), float(values.max()))
+        return span
+    return (min(span[0], float(values.min())), max(span[1], float(values.max())))
+
+
+def _finite(span: tuple[float, float]) -> tuple[float, float]:
+    """A range, NaN where nothing was seen."""
+    return span if span[0] <= span[1] else (math.nan, math.nan)
 
 
 @dataclass(frozen=True)
@@ -189,7 +240,7 @@ def plot_fig4(data: ScanData, png: Path) -> None:
     names = f"{len(data.names)} segments"
     fig.suptitle(
         f"All transitions of the {data.actuators_done:,} actuators of n = {data.n} from {names}"
-        f" ({len(data.actuator):,} transitions)"
+        f" ({data.row_stop:,} transitions)"
     )
     fig.savefig(png, dpi=110)
     plt.close(fig)

@@ -239,14 +239,17 @@ def pair_scan(tmp_path_factory):
     return read_scan(out)
 
 
-def test_the_summary_counts_what_the_paths_have(pair_scan):
-    """Counts and ranges per type, recomputed from the paths themselves."""
+# one block, and blocks of 7 rows: most actuators' rows straddle two blocks
+@pytest.mark.parametrize("block_rows", [1 << 20, 7])
+def test_the_summary_counts_what_the_paths_have(pair_scan, block_rows):
+    """Counts and ranges per type, recomputed from the paths themselves, whatever the
+    blocks the file is read in."""
     expected = {}
     for combo in itertools.combinations(SMALL, 2):
         actuator = Actuator([analytical_segment(n) for n in combo])
         for t in transitions(quasi_static_path(actuator, deflate=True)):
             expected.setdefault((t.direction, t.alpha, t.beta, t.stable), []).append(t)
-    summary = summarise(pair_scan)
+    summary = summarise(pair_scan, block_rows)
     assert summary.actuators_done == 28 and summary.failed == 0
     assert {(t.direction, t.alpha, t.beta, t.stable): t.count for t in summary.types} == {
         key: len(found) for key, found in expected.items()
