@@ -74,9 +74,10 @@ def _done_chunks(path):
 
 @pytest.mark.slow
 def test_ctrl_c_keeps_the_finished_chunks_and_resume_completes(tmp_path, capsys):
-    library = csv_library(tmp_path / "lib", LIBRARY_NAMES[::4])  # 9 segments, 84 triples
-    out = tmp_path / "triples.h5"
-    argv = ["model", "scan", "--n", "3", "--library", str(library), "--out", str(out)]
+    # 18 segments, 3,060 quadruples: a few seconds, long enough to be interrupted
+    library = csv_library(tmp_path / "lib", LIBRARY_NAMES[::2])
+    out = tmp_path / "quadruples.h5"
+    argv = ["model", "scan", "--n", "4", "--library", str(library), "--out", str(out)]
     process = subprocess.Popen(
         [sys.executable, "-m", "labrig", *argv, "--workers", "2"],
         stdout=subprocess.PIPE,
@@ -91,10 +92,10 @@ def test_ctrl_c_keeps_the_finished_chunks_and_resume_completes(tmp_path, capsys)
     assert process.returncode == 130, err
     assert "--resume continues it" in err and "Traceback" not in err
     partial = read_scan(out)
-    assert not partial.complete and 0 < partial.actuators_done < 84
+    assert not partial.complete and 0 < partial.actuators_done < 3060
     code, text, err = run([*argv, "--resume", "--workers", "2"], capsys)
     assert code == 0, err
-    assert "84 of 84 actuators (complete)" in text
+    assert "3,060 of 3,060 actuators (complete)" in text
     resumed = read_scan(out)
     fresh = tmp_path / "fresh.h5"
     code, _, _ = run([*argv[:-1], str(fresh), "--workers", "1"], capsys)
