@@ -63,6 +63,10 @@ def test_scan_a_measured_library_then_summary_and_rank(tmp_path, capsys):
     assert code == 0 and f"plot: {png}" in text and png.stat().st_size > 10_000
 
 
+def _default_sigint():
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _done_chunks(path):
     """Read a file another process is writing (no lock; retried if caught mid-write)."""
     try:
@@ -83,6 +87,9 @@ def test_ctrl_c_keeps_the_finished_chunks_and_resume_completes(tmp_path, capsys)
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        # a shell running the tests in the background starts them with SIGINT ignored,
+        # which Python would keep: give the scan the default, as a terminal would
+        preexec_fn=_default_sigint,
     )
     deadline = time.monotonic() + 60
     while _done_chunks(out) < 2 and time.monotonic() < deadline and process.poll() is None:
