@@ -363,7 +363,9 @@ class Runner:
         period_s = 1.0 / self.protocol.acquisition.camera_fps
         # wake a quarter period early: a camera delivers its next frame when it is
         # exposed, and a reader that arrives just after that moment gets the one after
-        self._device_loop("camera", period_s, self._read_length, early_s=0.25 * period_s)
+        self._device_loop(
+            "camera", period_s, self._read_length, early_s=0.25 * period_s, late_loses_data=True
+        )
 
     def _device_loop(
         self,
@@ -371,11 +373,14 @@ class Runner:
         period_s: float,
         read_once: Callable[[], float | None],
         early_s: float = 0.0,
+        late_loses_data: bool = False,
     ) -> None:
         """Read one device every ``period_s`` (paced by deadlines, so a slow read does
         not stretch the period); a device error is a fault of the run. ``read_once``
         returns the clock time its reading describes (None: nothing read), which the
-        speed governor of a simulated rig compares with the period."""
+        speed governor of a simulated rig compares with the period. A camera read a
+        whole period late has lost a frame (``late_loses_data``); the DAQ buffers its
+        samples and a late pump poll reads the same counter a little later."""
         next_s = self.clock.now()
         last_read_s = None
         governor = self.rig.governor
@@ -387,7 +392,7 @@ class Runner:
                 return
             if governor is not None and read_s is not None:
                 if last_read_s is not None:
-                    governor.report(read_s - last_read_s, period_s)
+                    governor.report(read_s - last_read_s, period_s, late_loses_data)
                 last_read_s = read_s
             next_s = max(next_s + period_s, self.clock.now() - period_s)
             self._pause(next_s - early_s - self.clock.now())

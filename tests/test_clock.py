@@ -90,6 +90,35 @@ def test_governor_slows_down_when_a_loop_falls_behind_and_speeds_up_when_all_kee
     assert clock.speed == 100.0
 
 
+def test_governor_judges_by_fractions_not_by_the_worst_report():
+    from labrig.clock import SpeedGovernor
+
+    clock = SimulatedClock(speed=20.0)
+    governor = SpeedGovernor(clock, interval_s=60.0)
+    # 200 reports of the 0.2 s loops: 3 % a little late, 1 % late, one twice late in a
+    # loop that buffers (a DAQ): nothing lost, so the clock speeds up
+    for k in range(200):
+        ratio = 1.2 if k % 33 == 0 else 1.6 if k % 100 == 1 else 1.0
+        governor.report(ratio * 0.2, 0.2, late_loses_data=False)
+    governor.report(0.4, 0.2, late_loses_data=False)
+    governor._last_decision -= 61.0
+    governor.report(0.2, 0.2, late_loses_data=False)
+    assert clock.speed == pytest.approx(22.0)
+    # the same window with one camera frame skipped slows it down
+    for _ in range(200):
+        governor.report(0.2, 0.2, late_loses_data=False)
+    governor.report(1.0, 0.5, late_loses_data=True)
+    governor._last_decision -= 61.0
+    governor.report(0.2, 0.2, late_loses_data=False)
+    assert clock.speed == pytest.approx(22.0 * 0.7)
+    # and 6 % late reports slow it down too
+    for k in range(100):
+        governor.report((1.6 if k < 6 else 1.0) * 0.2, 0.2, late_loses_data=False)
+    governor._last_decision -= 61.0
+    governor.report(0.2, 0.2, late_loses_data=False)
+    assert clock.speed == pytest.approx(22.0 * 0.7 * 0.7)
+
+
 def test_governor_decides_at_most_once_per_interval():
     from labrig.clock import SpeedGovernor
 

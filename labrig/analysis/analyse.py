@@ -22,11 +22,12 @@ from labrig.analysis.curves import (
     DEFLATE,
     INFLATE,
     PHASES,
+    last_reading,
     mean_curve,
     phase_curves,
+    pump_path,
     repetitions_to_average,
     volume_grid,
-    with_motion_corners,
 )
 from labrig.analysis.results import AnalysisResult, AnalysisSettings, RepetitionAnalysis, stamp
 from labrig.analysis.runfile import Repetition, RunRecord, load_run
@@ -60,10 +61,14 @@ def _length(rep: Repetition) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def _analyse_repetition(
-    rep: Repetition, grid_ml: np.ndarray, settings: AnalysisSettings, used: bool
+    rep: Repetition,
+    grid_ml: np.ndarray,
+    settings: AnalysisSettings,
+    used: bool,
+    pump_before: tuple[float, float] | None,
 ) -> RepetitionAnalysis:
     pt, p, n_flagged = _pressure(rep)
-    pump_t, pump_v = with_motion_corners(rep.pump.time_s, rep.pump.fields["value"])
+    pump_t, pump_v = pump_path(rep.pump.time_s, rep.pump.fields["value"], pump_before)
     length = _length(rep)
     moving = len(pump_t) >= 2
     p_curves = (
@@ -129,10 +134,12 @@ def analyse(
             f"mean of {len(averaged)} repetition(s): only {complete} of {len(statuses)} "
             f"completed (the protocol asks for the last {settings.average_last})"
         )
-    reps = tuple(
-        _analyse_repetition(rep, grid_ml, settings, rep.index in averaged)
-        for rep in record.repetitions
-    )
+    reps = []
+    pump_before = None  # the previous repetition's last pump reading
+    for rep in record.repetitions:
+        reps.append(_analyse_repetition(rep, grid_ml, settings, rep.index in averaged, pump_before))
+        pump_before = last_reading(rep.pump.time_s, rep.pump.fields["value"]) or pump_before
+    reps = tuple(reps)
     chosen = [r for r in reps if r.index in averaged]
     mean_p = mean_l = None
     if chosen:

@@ -89,6 +89,29 @@ def with_motion_corners(pump_t_s: np.ndarray, pump_v_ml: np.ndarray):
     return np.concatenate([pump_t_s, t_add])[order], np.concatenate([pump_v_ml, v_add])[order]
 
 
+def pump_path(
+    pump_t_s: np.ndarray, pump_v_ml: np.ndarray, before: tuple[float, float] | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """A repetition's pump log as the analysis uses it: the previous repetition's last
+    reading (``before``, (time, volume)) put in front when it is older than the log's
+    first, then the motions' corners (``with_motion_corners``). The log is split where
+    the runner enters the next repetition, which can fall between the last poll at rest
+    and the first poll of the next motion: without the reading before it, the start of
+    that motion could not be placed (and the first 0.2 mL of the repetition had no
+    curve)."""
+    pump_t_s = np.asarray(pump_t_s, dtype=float)
+    pump_v_ml = np.asarray(pump_v_ml, dtype=float)
+    if before is not None and (len(pump_t_s) == 0 or before[0] < pump_t_s[0]):
+        pump_t_s = np.concatenate([[before[0]], pump_t_s])
+        pump_v_ml = np.concatenate([[before[1]], pump_v_ml])
+    return with_motion_corners(pump_t_s, pump_v_ml)
+
+
+def last_reading(pump_t_s: np.ndarray, pump_v_ml: np.ndarray) -> tuple[float, float] | None:
+    """(time, volume) of a pump log's last reading, None for an empty log."""
+    return (float(pump_t_s[-1]), float(pump_v_ml[-1])) if len(pump_t_s) else None
+
+
 def volume_at(t_s: np.ndarray, pump_t_s: np.ndarray, pump_v_ml: np.ndarray) -> np.ndarray:
     """Supplied volume at the sample times, interpolated from the pump log (held
     constant before its first and after its last reading)."""

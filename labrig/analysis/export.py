@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from labrig.analysis.curves import PHASES, volume_at, with_motion_corners
+from labrig.analysis.curves import PHASES, last_reading, pump_path, volume_at
 from labrig.analysis.results import AnalysisResult
 from labrig.analysis.runfile import RunRecord
 
@@ -63,6 +63,7 @@ def export_csv(record: RunRecord, result: AnalysisResult, directory: Path) -> li
     """Write every CSV into ``directory`` (created if needed); returns the paths."""
     directory.mkdir(parents=True, exist_ok=True)
     written = []
+    pump_before = None  # the previous repetition's last pump reading (``pump_path``)
     for rep in record.repetitions:
         logs = {"pressure": rep.pressure, "pump": rep.pump, "length": rep.length}
         for log, series in logs.items():
@@ -73,11 +74,12 @@ def export_csv(record: RunRecord, result: AnalysisResult, directory: Path) -> li
                 if field in series.fields:
                     columns[name] = series.fields[field]
             if log == "pressure":  # the supplied volume, aligned as the analysis does
-                pump_path = with_motion_corners(rep.pump.time_s, rep.pump.fields["value"])
-                columns["volume_ml"] = volume_at(series.time_s, *pump_path)
+                log_path = pump_path(rep.pump.time_s, rep.pump.fields["value"], pump_before)
+                columns["volume_ml"] = volume_at(series.time_s, *log_path)
             path = directory / f"{rep.name}_{log}.csv"
             write_columns(path, columns)
             written.append(path)
+        pump_before = last_reading(rep.pump.time_s, rep.pump.fields["value"]) or pump_before
     for phase, name in PHASES.items():
         path = directory / f"curves_{name}.csv"
         write_columns(path, _curve_columns(result, phase))

@@ -10,6 +10,7 @@ from labrig.analysis.curves import (
     mean_curve,
     motion_at,
     phase_curves,
+    pump_path,
     repetitions_to_average,
     resample,
     volume_at,
@@ -166,3 +167,19 @@ def test_corners_of_an_exact_log_are_exact(start_s, duration_s, rate_ml_s, perio
     probe = np.linspace(t[0], t[-1], 997)
     truth = 5.0 + rate_ml_s * np.clip(probe - start_s, 0.0, duration_s)
     np.testing.assert_allclose(volume_at(probe, tc, vc), truth, atol=1e-9)
+
+
+def test_a_repetition_that_starts_mid_poll_gets_its_start_from_the_one_before():
+    # the runner entered repetition 2 between its last poll at rest (t = 9.9, 0 mL, in
+    # repetition 1's log) and the first poll of the motion (t = 10.1): the pump started
+    # at 10.03 s at 0.5 mL/s
+    t, v = _polled_motion(10.03, 14.0, 0.5, 0.2, 10.1 - 0.2 * 50, v0_ml=0.0)
+    t, v = t[t > 10.0], v[t > 10.0]  # what repetition 2's log holds
+    alone_t, alone_v = pump_path(t, v)
+    assert alone_t[0] == t[0] and alone_v[0] > 0  # no reading at rest: no start
+    path_t, path_v = pump_path(t, v, before=(9.9, 0.0))
+    np.testing.assert_allclose(sorted(set(path_t) - set(t) - {9.9}), [10.03, 14.0], atol=1e-9)
+    np.testing.assert_allclose(volume_at(np.array([10.0, 10.5]), path_t, path_v), [0.0, 0.235])
+    # a reading from before that is not older than the log is ignored
+    same_t, _ = pump_path(t, v, before=(t[0], 0.0))
+    assert same_t[0] == t[0]
