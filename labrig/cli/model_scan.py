@@ -4,6 +4,8 @@ a library, streamed to HDF5, what it found, and the designs with the largest sna
 from __future__ import annotations
 
 import math
+import signal
+import threading
 from pathlib import Path
 
 import click
@@ -131,7 +133,7 @@ def scan(
         TimeRemainingColumn,
     )
 
-    from labrig.model.scan import load_library, run_scan
+    from labrig.model.scan import ScanInterrupted, load_library, run_scan
     from labrig.model.scan_file import read_scan
 
     _check_png(plot_png)
@@ -157,11 +159,26 @@ def scan(
                 task, completed=p.actuators_done, total=p.actuators_total, rate=rate, refresh=True
             )
 
+        stop = threading.Event()
+
+        def on_ctrl_c(signum, frame) -> None:
+            if stop.is_set():  # the second Ctrl-C: now
+                raise KeyboardInterrupt
+            stop.set()
+
+        previous = signal.signal(signal.SIGINT, on_ctrl_c)
         try:
             run_scan(
-                library, n, out, workers=workers, resume=resume, deflate=deflate, progress=show
+                library,
+                n,
+                out,
+                workers=workers,
+                resume=resume,
+                deflate=deflate,
+                progress=show,
+                stop=stop,
             )
-        except KeyboardInterrupt:
+        except (ScanInterrupted, KeyboardInterrupt):
             bar.stop()
             click.echo(
                 f"interrupted: the finished chunks are in {out}; the same command with "
@@ -169,6 +186,8 @@ def scan(
                 err=True,
             )
             raise click.Abort() from None
+        finally:
+            signal.signal(signal.SIGINT, previous)
     print_summary(read_scan(out), plot_png)
 
 

@@ -31,6 +31,7 @@ import hashlib
 import math
 import os
 import resource
+import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
@@ -265,22 +266,38 @@ def default_workers() -> int:
         return os.cpu_count() or 1
 
 
+class ScanInterrupted(Exception):
+    """The scan was asked to stop (``stop`` set, e.g. by Ctrl-C); finished chunks are
+    in the file."""
+
+
 def run_chunks(
     library: ScanLibrary,
     chunks: list[Chunk],
     sink: Callable[[ChunkResult], None],
     *,
     workers: int,
+    stop: threading.Event | None = None,
 ) -> None:
     """Run ``chunks`` and hand every result to ``sink`` in chunk order.
 
     At most 2 * workers + 2 chunks are in flight, so memory stays bounded however long
-    the scan (results that finish early wait for the slower one before them).
+    the scan (results that finish early wait for the slower one before them). When
+    ``stop`` is set, ScanInterrupted is raised after the next finished chunk: a stop
+    asked for between chunks, not a KeyboardInterrupt raised wherever the main thread
+    happens to be (inside a weakref callback of a collection it is swallowed, and the
+    scan ran on to the end).
     """
+
+    def check_stop() -> None:
+        if stop is not None and stop.is_set():
+            raise ScanInterrupted("the scan was stopped; its finished chunks are kept")
+
     for curve in library.curves:  # built before any fork, so that workers inherit them
         curve.kernel  # noqa: B018
     if workers <= 1 or len(chunks) <= 1:
         for chunk in chunks:
+            check_stop()
             sink(run_chunk(library, chunk))
         return
     import multiprocessing
@@ -298,6 +315,7 @@ def run_chunks(
             for chunk in _take(todo, 1):
                 pending.append(pool.apply_async(_run_in_worker, (chunk,)))
             sink(result)
+            check_stop()
 
 
 def _take(iterator: Iterator[Chunk], count: int) -> list[Chunk]:
@@ -329,12 +347,14 @@ def run_scan(
     deflate: bool = False,
     chunk_size: int | None = None,
     progress: Callable[[ScanProgress], None] | None = None,
+    stop: threading.Event | None = None,
 ) -> Path:
     """Scan every combination of ``n`` segments of ``library`` into ``out`` (HDF5).
 
     With ``resume`` the file must hold an interrupted scan of the same library, n and
-    ``deflate``; its finished chunks are kept and the rest computed. On any exception
-    (Ctrl-C included) the file is closed with every finished chunk in it.
+    ``deflate``; its finished chunks are kept and the rest computed. Setting ``stop``
+    ends the scan after the chunk in hand (ScanInterrupted). On any exception the file
+    is closed with every finished chunk in it.
     """
     from labrig.model.scan_file import ScanFile
 
@@ -373,7 +393,7 @@ def run_scan(
     if progress is not None:
         progress(ScanProgress(done["actuators"], total, done["chunks"], scan.n_chunks))
     try:
-        run_chunks(library, chunks, sink, workers=workers)
+        run_chunks(library, chunks, sink, workers=workers, stop=stop)
     finally:
         scan.close(workers=workers, parent_peak_rss_mib=peak_rss_mib())
     return out
