@@ -48,6 +48,11 @@ class SimCamera:
     "fixed-ish" as on a real rig. ``lighting_drift`` is the relative amplitude of a slow
     sinusoidal change of the light (period ``drift_period_s``); ``noise_grey`` is the
     sensor noise's standard deviation in grey levels; ``blur_px`` the Gaussian blur's sigma.
+
+    As a capture it keeps the last ``queue_frames`` exposed frames, as a V4L2 camera
+    under OpenCV does (4 buffers by default): a reader that falls behind by a few
+    frames gets the oldest one still queued and loses none; one further behind loses
+    the frames that dropped out of the queue.
     """
 
     def __init__(
@@ -70,9 +75,11 @@ class SimCamera:
         specimen_bgr: tuple[int, int, int] = (190, 190, 190),
         background_bgr: tuple[int, int, int] = (90, 90, 90),
         seed: int | None = 0,
+        queue_frames: int = 4,
     ) -> None:
-        if not mm_per_px > 0 or not fps > 0:
-            raise ValueError("SimCamera: mm_per_px and fps must be > 0")
+        if not mm_per_px > 0 or not fps > 0 or queue_frames < 1:
+            raise ValueError("SimCamera: mm_per_px and fps must be > 0, queue_frames >= 1")
+        self.queue_frames = int(queue_frames)
         self.clock = clock
         self.length_mm_at = length_mm_at
         self.mm_per_px = float(mm_per_px)
@@ -94,7 +101,8 @@ class SimCamera:
         self._noise = self._make_noise() if self.noise_grey > 0 else None
         self.hidden_markers: set[int] = set()  # fault injection: 0 and/or 1 not drawn
         self._pos_msec = 0.0
-        self._last_frame = -1
+        # streaming starts when the capture is made: no frame from before it is queued
+        self._last_frame = math.ceil(clock.now() * self.fps) - 1
         self._opened = True
 
     # -- the truth ------------------------------------------------------------------------------
@@ -180,11 +188,13 @@ class SimCamera:
     # -- a capture --------------------------------------------------------------------------------
 
     def read(self) -> tuple[bool, np.ndarray | None]:
-        """The next frame, like ``cv2.VideoCapture.read``: waits on the clock for the next
-        frame time (k / fps, never the same k twice) and renders the scene at that time."""
+        """The next frame, like ``cv2.VideoCapture.read``: the oldest frame still queued
+        (never the same k twice), or, with none queued, the next one when it is exposed
+        at k / fps; rendered as the scene was at that time."""
         if not self._opened:
             return False, None
-        k = max(math.ceil(self.clock.now() * self.fps), self._last_frame + 1)
+        exposed = math.floor(self.clock.now() * self.fps)  # the newest frame so far
+        k = max(self._last_frame + 1, exposed - self.queue_frames + 1)
         self._last_frame = k
         t_s = k / self.fps
         self.clock.sleep(t_s - self.clock.now())
