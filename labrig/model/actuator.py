@@ -34,6 +34,7 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+from numba import njit
 
 from labrig.model.curve_tables import tables_of, total_energy, total_length
 from labrig.model.kernel import CurveKernel
@@ -52,13 +53,30 @@ def is_stable(k) -> np.ndarray:
 
 
 def stable_scalar(k: Sequence[float]) -> bool:
-    """``is_stable`` for one state, on floats (the path solver's inner loop)."""
-    soft = [x for x in k if x <= 0]
-    if not soft:
+    """``is_stable`` for one state (the path solver's inner loop)."""
+    return bool(stable_slopes(np.asarray(k, dtype=float)))
+
+
+@njit(cache=True)
+def stable_slopes(k: np.ndarray) -> bool:
+    """``is_stable`` for one state's slopes, compiled (the post-snap flow asks it at
+    every step): all k_i > 0, or exactly one k_m <= 0 with k_m = 0 or sum 1/k_i < 0."""
+    soft = 0
+    soft_value = 0.0
+    for a in k:
+        if a <= 0:
+            soft += 1
+            soft_value = a
+    if soft == 0:
         return True
-    if len(soft) > 1:
+    if soft > 1:
         return False
-    return soft[0] == 0 or sum(1.0 / x for x in k) < 0
+    if soft_value == 0:
+        return True
+    total = 0.0
+    for a in k:
+        total += 1.0 / a
+    return total < 0
 
 
 def hessian(k: Sequence[float]) -> np.ndarray:

@@ -20,6 +20,7 @@ import math
 import numpy as np
 from numba import njit
 
+from labrig.model.actuator import stable_slopes
 from labrig.model.curve_tables import compensated_sum, pressure_and_slope
 
 GAMMA = 1.0 + 1.0 / math.sqrt(2.0)  # ROS2, L-stable
@@ -33,27 +34,6 @@ MAX_STEPS = 2  # the step budget ran out
 def _state(tables, w, p, k):
     for i in range(len(w)):
         p[i], k[i] = pressure_and_slope(tables, i, w[i])
-
-
-@njit(cache=True)
-def stable(k):
-    """``labrig.model.actuator.stable_scalar`` on an array."""
-    soft = 0
-    soft_value = 0.0
-    for a in k:
-        if a <= 0:
-            soft += 1
-            soft_value = a
-    if soft == 0:
-        return True
-    if soft > 1:
-        return False
-    if soft_value == 0:
-        return True
-    total = 0.0
-    for a in k:
-        total += 1.0 / a
-    return total < 0
 
 
 @njit(cache=True)
@@ -170,7 +150,7 @@ def settle_flow(tables, w0, tol_ml, unit_ml, max_steps):
             largest = max(largest, abs(f[i]))
         at_rest = largest <= 1e-12 * max(1.0, abs(mean))
         if at_rest or _newton_step_size(k, f, work) < 1e-9 * unit_ml:
-            if stable(k):
+            if stable_slopes(k):
                 return SETTLED, w
             if at_rest:
                 return SADDLE, w
