@@ -21,7 +21,7 @@ import platform
 import subprocess
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -129,8 +129,11 @@ class RunWriter:
         repetitions: int,
         with_length: bool,
         flush_interval_s: float = 0.5,
+        tap: Callable[[int, str, dict[str, np.ndarray]], None] | None = None,
     ) -> None:
         self.path = Path(path)
+        # sees every append (repetition, log, columns) as written: the live view's feed
+        self.tap = tap
         self.path.parent.mkdir(parents=True, exist_ok=True)
         if repetitions < 1:
             raise ValueError("a run has at least one repetition")
@@ -219,6 +222,8 @@ class RunWriter:
                 dataset.resize((start + count,))
                 dataset[start:] = np.atleast_1d(values)
             self._flush_if_due()
+        if self.tap is not None:
+            self.tap(repetition, log, columns)
 
     def append_pressure(self, repetition: int, t_s, pressure_kpa, out_of_range) -> None:
         self._append(

@@ -1,0 +1,114 @@
+"""The live page in a real browser: headless Chromium (Debian's, installed by .ci/run)
+driven by playwright loads the page of a simulated run and sees it work.
+
+Nothing here asserts timing: every wait is for something to appear, with a timeout
+long enough for a slow machine. The screenshot is kept in tests/artifacts/.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+from playwright.sync_api import sync_playwright
+
+HERE = Path(__file__).parent
+ARTIFACTS = HERE.parent / "artifacts"
+WAIT_MS = 180_000
+
+
+def chromium_executable() -> str | None:
+    """The system's Chromium (playwright drives it; it never downloads a browser)."""
+    named = os.environ.get("LABRIG_CHROMIUM")
+    candidates = [named] if named else []
+    candidates += ["chromium", "chromium-browser", "google-chrome", "google-chrome-stable"]
+    for name in candidates:
+        path = shutil.which(name) if name else None
+        if path:
+            return path
+    return None
+
+
+@pytest.fixture(scope="module")
+def browser():
+    executable = chromium_executable()
+    if executable is None:
+        pytest.skip(
+            "no Chromium found (tried $LABRIG_CHROMIUM, chromium, chromium-browser, "
+            "google-chrome); .ci/run installs Debian's: apt-get install chromium"
+        )
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=executable, headless=True)
+        yield browser
+        browser.close()
+
+
+def count(page, selector: str) -> int:
+    return page.locator(selector).count()
+
+
+def test_page_shows_data_growing_the_model_and_a_transition(live_run, browser):
+    run = live_run("--live", "--live-hold", "30")
+    page = browser.new_page(viewport={"width": 1360, "height": 760})
+    page.goto(run.url)
+
+    # the data grow: a count of points drawn, then a larger one
+    points = "Number(document.querySelector('#pv').dataset.points)"
+    page.wait_for_function(f"{points} > 0", timeout=WAIT_MS)
+    first = int(page.locator("#pv").get_attribute("data-points"))
+    page.wait_for_function(f"{points} > {first}", timeout=WAIT_MS)
+    assert count(page, "#pv polyline.current") == 1
+    assert count(page, "#lv polyline.current") == 1
+
+    # the model's curve, dashed, with its predicted transitions
+    page.wait_for_function(
+        "Number(document.querySelector('#pv').dataset.modelPoints) > 100", timeout=WAIT_MS
+    )
+    model = page.evaluate("window.labrigLive.model")
+    assert count(page, "#pv polyline.model") >= 1
+    assert count(page, "#pv line.model-transition") == len(model["transitions"])
+    dash = page.eval_on_selector("#pv polyline.model", "e => getComputedStyle(e).strokeDasharray")
+    assert dash not in ("", "none")
+
+    # a transition marker after the snap, near the model's first snap on inflation
+    page.wait_for_selector("#pv circle.measured-transition", timeout=WAIT_MS)
+    assert count(page, "#lv circle.measured-transition") >= 1
+    measured = page.evaluate("window.labrigLive.transitions")[0]
+    snaps = [t for t in model["transitions"] if t["direction"] == "inflate" and not t["stable"]]
+    assert measured["direction"] == "inflate"
+    assert abs(measured["v_ml"] - snaps[0]["v_ml"]) < 2.0, (measured, snaps)
+
+    # the second repetition in colour over the first in grey, then the final status
+    page.wait_for_selector("#pv polyline.earlier[data-repetition='1']", timeout=WAIT_MS)
+    page.wait_for_function(
+        "document.querySelector('#status').textContent === 'complete'", timeout=WAIT_MS
+    )
+    assert page.locator("#pv polyline.current").get_attribute("data-repetition") == "2"
+    assert page.locator("#banner").is_hidden()
+    assert page.locator("#left").inner_text() == "0:00 min"
+
+    ARTIFACTS.mkdir(exist_ok=True)
+    shot = ARTIFACTS / "live_view.png"
+    page.screenshot(path=str(shot), full_page=True)
+    print(f"screenshot: {shot}")
+    assert shot.stat().st_size > 10_000
+
+
+def test_page_shows_an_interlock_trip_in_red(live_run, browser, tmp_path):
+    protocol = tmp_path / "trip.yaml"
+    text = (HERE / "live_demo.yaml").read_text()
+    protocol.write_text(text.replace("max_pressure_kpa: 95", "max_pressure_kpa: 20"))
+    run = live_run("--live", "--live-hold", "30", protocol=protocol)
+    page = browser.new_page()
+    page.goto(run.url)
+    page.wait_for_selector("#banner:not([hidden])", timeout=WAIT_MS)
+    banner = page.locator("#banner")
+    assert "aborted" in banner.inner_text()
+    assert "pressure" in banner.inner_text()
+    colour = banner.evaluate("e => getComputedStyle(e).backgroundColor")
+    assert colour == "rgb(221, 0, 0)"
+    assert page.locator("#status").inner_text() == "aborted"
+    ARTIFACTS.mkdir(exist_ok=True)
+    page.screenshot(path=str(ARTIFACTS / "live_view_trip.png"), full_page=True)
