@@ -31,6 +31,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "run": ("labrig.cli.run", "run"),
     "show": ("labrig.cli.review", "show"),
     "track": ("labrig.cli.track", "track"),
+    "watch": ("labrig.cli.watch", "watch"),
 }
 
 

@@ -49,10 +49,11 @@ class LiveView:
         self.state.finish(status, reason)
 
     def close(self, hold_s: float = 0.0) -> None:
-        """Serve ``hold_s`` more seconds (host time), then stop; Ctrl-C cuts it short."""
+        """Serve ``hold_s`` more seconds (host time; inf: until Ctrl-C), then stop."""
+        deadline = time.monotonic() + hold_s
         try:
-            if hold_s > 0:
-                time.sleep(hold_s)
+            while (left := deadline - time.monotonic()) > 0:
+                time.sleep(min(1.0, left))
         except KeyboardInterrupt:
             pass
         finally:
