@@ -35,6 +35,8 @@ def chromium_executable() -> str | None:
 def browser():
     executable = chromium_executable()
     if executable is None:
+        if os.environ.get("CI"):
+            pytest.fail("no Chromium on CI: .ci/run installs it (apt-get install chromium)")
         pytest.skip(
             "no Chromium found (tried $LABRIG_CHROMIUM, chromium, chromium-browser, "
             "google-chrome); .ci/run installs Debian's: apt-get install chromium"
