@@ -271,6 +271,8 @@ def check_pressure(
         code = getattr(cause, "error_code", None)
         # DAQmx's own words for a known code; the driver's advice is for its own case
         found = f"DAQmx error {code}: {str(cause).strip().splitlines()[0]}" if code else str(exc)
+        if expected == "the NI-DAQmx driver":
+            found = "NI-DAQmx is not installed on this machine (nidaqmx finds no driver)"
         return DeviceCheck("pressure", False, found, expected, check)
     found = f"{where}: {seconds:g} s, {n} samples, {p_kpa:+.2f} kPa{supply}"
     if supply_v is not None and not SUPPLY_RANGE_V[0] <= supply_v <= SUPPLY_RANGE_V[1]:
@@ -353,9 +355,13 @@ def check_rig(config: RigConfig) -> list[DeviceCheck]:
 
 
 def _check_real_camera(config: CameraConfig, clock: Clock) -> DeviceCheck:
+    import cv2
+
     from labrig.drivers.camera import CameraLength, FrameSource
 
     source = f"camera {config.source}"
+    # OpenCV's own warnings about a missing device would repeat the line below
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
     try:
         frames = FrameSource.open(config.source, clock)
     except (DeviceError, InputError) as exc:

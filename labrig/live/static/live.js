@@ -113,20 +113,6 @@ function drawPlot(svgId, points, modelY, markerY, yLabel) {
   node("text", { x: (MARGIN.left + WIDTH - MARGIN.right) / 2, y: HEIGHT - 8, "text-anchor": "middle" }, axis).textContent = "supplied volume (mL)";
   node("text", { x: 14, y: (MARGIN.top + HEIGHT - MARGIN.bottom) / 2, "text-anchor": "middle", transform: `rotate(-90 14 ${(MARGIN.top + HEIGHT - MARGIN.bottom) / 2})` }, axis).textContent = yLabel;
 
-  // the measurement: earlier repetitions grey, the current one in colour, on top
-  let newest = 0;
-  for (const p of points) newest = Math.max(newest, p[0]);
-  const current = live.state && live.state.repetition ? live.state.repetition : newest;
-  const byRep = new Map();
-  for (const p of points) {
-    if (!byRep.has(p[0])) byRep.set(p[0], []);
-    byRep.get(p[0]).push(`${x(p[2]).toFixed(1)},${y(p[3]).toFixed(1)}`);
-  }
-  const reps = [...byRep.keys()].sort((a, b) => (a === current) - (b === current) || a - b);
-  for (const rep of reps) {
-    node("polyline", { class: rep === current ? "current" : "earlier", "data-repetition": rep, points: byRep.get(rep).join(" ") }, svg);
-  }
-
   // the model: its path dashed (a snap is two points at one volume: a dashed jump),
   // and each predicted transition as a dashed vertical line
   let modelPoints = 0;
@@ -144,17 +130,33 @@ function drawPlot(svgId, points, modelY, markerY, yLabel) {
     }
   }
 
+  // the measurement over the model: earlier repetitions grey, the current one in
+  // colour, on top
+  let newest = 0;
+  for (const p of points) newest = Math.max(newest, p[0]);
+  const current = live.state && live.state.repetition ? live.state.repetition : newest;
+  const byRep = new Map();
+  for (const p of points) {
+    if (!byRep.has(p[0])) byRep.set(p[0], []);
+    byRep.get(p[0]).push(`${x(p[2]).toFixed(1)},${y(p[3]).toFixed(1)}`);
+  }
+  const reps = [...byRep.keys()].sort((a, b) => (a === current) - (b === current) || a - b);
+  for (const rep of reps) {
+    node("polyline", { class: rep === current ? "current" : "earlier", "data-repetition": rep, points: byRep.get(rep).join(" ") }, svg);
+  }
+
   // each transition detected so far, where it was measured
-  let markers = 0;
+  let markers = 0, labelled = 0;
   for (const t of live.transitions) {
     if (t[markerY] === null) continue;
     const cx = x(t.v_ml), cy = y(t[markerY]);
     const now = t.repetition === current;
     node("circle", { class: now ? "measured-transition" : "measured-transition earlier-transition", cx, cy, r: now ? 5.5 : 3.5, "data-repetition": t.repetition }, svg);
     markers += 1;
-    if (!now) continue; // the current repetition's are labelled
+    if (!now) continue; // the current repetition's are labelled, alternately above and below
     const way = t.direction === "inflate" ? "+" : "\u2212";
-    node("text", { class: "measured-label", x: cx + 8, y: cy - 8 }, svg).textContent = `${way}${t.v_ml.toFixed(1)} mL`;
+    const dy = labelled++ % 2 ? 18 : -8;
+    node("text", { class: "measured-label", x: cx + 8, y: cy + dy }, svg).textContent = `${way}${t.v_ml.toFixed(1)} mL`;
   }
   svg.dataset.points = points.length;
   svg.dataset.modelPoints = modelPoints;
