@@ -296,6 +296,17 @@ def check_pressure(
 
 
 # --- the camera ---------------------------------------------------------------------------
+def _camera_unreachable(exc: Exception, expected: str) -> DeviceCheck:
+    return DeviceCheck(
+        "camera",
+        False,
+        str(exc),
+        expected,
+        "the camera's USB cable, camera.source in the rig file (an index such as 0, or a "
+        "video file), and that no other program uses it",
+    )
+
+
 def check_camera(length, config: CameraConfig | None, source: str) -> DeviceCheck:
     """Frames from ``length`` (a ``CameraLength``) until both markers are found."""
     import cv2
@@ -311,14 +322,7 @@ def check_camera(length, config: CameraConfig | None, source: str) -> DeviceChec
             if fix.ok:
                 break
     except (DeviceError, InputError) as exc:
-        return DeviceCheck(
-            "camera",
-            False,
-            str(exc),
-            f"frames from {source}",
-            "the camera's cable, camera.source (its index or file), and that no other "
-            "program uses it",
-        )
+        return _camera_unreachable(exc, f"frames from {source}")
     if frame is None:
         return DeviceCheck("camera", False, f"{source} gave no frame", "frames", "camera.source")
     height, width = frame.image.shape[:2]
@@ -365,14 +369,7 @@ def _check_real_camera(config: CameraConfig, clock: Clock) -> DeviceCheck:
     try:
         frames = FrameSource.open(config.source, clock)
     except (DeviceError, InputError) as exc:
-        return DeviceCheck(
-            "camera",
-            False,
-            str(exc),
-            f"a camera or video at {config.source!r}",
-            "the camera's USB cable, camera.source in the rig file (an index such as 0, "
-            "or a video file), and that no other program uses it",
-        )
+        return _camera_unreachable(exc, f"a camera or video at {config.source!r}")
     try:
         length = CameraLength(
             frames, mm_per_px=config.mm_per_px, reference_distance_mm=config.reference_distance_mm

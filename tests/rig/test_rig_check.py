@@ -3,6 +3,9 @@ found, named, and exits 2; the check moves nothing."""
 
 from __future__ import annotations
 
+import re
+
+import numpy as np
 import pytest
 
 from labrig.cli import main
@@ -97,3 +100,32 @@ def test_a_bad_rig_file_is_one_line(tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["rig", "check"])
     assert exit_info.value.code == 2
+
+
+def test_a_bench_rig_with_a_video_and_a_pump_on_a_port(tmp_path):
+    """The bench path end to end: a rig file whose pump is on a serial device (the
+    emulator's pty) and whose camera is a video file read with a reference distance;
+    NI-DAQmx is absent here, and the check says so without stopping the others."""
+    from labrig.rig import RigConfig
+    from labrig.rig_check import check_rig
+    from labrig.sim.camera import SimCamera
+
+    video = tmp_path / "markers.avi"
+    truth = SimCamera(RealClock(), lambda t: 60.0, mm_per_px=0.08).write_video(
+        video, n_frames=5, fps=10.0
+    )
+    with PumpEmulator(RealClock()) as emulator:
+        config = RigConfig(
+            pump={"port": emulator.port},
+            camera={"source": str(video), "reference_distance_mm": 60.0},
+        )
+        checks = {c.device: c for c in check_rig(config)}
+    assert checks["pump"].ok, checks["pump"].line()
+    camera = checks["camera"]
+    assert camera.ok, camera.line()
+    distance_px = float(np.hypot(*np.diff(truth.centres_px[0], axis=0)[0]))
+    found = re.search(r"([\d.]+) px = 60 mm \(reference: ([\d.]+) mm/px\)", camera.found)
+    assert found, camera.found
+    assert abs(float(found[1]) - distance_px) < 0.2  # the tracker's sub-pixel centres
+    assert abs(float(found[2]) - 0.08) < 1e-4
+    assert "10 fps" in camera.found and "1280x720" in camera.found
