@@ -75,6 +75,7 @@ class LiveState:
         self.transitions: tuple[dict, ...] = ()
         self.status = "starting"
         self.reason = ""
+        self.detection_error = ""  # why the last transition detection failed, if it did
         self._latest = {"volume_ml": None, "pressure_kpa": None, "length_mm": None}
         self._step = Step("starting", 0, 0.0, info.duration_s)
         # the digest's own
@@ -172,15 +173,22 @@ class LiveState:
             if len(a["pressure_t_s"]) < 2 or len(a["pump_t_s"]) < 2:
                 continue
             with_length = len(a["length_t_s"]) >= 3
-            found = detect_transitions(
-                repetition,
-                a["pressure_t_s"],
-                a["pressure_kpa"],
-                a["pump_t_s"],
-                a["pump_v_ml"],
-                a["length_t_s"] if with_length else None,
-                a["length_mm"] if with_length else None,
-            )
+            try:
+                found = detect_transitions(
+                    repetition,
+                    a["pressure_t_s"],
+                    a["pressure_kpa"],
+                    a["pump_t_s"],
+                    a["pump_v_ml"],
+                    a["length_t_s"] if with_length else None,
+                    a["length_mm"] if with_length else None,
+                )
+            except Exception as exc:
+                # the detector was made for whole repetitions: on a partial one it may
+                # fail, and must not stop the live view; the page shows why, and the
+                # next detection, on more data, tries again
+                self.detection_error = f"repetition {repetition}: {exc!r}"
+                continue
             self._found[repetition] = [self._marker(t, a) for t in found]
         self._dirty.clear()
         self.transitions = tuple(m for rep in sorted(self._found) for m in self._found[rep])
@@ -232,4 +240,5 @@ class LiveState:
             "transitions": list(self.transitions),
             "remaining_s": step.remaining_s,
             "reason": self.reason,
+            "detection_error": self.detection_error,
         }

@@ -12,6 +12,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+from playwright.sync_api import TimeoutError as PlaywrightTimeout
 from playwright.sync_api import sync_playwright
 
 HERE = Path(__file__).parent
@@ -51,23 +52,46 @@ def count(page, selector: str) -> int:
     return page.locator(selector).count()
 
 
+def open_page(browser, run, **options):
+    """The run's page, with its script errors collected in ``page.errors``."""
+    page = browser.new_page(**options)
+    page.errors = []
+    page.on("pageerror", lambda error: page.errors.append(str(error)))
+    page.goto(run.url)
+    return page
+
+
+def waiting(page, run, wait, *args):
+    """``wait(*args)``; on a timeout, an AssertionError saying what the page and the
+    run had to say (script errors, the live state, the run's last lines)."""
+    try:
+        return wait(*args, timeout=WAIT_MS)
+    except PlaywrightTimeout:
+        live = page.evaluate(
+            "({state: window.labrigLive.state, transitions: window.labrigLive.transitions,"
+            " detection: window.labrigLive.detectionError, n: window.labrigLive.pressure.length})"
+        )
+        raise AssertionError(
+            f"timed out on {args[0]!r}: page errors {page.errors}, live {live}, "
+            f"run: {''.join(run.lines[-15:])}"
+        ) from None
+
+
 def test_page_shows_data_growing_the_model_and_a_transition(live_run, browser):
     run = live_run("--live", "--live-hold", "30")
-    page = browser.new_page(viewport={"width": 1360, "height": 760})
-    page.goto(run.url)
+    page = open_page(browser, run, viewport={"width": 1360, "height": 760})
 
     # the data grow: a count of points drawn, then a larger one
     points = "Number(document.querySelector('#pv').dataset.points)"
-    page.wait_for_function(f"{points} > 0", timeout=WAIT_MS)
+    waiting(page, run, page.wait_for_function, f"{points} > 0")
     first = int(page.locator("#pv").get_attribute("data-points"))
-    page.wait_for_function(f"{points} > {first}", timeout=WAIT_MS)
+    waiting(page, run, page.wait_for_function, f"{points} > {first}")
     assert count(page, "#pv polyline.current") == 1
     assert count(page, "#lv polyline.current") == 1
 
     # the model's curve, dashed, with its predicted transitions
-    page.wait_for_function(
-        "Number(document.querySelector('#pv').dataset.modelPoints) > 100", timeout=WAIT_MS
-    )
+    model_points = "Number(document.querySelector('#pv').dataset.modelPoints)"
+    waiting(page, run, page.wait_for_function, f"{model_points} > 100")
     model = page.evaluate("window.labrigLive.model")
     assert count(page, "#pv polyline.model") >= 1
     assert count(page, "#pv line.model-transition") == len(model["transitions"])
@@ -75,7 +99,13 @@ def test_page_shows_data_growing_the_model_and_a_transition(live_run, browser):
     assert dash not in ("", "none")
 
     # a transition marker after the snap, near the model's first snap on inflation
-    page.wait_for_selector("#pv circle.measured-transition", timeout=WAIT_MS)
+    marker_or_end = (
+        "document.querySelector('#pv circle.measured-transition') !== null"
+        " || ['aborted', 'faulted'].includes(window.labrigLive.state.status)"
+    )
+    waiting(page, run, page.wait_for_function, marker_or_end)
+    state = page.evaluate("[window.labrigLive.state.status, window.labrigLive.reason]")
+    assert count(page, "#pv circle.measured-transition") >= 1, f"the run stopped: {state}"
     assert count(page, "#lv circle.measured-transition") >= 1
     measured = page.evaluate("window.labrigLive.transitions")[0]
     snaps = [t for t in model["transitions"] if t["direction"] == "inflate" and not t["stable"]]
@@ -83,13 +113,12 @@ def test_page_shows_data_growing_the_model_and_a_transition(live_run, browser):
     assert abs(measured["v_ml"] - snaps[0]["v_ml"]) < 2.0, (measured, snaps)
 
     # the second repetition in colour over the first in grey, then the final status
-    page.wait_for_selector("#pv polyline.earlier[data-repetition='1']", timeout=WAIT_MS)
-    page.wait_for_function(
-        "document.querySelector('#status').textContent === 'complete'", timeout=WAIT_MS
-    )
+    waiting(page, run, page.wait_for_selector, "#pv polyline.earlier[data-repetition='1']")
+    waiting(page, run, page.wait_for_function, "window.labrigLive.state.status === 'complete'")
     assert page.locator("#pv polyline.current").get_attribute("data-repetition") == "2"
     assert page.locator("#banner").is_hidden()
     assert page.locator("#left").inner_text() == "0:00 min"
+    assert page.errors == []
 
     ARTIFACTS.mkdir(exist_ok=True)
     shot = ARTIFACTS / "live_view.png"
@@ -103,9 +132,8 @@ def test_page_shows_an_interlock_trip_in_red(live_run, browser, tmp_path):
     text = (HERE / "live_demo.yaml").read_text()
     protocol.write_text(text.replace("max_pressure_kpa: 95", "max_pressure_kpa: 20"))
     run = live_run("--live", "--live-hold", "30", protocol=protocol)
-    page = browser.new_page()
-    page.goto(run.url)
-    page.wait_for_selector("#banner:not([hidden])", timeout=WAIT_MS)
+    page = open_page(browser, run)
+    waiting(page, run, page.wait_for_selector, "#banner:not([hidden])")
     banner = page.locator("#banner")
     assert "aborted" in banner.inner_text()
     assert "pressure" in banner.inner_text()

@@ -18,6 +18,7 @@ const live = {
   state: null,
   remaining_s: null,
   reason: "",
+  detectionError: "",
 };
 window.labrigLive = live; // for tests and for a curious technician's console
 
@@ -188,18 +189,22 @@ async function poll() {
     live.transitions = series.transitions;
     live.remaining_s = series.remaining_s;
     live.reason = series.reason;
-    if (live.model === null || !live.model.ready) {
-      live.model = await getJSON("/api/model");
-      const note = live.model.error ? `model: ${live.model.error}` : live.model.ready ? "" : "model: computing...";
-      text("model-note", note);
-    }
-    draw();
+    live.detectionError = series.detection_error;
+    if (live.model === null || !live.model.ready) live.model = await getJSON("/api/model");
   } catch (error) {
     const status = document.getElementById("status");
     status.textContent = "no connection";
     status.className = "status";
-  } finally {
     busy = false;
+    return;
+  }
+  const model = live.model.error ? `model: ${live.model.error}` : live.model.ready ? "" : "model: computing...";
+  const detection = live.detectionError ? `transition detection: ${live.detectionError}` : "";
+  text("model-note", [model, detection].filter(Boolean).join("; "));
+  try {
+    draw();
+  } finally {
+    busy = false; // a drawing error shows in the console, and the next poll draws again
   }
 }
 
