@@ -40,7 +40,7 @@ from .pump_firmware import DEFAULT_DIAMETER_MM, DEFAULT_SYRINGE_ML, MAX_FORCE_N,
 
 log = logging.getLogger(__name__)
 
-LOAD_CHECK_S = 0.05  # clock seconds between load (stall) checks while the plunger moves
+LOAD_CHECK_S = 0.1  # clock seconds between load (stall) checks while the plunger moves
 IDLE_WAIT_S = 0.1  # real seconds the server waits at most (commands wake it at once)
 _GARBAGE = bytes(range(0x80, 0x100)) + b"#%&~^|"
 _PROMPTS = {
