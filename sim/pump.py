@@ -11,6 +11,14 @@ reply style (plain lines, or each line prefixed with the prompt as on the Elite)
 target prompt (``T*`` or ``T:``), and the status line after the prompt (older pumps).
 Faults are injected on demand: garbage, dropped or slow replies, a disconnect, a stall.
 One thread serves the port with ``select`` and a timeout, so it never blocks for long.
+
+The plunger's own events are timers on the shared clock (``Clock.call_at``), not host
+ticks: the target stop at the exact time it is due, and a check of the load every
+``LOAD_CHECK_S`` of clock time while the plunger moves (a stall). On the simulated
+rig's virtual clock they therefore happen at the same rig time on any host. The serving
+thread only answers: a command is executed at the clock time the driver sent it (the
+driver holds virtual time still while it waits for the reply), and its motion timer is
+set before the reply goes out, so nothing can move time past it unseen.
 """
 
 from __future__ import annotations
@@ -32,8 +40,8 @@ from .pump_firmware import DEFAULT_DIAMETER_MM, DEFAULT_SYRINGE_ML, MAX_FORCE_N,
 
 log = logging.getLogger(__name__)
 
-TICK_S = 0.002  # real seconds between motion checks while the plunger moves
-IDLE_WAIT_S = 0.1  # and while it does not (commands and faults wake the loop at once)
+LOAD_CHECK_S = 0.1  # clock seconds between load (stall) checks while the plunger moves
+IDLE_WAIT_S = 0.1  # real seconds the server waits at most (commands wake it at once)
 _GARBAGE = bytes(range(0x80, 0x100)) + b"#%&~^|"
 _PROMPTS = {
     PumpState.IDLE: ":",
@@ -102,6 +110,8 @@ class PumpEmulator:
         self._serving = False
         self._inbuf = bytearray()
         self._after_cr = False
+        self._motion_timer = None
+        self._timer_lock = threading.Lock()  # the motion timer's own: taken with no other
 
     # ---- lifecycle ---------------------------------------------------------------
 
@@ -170,6 +180,7 @@ class PumpEmulator:
     def stall(self) -> None:
         """Stall now if the plunger moves, else at the next run."""
         self.firmware.stall()
+        self._schedule_motion()
 
     # ---- faults ------------------------------------------------------------------
 
@@ -204,7 +215,7 @@ class PumpEmulator:
     def _serve(self) -> None:
         try:
             while True:
-                wait = TICK_S if self.firmware.running else IDLE_WAIT_S
+                wait = IDLE_WAIT_S
                 with self._lock:
                     if not self._serving:
                         break
@@ -215,7 +226,6 @@ class PumpEmulator:
                     os.read(self._wake_r, 4096)
                 if self._master in readable:
                     self._receive(self._read_master())
-                self.firmware.tick(self.clock.now())
                 with self._lock:
                     self._send_due()
         finally:
@@ -249,6 +259,7 @@ class PumpEmulator:
         answer = self.firmware.execute(line)
         if answer is None:
             return  # for another pump on the chain
+        self._schedule_motion()  # before the reply: the driver moves time on after it
         prompt = self._prompt(answer.state)
         prefix = prompt if self.reply_style == "prefixed" else ""
         body = "".join(f"\n{prefix}{text}\r" for text in answer.lines)
@@ -262,6 +273,23 @@ class PumpEmulator:
                 data = b"\n" + self._garbage(self._garble) + b"\r" + data
                 self._garble = 0
             self._queue(data, self._delay_s)
+
+    def _schedule_motion(self) -> None:
+        """Set the timer of the plunger's next event: its target stop, or the next load
+        check, whichever comes first (none while it stands still)."""
+        with self._timer_lock:
+            if self._motion_timer is not None:
+                self._motion_timer.cancel()
+                self._motion_timer = None
+            if not self.firmware.running:
+                return
+            now = self.clock.now()
+            due = min(self.firmware.target_stop_s, now + LOAD_CHECK_S)
+            self._motion_timer = self.clock.call_at(due, self._motion_event)
+
+    def _motion_event(self) -> None:
+        self.firmware.tick(self.clock.now())
+        self._schedule_motion()
 
     def _prompt(self, state: PumpState) -> str:
         prompt = self.target_prompt if state is PumpState.TARGET_REACHED else _PROMPTS[state]

@@ -16,9 +16,9 @@ import time
 
 import numpy as np
 
-from labrig.clock import SimulatedClock
 from labrig.drivers.ni_daq import NiDaqPressure
 from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
+from labrig.virtual_clock import VirtualClock
 
 RATE_HZ = 1000.0
 RUN_S = 120.0
@@ -31,7 +31,7 @@ def truth_kpa(t_s: np.ndarray) -> np.ndarray:
 
 
 def run(noise_kpa: float, supply_v: float, supply_channel: str | None) -> dict:
-    clock = SimulatedClock(speed=200.0)
+    clock = VirtualClock()
 
     def task_factory():
         return SimDaqTask(clock, truth_kpa, noise_kpa=noise_kpa, supply_v=supply_v, seed=3)

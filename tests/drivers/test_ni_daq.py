@@ -10,7 +10,6 @@ import nidaqmx.stream_readers
 import numpy as np
 import pytest
 
-from labrig.clock import SimulatedClock
 from labrig.devices import PressureSource
 from labrig.drivers.ni_daq import (
     DaqConfigError,
@@ -21,6 +20,7 @@ from labrig.drivers.ni_daq import (
 )
 from labrig.errors import DeviceError, InputError
 from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask, quantise
+from labrig.virtual_clock import VirtualClock
 
 QUANTUM_KPA = 20.0 / 2**14 / (0.009 * 5.0)  # one ADC step on ±10 V, in kPa at Vs = 5 V
 
@@ -33,10 +33,8 @@ def ramp_after(t_on_s, kpa_per_s):
 class Rig:
     """The driver wired to simulated tasks; keeps each task it made for inspection."""
 
-    def __init__(self, truth, speed=50.0, sim=None, **driver):
-        # At 50x the 10 s DAQmx buffer lasts 0.2 s of real time: a busy machine's pauses
-        # must not overflow it.
-        self.clock = SimulatedClock(speed=speed)
+    def __init__(self, truth, sim=None, **driver):
+        self.clock = VirtualClock()
         self.truth = truth
         self.tasks = []
         sim = {"seed": 7, **(sim or {})}
@@ -91,9 +89,7 @@ def test_zero_then_continuous_blocks_match_the_truth():
 def test_long_run_loses_no_sample_and_timestamps_follow_the_ramp():
     rig = Rig(
         ramp_after(0.0, 0.1),
-        speed=1000.0,
         sim={"noise_kpa": 0.0, "offset_error_kpa": 0.0},
-        buffer_s=120.0,  # 0.12 s of real time: room for a busy test machine's hiccups
     )
     rig.daq.start(1000.0)
     _, t, p, _ = rig.collect(900.0, every_s=2.0)  # 15 simulated minutes
@@ -184,17 +180,17 @@ def test_zero_times_out_when_the_device_delivers_nothing():
 
 
 def test_overflow_when_read_too_late_becomes_a_clear_device_error():
-    rig = Rig(ramp_after(0, 0), speed=1000.0, buffer_s=2.0)
+    rig = Rig(ramp_after(0, 0), buffer_s=2.0)
     rig.daq.start(1000.0)  # DAQmx's smallest buffer at 1 kS/s is 10 000 samples = 10 s
     rig.clock.sleep(12.0)
     with pytest.raises(DaqOverflowError, match=r"-200279.*samples were lost.*buffer_s"):
         rig.daq.read()
     rig.daq.stop()
-    rig.clock.set_speed(20.0)  # from here on, a pause must not overflow it again
     rig.daq.start(1000.0)  # a restart recovers
     rig.clock.sleep(0.1)
     assert len(rig.daq.read()) > 0
     rig.tasks[-1].inject_overflow()
+    rig.clock.sleep(0.1)  # a read with samples waiting reaches the task
     with pytest.raises(DaqOverflowError):
         rig.daq.read()
 
@@ -221,7 +217,7 @@ def test_bad_configuration_is_a_clear_error_and_releases_the_task(driver, code):
 
 
 def test_bad_parameters_are_input_errors():
-    clock = SimulatedClock()
+    clock = VirtualClock()
     with pytest.raises(InputError, match="RSE or DIFF"):
         NiDaqPressure(clock, terminal="NRSE")
     with pytest.raises(InputError, match="min_v"):
@@ -234,7 +230,7 @@ def test_missing_ni_daqmx_is_one_line_naming_sim():
     def no_driver():
         raise nidaqmx.errors.DaqNotFoundError("Could not find an installation of NI-DAQmx.")
 
-    daq = NiDaqPressure(SimulatedClock(), task_factory=no_driver)
+    daq = NiDaqPressure(VirtualClock(), task_factory=no_driver)
     with pytest.raises(DaqNotInstalledError) as raised:
         daq.start()
     message = str(raised.value)
@@ -246,7 +242,7 @@ def test_missing_ni_daqmx_is_one_line_naming_sim():
 )
 def test_the_real_nidaqmx_task_without_the_driver_gives_that_line():
     with pytest.raises(DaqNotInstalledError, match="--sim"):
-        NiDaqPressure(SimulatedClock()).zero(0.1)
+        NiDaqPressure(VirtualClock()).zero(0.1)
 
 
 def test_importing_the_driver_does_not_import_nidaqmx():
@@ -260,7 +256,7 @@ def test_the_factories_are_what_differ(monkeypatch):
     made = []
 
     def fake_task(*args):
-        task = SimDaqTask(SimulatedClock(speed=100), ramp_after(0, 0), seed=0)
+        task = SimDaqTask(VirtualClock(), ramp_after(0, 0), seed=0)
         made.append(task)
         return task
 
@@ -271,7 +267,7 @@ def test_the_factories_are_what_differ(monkeypatch):
         "AnalogMultiChannelReader",
         lambda stream: seen.append(stream) or SimAnalogMultiChannelReader(stream),
     )
-    daq = NiDaqPressure(SimulatedClock(speed=100))
+    daq = NiDaqPressure(VirtualClock())
     daq.start()
     daq.stop()
     assert len(made) == 1 and seen == [made[0].in_stream]

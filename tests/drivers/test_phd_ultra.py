@@ -15,7 +15,6 @@ import time
 
 import pytest
 
-from labrig.clock import SimulatedClock
 from labrig.devices import Pump, PumpState
 from labrig.drivers.phd_ultra import PhdUltra
 from labrig.drivers.phd_ultra_errors import (
@@ -28,15 +27,15 @@ from labrig.drivers.phd_ultra_errors import (
     PumpTimeout,
 )
 from labrig.sim.pump import PumpEmulator
+from labrig.virtual_clock import VirtualClock
 
-SPEED = 100.0  # a 30 s run takes 0.3 s
 TIMEOUT_S = 0.2
 DISPLAY_ML = 1e-4  # '1.2345 ml': the pump's counters have 4 decimals
 
 
 @pytest.fixture
 def clock():
-    return SimulatedClock(speed=SPEED)
+    return VirtualClock()
 
 
 @pytest.fixture
