@@ -64,7 +64,7 @@ def report(checks: list[DeviceCheck]) -> tuple[str, int]:
 
 
 # --- the pump ---------------------------------------------------------------------------
-def pump_address_on_line(port: str, baud: int, timeout_s: float = PUMP_TIMEOUT_S) -> int | None:
+def pump_address_on_line(port: str, baud: int, timeout_s: float) -> int | None:
     """The address of a pump that answers a bare ``ver`` on ``port`` (None: nothing
     answers). Every pump answers a command without an address; its prompt carries its
     own address (none at address 0)."""
@@ -91,8 +91,11 @@ def pump_address_on_line(port: str, baud: int, timeout_s: float = PUMP_TIMEOUT_S
     return None
 
 
-def check_pump(config: PumpConfig, clock: Clock, port: str | None = None) -> DeviceCheck:
-    """The pump at ``config.address`` on ``port`` (default: the configured port)."""
+def check_pump(
+    config: PumpConfig, clock: Clock, port: str | None = None, timeout_s: float = PUMP_TIMEOUT_S
+) -> DeviceCheck:
+    """The pump at ``config.address`` on ``port`` (default: the configured port), each
+    reply awaited ``timeout_s`` (host time)."""
     from labrig.drivers.phd_ultra import PhdUltra
     from labrig.drivers.phd_ultra_errors import PumpPortError, PumpTimeout
 
@@ -104,7 +107,7 @@ def check_pump(config: PumpConfig, clock: Clock, port: str | None = None) -> Dev
             baudrate=config.baud,
             address=config.address,
             clock=clock,
-            timeout_s=PUMP_TIMEOUT_S,
+            timeout_s=timeout_s,
         )
     except PumpPortError as exc:
         return DeviceCheck(
@@ -116,7 +119,7 @@ def check_pump(config: PumpConfig, clock: Clock, port: str | None = None) -> Dev
             "open it (the dialout group), and that no other program holds it",
         )
     except PumpTimeout:
-        answering = pump_address_on_line(port, config.baud)
+        answering = pump_address_on_line(port, config.baud, timeout_s)
         if answering is not None and answering != config.address:
             return DeviceCheck(
                 "pump",

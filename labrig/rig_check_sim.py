@@ -17,6 +17,10 @@ from labrig.protocol import parse_protocol
 from labrig.rig import PumpConfig, RigConfig, SimConfig, build_rig
 from labrig.rig_check import DeviceCheck, check_camera, check_pressure, check_pump
 
+# the emulator's thread shares the host with everything else: a starved host only
+# costs wall time here, so its replies are awaited longer than the bench's 0.5 s (but
+# not the runs' 10 s: the no-reply fault waits this three times)
+SIM_REPLY_TIMEOUT_S = 2.0
 FAULTS = {
     "no-reply": "the pump sends no reply (cable, power)",
     "wrong-address": "the rig file names pump address 3; the pump is at 0",
@@ -94,7 +98,7 @@ def check_sim_rig(config: RigConfig, fault: str | None = None) -> list[DeviceChe
             )
 
         return [
-            check_pump(pump, rig.clock, port=sim.emulator.port),
+            check_pump(pump, rig.clock, port=sim.emulator.port, timeout_s=SIM_REPLY_TIMEOUT_S),
             check_pressure(
                 named,
                 rig.clock,
