@@ -27,15 +27,36 @@ POLL_S = 1.0  # how often --wait asks the pump (hardware.md 1.6: about once per 
 @click.option("--baud", type=click.Choice(BAUD_RATES), default="115200", show_default=True)
 @click.option(
     "--address-form",
-    type=click.Choice(["digits", "colon", "none"]),
-    default="digits",
+    type=click.Choice(["auto", "digits", "colon", "none"]),
+    default="auto",
     show_default=True,
-    help="How the address goes before each command: 00irate, 0:irate, or not at all.",
+    help="How the address goes before each command: 00irate, 0:irate, or not at all; "
+    "auto tries none (address 0) or 0N:irate, then 00irate, and keeps the one answered.",
+)
+@click.option(
+    "--reply-timeout",
+    type=click.FloatRange(min=0, min_open=True),
+    default=2.0,
+    show_default=True,
+    help="Seconds the pump may take to answer one command.",
 )
 @click.pass_context
-def pump(ctx: click.Context, port: str | None, address: int, baud: str, address_form: str) -> None:
+def pump(
+    ctx: click.Context,
+    port: str | None,
+    address: int,
+    baud: str,
+    address_form: str,
+    reply_timeout: float,
+) -> None:
     """Drive the PHD ULTRA syringe pump by hand, or emulate one."""
-    ctx.obj = {"port": port, "address": address, "baud": int(baud), "address_form": address_form}
+    ctx.obj = {
+        "port": port,
+        "address": address,
+        "baud": int(baud),
+        "address_form": address_form,
+        "timeout_s": reply_timeout,
+    }
 
 
 def _open(ctx: click.Context):
@@ -52,6 +73,7 @@ def _open(ctx: click.Context):
         baudrate=settings["baud"],
         address=settings["address"],
         address_form=settings["address_form"],
+        timeout_s=settings["timeout_s"],
     )
 
 
@@ -67,7 +89,13 @@ def status(ctx: click.Context) -> None:
             ("infused", f"{now.infused_ml:.4f} mL"),
             ("withdrawn", f"{now.withdrawn_ml:.4f} mL"),
             ("infuse rate", f"{driver.infuse_rate_ml_min():.6g} mL/min"),
-            ("withdraw rate", f"{driver.withdraw_rate_ml_min():.6g} mL/min"),
+            (
+                "withdraw rate",
+                f"{driver.withdraw_rate_ml_min():.6g} mL/min"
+                if driver.can_withdraw
+                else "none (infuse-only pump)",
+            ),
+            ("force limit", f"{driver.force_limit_pct()} %"),
             ("target", "not set" if target_ml is None else f"{target_ml:.4f} mL"),
             ("diameter", f"{driver.syringe.diameter_mm:.4f} mm"),
             ("syringe", f"{driver.syringe.volume_ml:g} mL"),

@@ -143,7 +143,7 @@ def test_bad_input_and_missing_devices_are_one_line_errors(emulator, capsys):
     )
     assert (code, err.count("\n")) == (2, 1)
     assert "outside this syringe's limits" in err
-    assert not any(line.startswith("00irate 5") for line in emulator.received)
+    assert not any(line.startswith("irate 5") for line in emulator.received)
     code, _, err = run_main(["pump", "--port", "/dev/no-such-pump", "status"], capsys)
     assert (code, err.count("\n")) == (3, 1)
     assert err.startswith("error: cannot open /dev/no-such-pump")
