@@ -230,21 +230,48 @@ def _follow(driver) -> None:
     show_default=True,
     help="plain: PHD ULTRA lines; prefixed: each line starts with the prompt.",
 )
+@click.option(
+    "--poll",
+    type=click.Choice(["off", "on", "remote"]),
+    default="off",
+    show_default=True,
+    help="The poll mode the pump was left in (on: XON after prompts; remote: no prompts).",
+)
+@click.option(
+    "--strict-address",
+    is_flag=True,
+    help="Answer only the manual's address form (none at 0, N:cmd otherwise).",
+)
+@click.option("--infuse-only", is_flag=True, help="An infuse-only model: refuse withdraw commands.")
 @click.pass_context
 def emulate(
-    ctx: click.Context, speed: float, emulated_address: int | None, reply_style: str
+    ctx: click.Context,
+    speed: float,
+    emulated_address: int | None,
+    reply_style: str,
+    poll: str,
+    strict_address: bool,
+    infuse_only: bool,
 ) -> None:
     """Serve an emulated PHD ULTRA on a pseudo-terminal.
 
     Prints the device path to connect to, then serves until Ctrl-C."""
     from labrig.clock import RealClock, SimulatedClock
     from labrig.sim.pump import PumpEmulator
+    from labrig.sim.pump_firmware import manual_address_form
 
     address = ctx.obj["address"] if emulated_address is None else emulated_address
     clock = RealClock() if speed == 1 else SimulatedClock(speed)
     done = threading.Event()
     signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
-    with PumpEmulator(clock, address=address, reply_style=reply_style) as emulator:
+    with PumpEmulator(
+        clock,
+        address=address,
+        reply_style=reply_style,
+        poll_mode=poll,
+        strict_address_form=manual_address_form(address) if strict_address else None,
+        infuse_only=infuse_only,
+    ) as emulator:
         click.echo(emulator.port)
         click.echo(
             f"PHD ULTRA emulator at address {address}, clock x{speed:g}; Ctrl-C stops it", err=True

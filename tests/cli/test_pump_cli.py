@@ -152,7 +152,9 @@ def test_bad_input_and_missing_devices_are_one_line_errors(emulator, capsys):
 
 def test_emulate_serves_the_driver_and_another_cli_process():
     emulate = subprocess.Popen(
-        [sys.executable, "-m", "labrig", "pump", "emulate", "--speed", "50"],
+        # as a pump left by other software: poll on, only the manual's address form
+        [sys.executable, "-m", "labrig", "pump", "emulate", "--speed", "50", "--poll", "on"]
+        + ["--strict-address"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -177,6 +179,7 @@ def test_emulate_serves_the_driver_and_another_cli_process():
         rows = table(status.stdout)
         assert rows["state"] == "target reached"
         assert rows["infused"] == "1.0000 mL"
+        assert rows["force limit"] == "100 %"
         emulate.terminate()
         _, err = emulate.communicate(timeout=10)
         assert emulate.returncode == 0
