@@ -109,7 +109,7 @@ def test_the_pump_is_set_up_from_the_rig_file_and_refuses_what_it_cannot_do(tmp_
         PumpEmulator(clock, infuse_only=True, strict_address_form="none") as emulator,
         PhdUltra.open(emulator.port, clock=clock, timeout_s=0.3) as pump,
     ):
-        with pytest.raises(DeviceError, match="infuse-only .* but the protocol withdraws"):
+        with pytest.raises(DeviceError, match=r"infuse-only .* but the protocol withdraws"):
             set_up_pump(pump, config, withdrawing)
         assert emulator.firmware._force_pct == 100  # refused before anything was set
         set_up_pump(pump, config, infusing)

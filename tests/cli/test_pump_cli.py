@@ -150,11 +150,16 @@ def test_bad_input_and_missing_devices_are_one_line_errors(emulator, capsys):
     assert "Traceback" not in err
 
 
+EMULATE_LEFT_BY_OTHER_SOFTWARE = [
+    *(sys.executable, "-m", "labrig", "pump", "emulate", "--speed", "50"),
+    *("--poll", "on", "--strict-address"),
+]
+
+
 def test_emulate_serves_the_driver_and_another_cli_process():
     emulate = subprocess.Popen(
         # as a pump left by other software: poll on, only the manual's address form
-        [sys.executable, "-m", "labrig", "pump", "emulate", "--speed", "50", "--poll", "on"]
-        + ["--strict-address"],
+        EMULATE_LEFT_BY_OTHER_SOFTWARE,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
