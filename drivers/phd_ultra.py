@@ -62,6 +62,7 @@ from .phd_ultra_protocol import (
     StatusLine,
     candidate_address_forms,
     check_refusal,
+    force_limit_pressure_kpa,
     format_rate,
     format_volume,
     frame_command,
@@ -372,6 +373,13 @@ class PhdUltra:
     def force_limit_pct(self) -> int:
         """The pump's force limit in percent of its rated force (``force``)."""
         return parse_force_pct(self._query("force").text)
+
+    def force_limit_kpa(self, rated_force_n: float) -> float:
+        """The force limit read from the pump as the load pressure it stalls at, on the
+        syringe it is set up for (``rated_force_n``: its force at 100 %)."""
+        return force_limit_pressure_kpa(
+            self.force_limit_pct(), rated_force_n, self.read_syringe().diameter_mm
+        )
 
     # ---- rates, target, volumes ----------------------------------------------------
 

@@ -321,7 +321,7 @@ def test_firmware_variants(clock, address, address_form, emulator_options):
 
 # ---- what a pump left on a real bench does (issue 16) ---------------------------------
 
-REAL_TIMEOUT_S = 0.3  # the forms not answered cost a few of these
+REAL_TIMEOUT_S = 0.5  # the forms not answered cost a few of these; a busy host must not
 
 
 def serial_port(path, exclusive=True):
@@ -442,7 +442,9 @@ def test_a_target_prompt_with_a_leading_colon(clock):
 
 def test_the_pump_stalls_at_the_force_limit_it_was_given(clock):
     # The load rises 50 kPa per mL in the syringe; 20 % of 75 lbf over the 26.7 mm
-    # plunger (by hand: 66.72 N / 559.9 mm^2 = 119.2 kPa) is reached at 2.38 mL.
+    # plunger (by hand: 66.72 N / 559.9 mm^2 = 119.2 kPa) is reached at 2.38 mL, and
+    # 100 % (595.8 kPa) only at 11.9 mL: past the 10 mL target, which a pump without
+    # the limit reaches instead of stalling.
     kpa_per_ml = 50.0
     limit_kpa = 0.20 * 75 * 4.4482216 / (math.pi / 4 * 26.7**2) * 1e3
     box = []
@@ -455,12 +457,14 @@ def test_the_pump_stalls_at_the_force_limit_it_was_given(clock):
             pump.set_force_limit(20)
             assert pump.force_limit_pct() == 20
             assert emu.stall_pressure_kpa == pytest.approx(limit_kpa, rel=1e-6)
-            start_run(pump, clock, rate_ml_min=6.0)
+            assert pump.force_limit_kpa(75 * 4.4482216) == pytest.approx(limit_kpa, rel=1e-6)
+            start_run(pump, clock, rate_ml_min=6.0, target_ml=10.0)
             with pytest.raises(PumpStalled):
-                pump.wait_until_stopped(poll_s=0.1, timeout_s=120.0)
+                pump.wait_until_stopped(poll_s=0.1, timeout_s=600.0)
             stalled_ml = emu.net_volume_ml(clock.now())
-    # The stall lands within one load check (2 ms real x speed 100 x 0.1 mL/s) past it.
-    assert limit_kpa / kpa_per_ml <= stalled_ml <= limit_kpa / kpa_per_ml + 0.05
+    # Stalled only once the load passed the limit (the load is checked every few ms of
+    # host time, so how far past it depends on the host, not on the pump).
+    assert limit_kpa / kpa_per_ml <= stalled_ml < 10.0
 
 
 def test_replies_slower_than_the_old_half_second_pass_by_default(clock, emulator):

@@ -220,6 +220,28 @@ def test_xon_after_a_prompt_is_dropped(raw, expect_payload, lines):
     assert reply is not None and reply.lines == lines
 
 
+@given(
+    lines=st.lists(
+        st.text(alphabet=st.characters(min_codepoint=0x20, max_codepoint=0x7E), max_size=20)
+        .map(str.strip)
+        # a payload line never starts like a prompt (the parser drops prompt prefixes)
+        .filter(lambda line: line and line[0] not in "0123456789:<>*" and "T" not in line[:3]),
+        max_size=3,
+    ),
+    prompt=st.sampled_from([":", ">", "<", "*", "T*", "T:", ":T*", "07:", "12:T*"]),
+    xon_at=st.lists(st.integers(min_value=0, max_value=200), max_size=4),
+)
+def test_xon_anywhere_in_a_reply_changes_nothing(lines, prompt, xon_at):
+    # poll on puts XON after the prompt; a byte left from the last reply can come first.
+    raw = b"".join(b"\n" + line.encode() + b"\r" for line in lines) + b"\n" + prompt.encode()
+    plain = parse_reply(raw, expect_payload=False)
+    with_xon = bytearray(raw)
+    for position in sorted(xon_at, reverse=True):
+        with_xon.insert(min(position, len(with_xon)), 0x11)
+    assert parse_reply(bytes(with_xon), expect_payload=False) == plain
+    assert plain is not None and plain.lines == tuple(lines)
+
+
 def test_the_force_reply_and_its_pressure():
     assert parse_force_pct("100%") == 100
     assert parse_force_pct(" 17 %") == 17
