@@ -176,7 +176,7 @@ class PumpFirmware:
             "": lambda arg, now: [],
             "ver": self._ver,
             "version": self._version,
-            "poll": self._poll,
+            "poll": lambda arg, now: self._choice(arg, "poll_mode", POLL_MODES),
             "force": self._force,
             "diameter": self._diameter,
             "svolume": self._svolume,
@@ -199,10 +199,9 @@ class PumpFirmware:
             "stp": self._stop,
             "status": self._status,
         }
-        if memory_command == "nvram":
-            self._commands["nvram"] = self._nvram_command
-        elif memory_command == "rsave":
-            self._commands["rsave"] = self._rsave
+        if memory_command is not None:
+            words = ("on", "off", "none") if memory_command == "nvram" else ("on", "off")
+            self._commands[memory_command] = lambda arg, now: self._choice(arg, "_nvram", words)
         # The manual: any command can be shortened to its first 4 letters.
         self._aliases = {name[:4]: name for name in self._commands if len(name) > 4}
 
@@ -351,28 +350,13 @@ class PumpFirmware:
             f"Serial number: {SERIAL_NUMBER}",
         ]
 
-    def _poll(self, arg: str, now: float) -> list[str]:
+    def _choice(self, arg: str, attribute: str, allowed: tuple[str, ...]) -> list[str]:
+        """A command that shows or sets one of a few words (``poll``, ``nvram``, ``rsave``)."""
         if not arg:
-            return [self.poll_mode]
-        if arg.lower() not in POLL_MODES:
+            return [getattr(self, attribute)]
+        if arg.lower() not in allowed:
             raise _argument_error(arg)
-        self.poll_mode = arg.lower()
-        return []
-
-    def _rsave(self, arg: str, now: float) -> list[str]:
-        if not arg:
-            return [self._nvram]
-        if arg.lower() not in ("on", "off"):
-            raise _argument_error(arg)
-        self._nvram = arg.lower()
-        return []
-
-    def _nvram_command(self, arg: str, now: float) -> list[str]:
-        if not arg:
-            return [self._nvram]
-        if arg.lower() not in ("on", "off", "none"):
-            raise _argument_error(arg)
-        self._nvram = arg.lower()
+        setattr(self, attribute, arg.lower())
         return []
 
     def _force(self, arg: str, now: float) -> list[str]:

@@ -31,7 +31,7 @@ POLL_S = 1.0  # how often --wait asks the pump (hardware.md 1.6: about once per 
     default="auto",
     show_default=True,
     help="How the address goes before each command: 00irate, 0:irate, or not at all; "
-    "auto tries none (address 0) or 0N:irate, then 00irate, and keeps the one answered.",
+    "auto: none at address 0 or N:irate elsewhere, then 0Nirate; the answered one is kept.",
 )
 @click.option(
     "--reply-timeout",
