@@ -308,13 +308,15 @@ class NiDaqPressure:
         late_s = after_s + self._start_slack_s
         k_obs = acquired - 1
         line_s = (0.5 * (early_s + late_s) - self._t_start_s) / k_obs
-        if abs(line_s / nominal_s - 1.0) > MAX_CLOCK_DISAGREEMENT:
+        known_s = 0.5 * (late_s - early_s) / k_obs
+        if known_s > MAX_CLOCK_DISAGREEMENT * nominal_s:
+            return  # the host stalled around the read or the start: nothing to learn
+        if abs(line_s - nominal_s) - known_s > MAX_CLOCK_DISAGREEMENT * nominal_s:
             log.warning(
                 "the DAQ's sample clock seems %.0f ppm off the host clock: not believed",
                 1e6 * (line_s / nominal_s - 1.0),
             )
             return
-        known_s = 0.5 * (late_s - early_s) / k_obs
         period_s = nominal_s if abs(line_s - nominal_s) <= known_s else line_s
         t_obs = self._stamp(np.array([k_obs]))[0]
         error_s = 0.0

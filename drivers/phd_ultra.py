@@ -263,16 +263,14 @@ class PhdUltra:
             self._probe("poll off", expect_payload=False)
         except PumpTimeout:
             log.info("no reply to 'poll off' (a pump in poll remote sends no prompt)")
+        except PumpProtocolError as exc:
+            log.info("an unexpected reply to 'poll off' (%s): going on", exc)
         except PumpCommandError as exc:
             log.info("the pump refused 'poll off' (%s): assuming it has no poll mode", exc)
 
     def _probe(self, command: str, *, expect_payload: bool) -> Reply:
         """One exchange whose failure is an answer, not a fault: no stop is sent."""
-        self._no_stop_pending.wait()
-        with self._io_lock:
-            return self._exchange_locked(
-                command, expect_payload=expect_payload, stop_on_fault=False
-            )
+        return self._exchange(command, expect_payload=expect_payload, stop_on_fault=False)
 
     def _probe_withdraw(self) -> bool:
         """An infuse-only pump refuses withdraw commands; the withdrawn counter is the
@@ -538,10 +536,12 @@ class PhdUltra:
     def _command(self, command: str) -> Reply:
         return self._exchange(command, expect_payload=False)
 
-    def _exchange(self, command: str, *, expect_payload: bool) -> Reply:
+    def _exchange(self, command: str, *, expect_payload: bool, stop_on_fault: bool = True) -> Reply:
         self._no_stop_pending.wait()
         with self._io_lock:
-            return self._exchange_locked(command, expect_payload=expect_payload, stop_on_fault=True)
+            return self._exchange_locked(
+                command, expect_payload=expect_payload, stop_on_fault=stop_on_fault
+            )
 
     def _exchange_locked(self, command: str, *, expect_payload: bool, stop_on_fault: bool) -> Reply:
         try:

@@ -423,3 +423,14 @@ def test_a_read_that_times_out_part_way_keeps_what_it_returned():
     np.testing.assert_allclose(np.diff(t), 1e-3, rtol=1e-6)
     assert t.size == truth.t_s.size
     np.testing.assert_allclose(t - truth.t_s, t[0] - truth.t_s[0], atol=1e-9)
+
+
+def test_a_disagreement_no_crystal_has_is_not_believed(caplog):
+    # 1 % is not a drifting crystal (~1e-4): the stamps keep the nominal period.
+    rig = Rig(TimeRecorder(), speed=200.0, sim={"clock_error_ppm": 10_000.0}, buffer_s=100.0)
+    rig.daq.start(100.0)
+    with caplog.at_level("WARNING", logger="labrig.drivers.ni_daq"):
+        _, t, _, _ = rig.collect(30.0, every_s=1.0)
+    rig.daq.stop()
+    assert "ppm off the host clock: not believed" in caplog.text
+    np.testing.assert_allclose(np.diff(t), 0.01, rtol=1e-9)
