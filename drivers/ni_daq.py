@@ -304,8 +304,11 @@ class NiDaqPressure:
         if acquired < 2:
             return
         nominal_s = 1.0 / self.sample_clock_hz
-        early_s = before_s - nominal_s - self._start_slack_s
-        late_s = after_s + self._start_slack_s
+        # The window's ends are possible times (a read exactly at a sample's instant):
+        # a hair of margin keeps rounding from taking them for a disagreement.
+        margin_s = 1e-9 * nominal_s
+        early_s = before_s - nominal_s - self._start_slack_s - margin_s
+        late_s = after_s + self._start_slack_s + margin_s
         k_obs = acquired - 1
         line_s = (0.5 * (early_s + late_s) - self._t_start_s) / k_obs
         known_s = 0.5 * (late_s - early_s) / k_obs

@@ -38,20 +38,20 @@ class Interlock:
 
 @dataclass(frozen=True)
 class PressureCeiling(Interlock):
-    """Trips when any sample exceeds the limit (an over-range reading counts)."""
+    """Trips when any sample exceeds the limit (an over-range reading counts); the
+    reason names the first sample above it, the moment the limit was passed."""
 
     max_pressure_kpa: float
 
     def check_pressure(self, block: PressureBlock) -> str | None:
-        if len(block) == 0:
+        above = np.flatnonzero(block.pressure_kpa > self.max_pressure_kpa)
+        if len(above) == 0:
             return None
-        worst = int(np.argmax(block.pressure_kpa))
-        if block.pressure_kpa[worst] > self.max_pressure_kpa:
-            return (
-                f"pressure {block.pressure_kpa[worst]:.1f} kPa above the limit "
-                f"{self.max_pressure_kpa:g} kPa at t = {block.t_s[worst]:.2f} s"
-            )
-        return None
+        first = int(above[0])
+        return (
+            f"pressure {block.pressure_kpa[first]:.1f} kPa above the limit "
+            f"{self.max_pressure_kpa:g} kPa at t = {block.t_s[first]:.2f} s"
+        )
 
 
 @dataclass(frozen=True)

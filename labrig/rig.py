@@ -19,7 +19,7 @@ from typing import Literal
 import yaml
 from pydantic import Field, model_validator
 
-from labrig.clock import RealClock, SimulatedClock, SpeedGovernor
+from labrig.clock import RealClock
 from labrig.errors import DeviceError, InputError
 from labrig.protocol import LoadedProtocol, Protocol, plan
 from labrig.runner import Rig
@@ -30,8 +30,9 @@ DEFAULT_SYRINGE_DIAMETER_MM = 27.6
 DEFAULT_SYRINGE_VOLUME_ML = 50.0
 # The PHD ULTRA's rated linear force at 100 % force: 75 lbf (catalogue, unverified).
 PHD_ULTRA_RATED_FORCE_N = 75 * 4.4482216
-# The simulated clock's first speed when none is fixed; the governor takes it from there.
-AUTO_START_SPEED = 50.0
+# The simulated pump's reply deadline in host seconds. The emulator answers at once in
+# virtual time; this only bounds how long a starved host thread may take to do it.
+SIM_REPLY_TIMEOUT_S = 10.0
 
 
 class SyringeConfig(Strict):
@@ -92,10 +93,10 @@ class SimConfig(Strict):
     speed: float | None = Field(
         None,
         gt=0,
-        description="Fixed clock speed factor; default: as fast as the host keeps every "
-        "sample (starting at 50x)",
+        description="Wall-clock pacing of the virtual timeline (1: real time); default: as "
+        "fast as the host computes it. The recorded data are the same either way.",
     )
-    seed: int = 0
+    seed: int = Field(0, ge=0, description="Seeds every random part of the simulation")
     resistance_kpa_s_per_ml: float = Field(
         0.1, gt=0, description="Flow resistance between segments (sets the snap time)"
     )
@@ -115,27 +116,31 @@ class RigConfig(Strict):
     sim: SimConfig | None = None
 
 
-def sim_rig_config(speed: float | None = None) -> RigConfig:
-    sim = SimConfig() if speed is None else SimConfig(speed=speed)
-    return RigConfig(pump=PumpConfig(port="emulator"), sim=sim)
+def sim_rig_config(speed: float | None = None, seed: int = 0) -> RigConfig:
+    return RigConfig(pump=PumpConfig(port="emulator"), sim=SimConfig(speed=speed, seed=seed))
 
 
 def load_rig_config(
-    loaded: LoadedProtocol, *, force_sim: bool = False, speed: float | None = None
+    loaded: LoadedProtocol,
+    *,
+    force_sim: bool = False,
+    speed: float | None = None,
+    seed: int | None = None,
 ) -> RigConfig:
     """The rig a protocol runs on: ``sim``, or a rig YAML relative to the protocol."""
     spec = loaded.protocol.rig
     if force_sim or spec == "sim":
-        if speed is not None:
-            return sim_rig_config(speed)
+        config = sim_rig_config(speed, seed or 0)
         if spec not in ("sim", "") and force_sim:
             # a real rig file run with --sim keeps nothing of the hardware but the syringe
-            return sim_rig_config().model_copy(
-                update={"pump": PumpConfig(port="emulator", syringe=_rig_file(loaded).pump.syringe)}
+            syringe = _rig_file(loaded).pump.syringe
+            config = config.model_copy(
+                update={"pump": PumpConfig(port="emulator", syringe=syringe)}
             )
-        return sim_rig_config()
-    if speed is not None:
-        raise InputError("--speed applies to the simulated rig only (use --sim)")
+        return config
+    for flag, value in (("--speed", speed), ("--seed", seed)):
+        if value is not None:
+            raise InputError(f"{flag} applies to the simulated rig only (use --sim)")
     return _rig_file(loaded)
 
 
@@ -231,11 +236,11 @@ def _build_sim_rig(protocol: Protocol, config: RigConfig) -> Rig:
     from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
     from labrig.sim.plant import Plant
     from labrig.sim.pump import PumpEmulator
+    from labrig.virtual_clock import VirtualClock
 
     sim = config.sim
     segments = [load_segment(spec) for spec in protocol.specimen.segments]
-    clock = SimulatedClock(speed=sim.speed or AUTO_START_SPEED)
-    governor = None if sim.speed is not None else SpeedGovernor(clock)
+    clock = VirtualClock(speed=sim.speed)
     syringe = config.pump.syringe
     plant_box: list[Plant] = []
     emulator = PumpEmulator(
@@ -258,9 +263,14 @@ def _build_sim_rig(protocol: Protocol, config: RigConfig) -> Rig:
     with ExitStack() as stack:
         emulator.start()
         stack.callback(emulator.close)
-        pump = PhdUltra.open(emulator.port, address=config.pump.address, clock=clock)
+        pump = PhdUltra.open(
+            emulator.port,
+            address=config.pump.address,
+            clock=clock,
+            timeout_s=SIM_REPLY_TIMEOUT_S,
+        )
         stack.callback(pump.close)
-        pump.configure_syringe(syringe.diameter_mm, syringe.volume_ml)
+        set_up_pump(pump, config.pump, protocol)
         p = config.pressure
         daq_tasks: list[SimDaqTask] = []
 
@@ -278,13 +288,7 @@ def _build_sim_rig(protocol: Protocol, config: RigConfig) -> Rig:
             daq_tasks.append(task)
             return task
 
-        factories = {
-            "task_factory": new_task,
-            "reader_factory": SimAnalogMultiChannelReader,
-            # the buffer must hold the same host time as on the bench (a loop delayed
-            # by the host is delayed speed times longer in rig time)
-            "buffer_s": max(10.0, 2.0 * (sim.speed or governor.max_speed)),
-        }
+        factories = {"task_factory": new_task, "reader_factory": SimAnalogMultiChannelReader}
         pressure = _pressure_driver(NiDaqPressure, clock, config, protocol, factories)
         length = camera = None
         if protocol.acquisition.camera_fps > 0:
@@ -302,9 +306,7 @@ def _build_sim_rig(protocol: Protocol, config: RigConfig) -> Rig:
             length = CameraLength(frames, mm_per_px=mm_per_px)
         closer = stack.pop_all()
     simulation = SimulatedParts(plant, emulator, camera, daq_tasks)
-    return Rig(
-        clock, pump, pressure, length, rig_config_text(config), closer.close, simulation, governor
-    )
+    return Rig(clock, pump, pressure, length, rig_config_text(config), closer.close, simulation)
 
 
 @dataclass(frozen=True)

@@ -1,9 +1,12 @@
 """The protocol runner: pump control and acquisition at once, interlocks always on.
 
-The runner only knows the device contracts (``labrig.devices``): the same code drives
-the bench rig and the simulated one. Three acquisition loops run in their own threads
-on the rig's clock — the DAQ stream, the pump poll, the camera — and each sample is
-appended to the run file as it arrives, timestamped by the device on the shared clock.
+The runner only knows the device contracts (``labrig.devices``) and the clock's
+(``labrig.clock``): the same code drives the bench rig and the simulated one. Three
+acquisition loops run in their own threads on the rig's clock — the DAQ stream, the
+pump poll, the camera — and each sample is appended to the run file as it arrives,
+timestamped by the device on the shared clock. Every wait goes through the clock
+(sleeps, conditions, the loops' start and end), so on the simulated rig's virtual
+clock no decision depends on how fast the host is: time moves only while all wait.
 The interlock monitor is evaluated inside those loops, so a busy main loop cannot delay
 a stop. The main thread walks the protocol's steps.
 
@@ -19,16 +22,16 @@ volume it reports.
 
 from __future__ import annotations
 
+import math
 import signal
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from labrig.clock import Clock, SpeedGovernor
+from labrig.clock import Clock, ClockThread
 from labrig.devices import LengthSource, PressureBlock, PressureSource, Pump, PumpState
-from labrig.errors import DeviceError, LabrigError
+from labrig.errors import LabrigError
 from labrig.interlocks import InterlockMonitor, PressureCeiling, PumpStall, VolumeCeiling
 from labrig.protocol import (
     HoldStep,
@@ -57,8 +60,6 @@ class Rig:
     # The simulated specimen and emulators behind the drivers, when simulated: the
     # truth that tests and benchmarks compare the recorded data with.
     simulation: object | None = None
-    # Sets a simulated clock's speed from how well the loops keep time (None: fixed).
-    governor: SpeedGovernor | None = None
 
 
 @dataclass(frozen=True)
@@ -84,15 +85,15 @@ class RunResult:
 
 @dataclass
 class Timing:
-    """Loop periods in clock seconds, with a floor in host seconds so a fast simulated
-    clock cannot turn a loop into a busy spin."""
+    """Loop periods and deadlines, in clock seconds."""
 
     pressure_period_s: float = 0.2
     pump_period_s: float = 0.2
     progress_period_s: float = 0.5
-    real_floor_s: float = 0.002
     max_marker_loss_s: float = 10.0
     target_grace_s: float = 5.0
+    first_readings_s: float = 10.0
+    loop_exit_s: float = 5.0
 
 
 @dataclass
@@ -104,7 +105,7 @@ class _Latest:
     pump_t_s: float = float("-inf")
     pump_seq: int = -1
     pressure_blocks: int = 0
-    lock: threading.Condition = field(default_factory=threading.Condition)
+    lock: threading.Lock = field(default_factory=threading.Lock)
 
 
 class Runner:
@@ -139,7 +140,7 @@ class Runner:
         self._repetition = 1
         self._volume_lock = threading.Lock()
         self._stop_loops = threading.Event()
-        self._threads: list[threading.Thread] = []
+        self._threads: list[ClockThread] = []
         self._acquiring = False
         self._t_start = 0.0
         self._step_label = "starting"
@@ -167,25 +168,27 @@ class Runner:
         )
         restore_sigint = self._install_sigint()
         status, reason = "faulted", "the run did not finish"
-        try:
-            self._t_start = self.clock.now()
-            self._execute()
-            trip = self.monitor.tripped
-            status, reason = (trip.kind, trip.reason) if trip else ("complete", "")
-        except _StopNow:
-            status, reason = "aborted", "stopped now by the operator (second Ctrl-C)"
-        except _Refused as exc:
-            status, reason = "aborted", str(exc)
-        except LabrigError as exc:
-            self.monitor.trip(str(exc), "faulted")
-            status, reason = "faulted", str(exc)
-        except BaseException as exc:
-            self.monitor.trip(f"internal error: {exc!r}", "faulted")
-            status, reason = "faulted", f"internal error: {exc!r}"
-            raise
-        finally:
-            self._shutdown(status, reason)
-            restore_sigint()
+        # the main thread takes part in the clock's time for the whole run
+        with self.clock.participate():
+            try:
+                self._t_start = self.clock.now()
+                self._execute()
+                trip = self.monitor.tripped
+                status, reason = (trip.kind, trip.reason) if trip else ("complete", "")
+            except _StopNow:
+                status, reason = "aborted", "stopped now by the operator (second Ctrl-C)"
+            except _Refused as exc:
+                status, reason = "aborted", str(exc)
+            except LabrigError as exc:
+                self.monitor.trip(str(exc), "faulted")
+                status, reason = "faulted", str(exc)
+            except BaseException as exc:
+                self.monitor.trip(f"internal error: {exc!r}", "faulted")
+                status, reason = "faulted", f"internal error: {exc!r}"
+                raise
+            finally:
+                self._shutdown(status, reason)
+                restore_sigint()
         return RunResult(self.out_path, status, reason)
 
     # --- steps ---------------------------------------------------------------------
@@ -262,14 +265,18 @@ class Runner:
     def _wait_until_pump_stops(self, seq: int, deadline_s: float) -> bool:
         """True once a status newer than the run command shows the motor stopped."""
         latest = self.latest
+
+        def stopped() -> bool:
+            return latest.pump_seq >= seq and latest.pump_state not in MOVING
+
         while not self.monitor.tripped:
-            with latest.lock:
-                if latest.pump_seq >= seq and latest.pump_state not in MOVING:
-                    return True
+            if stopped():
+                return True
             if self.clock.now() > deadline_s:
                 self.monitor.trip("the pump did not reach its target volume in time", "faulted")
                 return False
-            self._pause(self.timing.pump_period_s)
+            wait_s = min(self.timing.progress_period_s, deadline_s - self.clock.now())
+            self.clock.wait_for(lambda: stopped() or self.monitor.tripped is not None, wait_s)
             self._report_progress()
         return False
 
@@ -287,7 +294,7 @@ class Runner:
     def _hold(self, seconds: float) -> None:
         end_s = self.clock.now() + seconds
         while not self.monitor.tripped and self.clock.now() < end_s:
-            self._pause(min(self.timing.pump_period_s, max(0.0, end_s - self.clock.now())))
+            self.clock.sleep(min(self.timing.pump_period_s, max(0.0, end_s - self.clock.now())))
             self._report_progress()
 
     # --- repetitions ---------------------------------------------------------------
@@ -317,30 +324,33 @@ class Runner:
         loops = [self._pressure_loop, self._pump_loop]
         if self.rig.length is not None and self.protocol.acquisition.camera_fps > 0:
             loops.append(self._camera_loop)
-        self._threads = [
-            threading.Thread(target=loop, name=loop.__name__.strip("_"), daemon=True)
-            for loop in loops
-        ]
-        for thread in self._threads:
-            thread.start()
+        self._threads = [self.clock.start_thread(loop, loop.__name__.strip("_")) for loop in loops]
         self._wait_for_first_readings()
 
     def _wait_for_first_readings(self) -> None:
         """Interlocks see a pressure block and a pump status before anything moves."""
-        deadline = time.monotonic() + 10.0
         latest = self.latest
-        with latest.lock:
-            while latest.pressure_blocks == 0 or latest.pump_t_s == float("-inf"):
-                if self.monitor.tripped or time.monotonic() > deadline:
-                    break
-                latest.lock.wait(0.05)
+        self.clock.wait_for(
+            lambda: (
+                self.monitor.tripped is not None
+                or (latest.pressure_blocks > 0 and latest.pump_t_s > float("-inf"))
+            ),
+            timeout_s=self.timing.first_readings_s,
+        )
         if not self.monitor.tripped and latest.pressure_blocks == 0:
-            self.monitor.trip("no pressure readings within 10 s of starting", "faulted")
+            self.monitor.trip(
+                f"no pressure readings within {self.timing.first_readings_s:g} s of starting",
+                "faulted",
+            )
 
     def _stop_acquisition(self) -> None:
         self._stop_loops.set()
-        for thread in self._threads:
-            thread.join(timeout=0.1 if self._hurry else 5.0)
+        threads = self._threads
+        # a second Ctrl-C waits for nothing: the loops stop at their next wake-up
+        self.clock.wait_for(
+            lambda: all(thread.done for thread in threads),
+            timeout_s=0.0 if self._hurry else self.timing.loop_exit_s,
+        )
         self._threads = []
         if self._acquiring:
             self._acquiring = False
@@ -357,47 +367,51 @@ class Runner:
         self._device_loop("pressure", self.timing.pressure_period_s, self._read_pressure)
 
     def _pump_loop(self) -> None:
-        self._device_loop("pump", self.timing.pump_period_s, self._read_pump)
+        # polled at once when a motion starts, then every period from there: identical
+        # steps are seen to end after identical times
+        self._device_loop(
+            "pump", self.timing.pump_period_s, self._read_pump, rephase=lambda: self._motion_seq
+        )
 
     def _camera_loop(self) -> None:
         period_s = 1.0 / self.protocol.acquisition.camera_fps
         # wake a quarter period early: a camera delivers its next frame when it is
         # exposed, and a reader that arrives just after that moment gets the one after
-        self._device_loop(
-            "camera", period_s, self._read_length, early_s=0.25 * period_s, late_loses_data=True
-        )
+        self._device_loop("camera", period_s, self._read_length, early_s=0.25 * period_s)
 
     def _device_loop(
         self,
         device: str,
         period_s: float,
-        read_once: Callable[[], float | None],
+        read_once: Callable[[], None],
         early_s: float = 0.0,
-        late_loses_data: bool = False,
+        rephase: Callable[[], int] | None = None,
     ) -> None:
         """Read one device every ``period_s`` (paced by deadlines, so a slow read does
-        not stretch the period); a device error is a fault of the run. ``read_once``
-        returns the clock time its reading describes (None: nothing read), which the
-        speed governor of a simulated rig compares with the period. A camera read a
-        whole period late has lost a frame (``late_loses_data``); the DAQ buffers its
-        samples and a late pump poll reads the same counter a little later."""
-        next_s = self.clock.now()
-        last_read_s = None
-        governor = self.rig.governor
+        not stretch the period); a device error is a fault of the run. When
+        ``rephase()`` changes, read at once and count the periods from then."""
+        start_s, k = self.clock.now(), 0
+        token = rephase() if rephase is not None else None
         while not self._stop_loops.is_set():
             try:
-                read_s = read_once()
-            except (DeviceError, OSError) as exc:
+                read_once()
+            except (LabrigError, OSError) as exc:
                 self.monitor.trip(f"{device}: {exc}", "faulted")
                 return
-            if governor is not None and read_s is not None:
-                if last_read_s is not None:
-                    governor.report(read_s - last_read_s, period_s, late_loses_data)
-                last_read_s = read_s
-            next_s = max(next_s + period_s, self.clock.now() - period_s)
-            self._pause(next_s - early_s - self.clock.now())
+            except Exception as exc:
+                # a loop that died quietly would leave its interlock blind: fault the run
+                self.monitor.trip(f"{device}: internal error: {exc!r}", "faulted")
+                raise
+            # deadlines on a fixed grid (start + k periods, no accumulated rounding); a
+            # read that overran whole periods skips them rather than bunching up
+            k = max(k + 1, math.floor((self.clock.now() - start_s) / period_s))
+            wait_s = start_s + k * period_s - early_s - self.clock.now()
+            if rephase is None:
+                self.clock.sleep(wait_s)
+            elif self.clock.wait_for(lambda seen=token: rephase() != seen, wait_s):
+                token, start_s, k = rephase(), self.clock.now(), 0
 
-    def _read_pressure(self) -> float | None:
+    def _read_pressure(self) -> None:
         block = self.rig.pressure.read()
         if len(block):
             self.writer.append_pressure(
@@ -409,10 +423,8 @@ class Runner:
             if len(block):
                 latest.pressure_kpa = float(block.pressure_kpa[-1])
             latest.pressure_blocks += 1
-            latest.lock.notify_all()
-        return float(block.t_s[-1]) if len(block) else None
 
-    def _read_pump(self) -> float:
+    def _read_pump(self) -> None:
         with self.latest.lock:
             seq = self._motion_seq
         with self._volume_lock:
@@ -433,13 +445,11 @@ class Runner:
             latest.pump_state = status.state
             latest.pump_t_s = status.t_s
             latest.pump_seq = seq
-            latest.lock.notify_all()
-        return status.t_s
 
-    def _read_length(self) -> float | None:
+    def _read_length(self) -> None:
         sample = self.rig.length.read()
         if sample is None:
-            return None
+            return
         self.writer.append_length(
             self._current_repetition(),
             sample.t_s,
@@ -464,16 +474,8 @@ class Runner:
                     "and the markers)",
                     "faulted",
                 )
-        return sample.t_s
 
     # --- time, progress, signals -----------------------------------------------------
-    def _pause(self, clock_s: float) -> None:
-        real0 = time.monotonic()
-        self.clock.sleep(clock_s)
-        left = self.timing.real_floor_s - (time.monotonic() - real0)
-        if left > 0:
-            time.sleep(left)
-
     def _report_progress(self) -> None:
         if self.on_progress is None:
             return

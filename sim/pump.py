@@ -15,6 +15,14 @@ and no event prompt is sent; in ``poll remote`` no prompt at all. A reply is fra
 the mode in force when its command arrived.
 Faults are injected on demand: garbage, dropped or slow replies, a disconnect, a stall.
 One thread serves the port with ``select`` and a timeout, so it never blocks for long.
+
+The plunger's own events are timers on the shared clock (``Clock.call_at``), not host
+ticks: the target stop at the exact time it is due, and a check of the load every
+``LOAD_CHECK_S`` of clock time while the plunger moves (a stall). On the simulated
+rig's virtual clock they therefore happen at the same rig time on any host. The serving
+thread only answers: a command is executed at the clock time the driver sent it (the
+driver holds virtual time still while it waits for the reply), and its motion timer is
+set before the reply goes out, so nothing can move time past it unseen.
 """
 
 from __future__ import annotations
@@ -36,8 +44,8 @@ from .pump_firmware import DEFAULT_DIAMETER_MM, DEFAULT_SYRINGE_ML, MAX_FORCE_N,
 
 log = logging.getLogger(__name__)
 
-TICK_S = 0.002  # real seconds between motion checks while the plunger moves
-IDLE_WAIT_S = 0.1  # and while it does not (commands and faults wake the loop at once)
+LOAD_CHECK_S = 0.1  # clock seconds between load (stall) checks while the plunger moves
+IDLE_WAIT_S = 0.1  # real seconds the server waits at most (commands wake it at once)
 _GARBAGE = bytes(range(0x80, 0x100)) + b"#%&~^|"
 _PROMPTS = {
     PumpState.IDLE: ":",
@@ -114,6 +122,8 @@ class PumpEmulator:
         self._serving = False
         self._inbuf = bytearray()
         self._after_cr = False
+        self._motion_timer = None
+        self._timer_lock = threading.Lock()  # the motion timer's own: taken with no other
 
     # ---- lifecycle ---------------------------------------------------------------
 
@@ -182,6 +192,7 @@ class PumpEmulator:
     def stall(self) -> None:
         """Stall now if the plunger moves, else at the next run."""
         self.firmware.stall()
+        self._schedule_motion()
 
     # ---- faults ------------------------------------------------------------------
 
@@ -216,7 +227,7 @@ class PumpEmulator:
     def _serve(self) -> None:
         try:
             while True:
-                wait = TICK_S if self.firmware.running else IDLE_WAIT_S
+                wait = IDLE_WAIT_S
                 with self._lock:
                     if not self._serving:
                         break
@@ -227,7 +238,6 @@ class PumpEmulator:
                     os.read(self._wake_r, 4096)
                 if self._master in readable:
                     self._receive(self._read_master())
-                self.firmware.tick(self.clock.now())
                 with self._lock:
                     self._send_due()
         finally:
@@ -262,6 +272,7 @@ class PumpEmulator:
         answer = self.firmware.execute(line)
         if answer is None:
             return  # for another pump on the chain
+        self._schedule_motion()  # before the reply: the driver moves time on after it
         data = self._frame(answer, poll_mode)
         if not data:
             return  # poll remote: a command without payload gets nothing back
@@ -283,6 +294,23 @@ class PumpEmulator:
         prompt_first = answer.command == "status" and self.status_prompt_first
         data = f"\n{prompt}{body}\n" if prompt_first else f"{body}\n{prompt}"
         return (data + ("\x11" if poll_mode == "on" else "")).encode("ascii")
+
+    def _schedule_motion(self) -> None:
+        """Set the timer of the plunger's next event: its target stop, or the next load
+        check, whichever comes first (none while it stands still)."""
+        with self._timer_lock:
+            if self._motion_timer is not None:
+                self._motion_timer.cancel()
+                self._motion_timer = None
+            if not self.firmware.running:
+                return
+            now = self.clock.now()
+            due = min(self.firmware.target_stop_s, now + LOAD_CHECK_S)
+            self._motion_timer = self.clock.call_at(due, self._motion_event)
+
+    def _motion_event(self) -> None:
+        self.firmware.tick(self.clock.now())
+        self._schedule_motion()
 
     def _prompt(self, state: PumpState) -> str:
         prompt = self.target_prompt if state is PumpState.TARGET_REACHED else _PROMPTS[state]

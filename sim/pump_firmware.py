@@ -225,6 +225,12 @@ class PumpFirmware:
             return self._drive.running
 
     @property
+    def target_stop_s(self) -> float:
+        """When the current motion reaches its target volume (inf: it does not)."""
+        with self._lock:
+            return self._drive.end_s()
+
+    @property
     def stall_pressure_kpa(self) -> float:
         """The load pressure above which the plunger stalls: the force limit over the
         plunger area, unless fixed at construction."""

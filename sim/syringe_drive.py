@@ -44,7 +44,10 @@ class SyringeDrive:
         if not self.running or self.target_ml is None:
             return math.inf
         remaining_ml = self.target_ml - self._counted0_ml[self.direction]
-        return self.t0_s + max(remaining_ml, 0.0) / (self.rate_ml_min / 60.0)
+        end_s = self.t0_s + max(remaining_ml, 0.0) / (self.rate_ml_min / 60.0)
+        # on the virtual clock's nanosecond grid, so a stop and a poll due at the same
+        # instant coincide exactly instead of by the luck of floating-point rounding
+        return round(end_s * 1e9) / 1e9
 
     def _moving_s(self, t_s: float) -> float:
         if not self.running:

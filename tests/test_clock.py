@@ -1,129 +1,167 @@
-"""The shared clock: virtual time must advance at the set speed, never go backwards,
-and change speed without a jump."""
+"""The shared clocks. The virtual clock is checked for what the simulated rig relies on:
+time moves only when every participant waits, the order at one instant is fixed by
+the program alone, waits can be conditions, and a paced timeline records the same
+events as an unpaced one."""
 
 import threading
 import time
 
 import pytest
 
-from labrig.clock import Clock, RealClock, SimulatedClock
+from labrig.clock import Clock, RealClock, ScaledClock
+from labrig.virtual_clock import ClockStalled, VirtualClock
 
 
 def test_both_clocks_fit_the_contract():
     assert isinstance(RealClock(), Clock)
-    assert isinstance(SimulatedClock(), Clock)
+    assert isinstance(VirtualClock(), Clock)
 
 
-def test_simulated_sleep_takes_one_speedth_of_real_time():
-    clock = SimulatedClock(speed=100.0)
-    real0, virtual0 = time.monotonic(), clock.now()
+def test_a_lone_sleep_jumps_at_once():
+    clock = VirtualClock(start_s=1234.5)
+    clock.sleep(3600.0)  # an hour, with nobody else to wait for: no host wait at all
+    assert clock.now() == 1234.5 + 3600.0
+
+
+def test_time_stands_still_while_a_participant_works():
+    clock = VirtualClock()
+    seen = []
+
+    def worker():
+        t0 = clock.now()
+        time.sleep(0.05)  # host work: virtual time must not move meanwhile
+        seen.append(clock.now() - t0)
+        clock.sleep(1.0)
+        seen.append(clock.now())
+
+    with clock.participate():
+        thread = clock.start_thread(worker, "worker")
+        clock.sleep(0.5)
+        seen.append(("main", clock.now()))
+        assert clock.wait_for(lambda: thread.done, timeout_s=10.0)
+    assert seen == [0.0, ("main", 0.5), 1.0]
+
+
+def test_order_at_one_instant_is_the_order_of_going_to_sleep():
+    clock = VirtualClock()
+    log = []
+
+    def loop(name, period_s):
+        def run():
+            for _ in range(5):
+                clock.sleep(period_s)
+                log.append((clock.now(), name))
+
+        return run
+
+    with clock.participate():
+        threads = [clock.start_thread(loop(n, p), n) for n, p in [("a", 0.2), ("b", 0.1)]]
+        clock.wait_for(lambda: all(t.done for t in threads), timeout_s=10.0)
+    # 'a' went to sleep first each time both are due at the same instant
+    expected = sorted(
+        [(round(0.2 * k, 9), "a") for k in range(1, 6)]
+        + [(round(0.1 * k, 9), "b") for k in range(1, 6)],
+        key=lambda e: (e[0], e[1]),
+    )
+    assert [(round(t, 9), n) for t, n in log] == expected
+    # and it is the same however the host schedules the threads
+    for _ in range(3):
+        again = []
+        clock2 = VirtualClock()
+
+        def loop2(name, period_s, clock2=clock2, again=again):
+            def run():
+                for _ in range(5):
+                    time.sleep(0.001 if name == "a" else 0.0)
+                    clock2.sleep(period_s)
+                    again.append((clock2.now(), name))
+
+            return run
+
+        with clock2.participate():
+            ts = [clock2.start_thread(loop2(n, p), n) for n, p in [("a", 0.2), ("b", 0.1)]]
+            clock2.wait_for(lambda ts=ts: all(t.done for t in ts), timeout_s=10.0)
+        assert again == log
+
+
+def test_wait_for_wakes_when_the_condition_holds_and_times_out_otherwise():
+    clock = VirtualClock()
+    state = {"x": 0}
+
+    def producer():
+        for _ in range(10):
+            clock.sleep(0.25)
+            state["x"] += 1
+
+    with clock.participate():
+        clock.start_thread(producer, "producer")
+        assert clock.wait_for(lambda: state["x"] >= 3, timeout_s=100.0)
+        assert clock.now() == 0.75
+        assert not clock.wait_for(lambda: state["x"] >= 100, timeout_s=5.0)
+        assert clock.now() == 5.75
+
+
+def test_timers_run_at_their_time_in_order_with_sleepers():
+    clock = VirtualClock()
+    log = []
+    clock.call_at(2.0, lambda: log.append(("timer", clock.now())))
+    cancelled = clock.call_at(1.5, lambda: log.append(("cancelled", clock.now())))
+    cancelled.cancel()
+    clock.call_at(1.0, lambda: log.append(("timer", clock.now())))
+    clock.sleep(1.0)  # a timer due at the same instant runs first
+    log.append(("sleeper", clock.now()))
     clock.sleep(5.0)
-    real_s, virtual_s = time.monotonic() - real0, clock.now() - virtual0
-    assert virtual_s >= 5.0
-    assert real_s < 1.0  # 5 virtual seconds at 100x are 50 ms, with generous slack
-    assert virtual_s == pytest.approx(real_s * 100.0, rel=0.05)
+    assert log == [("timer", 1.0), ("sleeper", 1.0), ("timer", 2.0)]
+    assert clock.now() == 6.0
 
 
-def test_simulated_clock_starts_at_its_origin():
-    clock = SimulatedClock(speed=1.0, start_s=1234.5)
-    assert 1234.5 <= clock.now() < 1235.5
+def test_speed_paces_the_same_timeline_to_the_wall():
+    clock = VirtualClock(speed=20.0)
+    real0 = time.monotonic()
+    clock.sleep(2.0)  # 0.1 s of wall time at x20
+    assert clock.now() == 2.0
+    assert time.monotonic() - real0 >= 0.09
 
 
-def test_set_speed_keeps_virtual_time_continuous():
-    clock = SimulatedClock(speed=1000.0)
-    clock.sleep(2.0)
-    before = clock.now()
-    clock.set_speed(1.0)
-    after = clock.now()
-    assert 0.0 <= after - before < 0.05
+def test_a_participant_that_never_comes_back_is_an_error_not_a_hang():
+    clock = VirtualClock(stall_timeout_s=0.2)
+    errors = []
 
+    def waiter():
+        try:
+            clock.sleep(1.0)
+        except ClockStalled as exc:
+            errors.append(str(exc))
 
-def test_simulated_time_is_monotonic_across_threads():
-    clock = SimulatedClock(speed=500.0)
-    failures = []
-
-    def reader():
-        last = clock.now()
-        for _ in range(2000):
-            t = clock.now()
-            if t < last:
-                failures.append((last, t))
-            last = t
-
-    threads = [threading.Thread(target=reader) for _ in range(4)]
-    for thread in threads:
+    with clock.participate():
+        thread = threading.Thread(target=waiter)
         thread.start()
-    for _ in range(20):
-        clock.set_speed(100.0 + 50 * (_ % 3))
-    for thread in threads:
-        thread.join()
-    assert failures == []
+        time.sleep(1.0)  # the main thread blocked outside the clock holds time still
+        thread.join(5.0)
+    assert errors and "held time still" in errors[0]
+    assert clock.now() == 0.0
 
 
-@pytest.mark.parametrize("speed", [0.0, -1.0, float("nan")])
-def test_a_clock_that_cannot_run_is_refused(speed):
-    with pytest.raises(ValueError, match="speed"):
-        SimulatedClock(speed=speed)
-
-
-def test_real_clock_sleeps_for_real():
+def test_real_clock_waits_for_real():
     clock = RealClock()
+    flag = []
+    thread = clock.start_thread(lambda: flag.append(1), "t")
+    assert clock.wait_for(lambda: thread.done, timeout_s=5.0)
+    assert flag == [1]
+    assert not clock.wait_for(lambda: False, timeout_s=0.02)
+
+
+@pytest.mark.parametrize("speed", [0.0, -1.0])
+def test_refused_speeds(speed):
+    with pytest.raises(ValueError):
+        VirtualClock(speed=speed)
+
+
+def test_scaled_clock_runs_speed_times_faster_than_the_host():
+    clock = ScaledClock(speed=100.0)
     t0 = clock.now()
-    clock.sleep(0.02)
-    assert clock.now() - t0 >= 0.02
-
-
-def test_governor_slows_down_when_a_loop_falls_behind_and_speeds_up_when_all_keep_time():
-    from labrig.clock import SpeedGovernor
-
-    clock = SimulatedClock(speed=50.0)
-    governor = SpeedGovernor(clock, min_speed=5.0, max_speed=100.0, interval_s=0.0)
-    governor.report(interval_s=1.0, period_s=0.5)  # a camera frame skipped
-    assert clock.speed == pytest.approx(35.0)
-    for _ in range(50):
-        governor.report(interval_s=2.0, period_s=0.5)
-    assert clock.speed == 5.0 and governor.slowest_speed == 5.0  # never below the floor
-    for _ in range(100):
-        governor.report(interval_s=0.21, period_s=0.2)  # on time
-    assert clock.speed == 100.0  # and never above the ceiling
-    governor.report(interval_s=0.26, period_s=0.2)  # a little late: hold the speed
-    assert clock.speed == 100.0
-
-
-def test_governor_judges_by_fractions_not_by_the_worst_report():
-    from labrig.clock import SpeedGovernor
-
-    clock = SimulatedClock(speed=20.0)
-    governor = SpeedGovernor(clock, interval_s=60.0)
-    # 200 reports of the 0.2 s loops: 3 % a little late, 1 % late, one twice late in a
-    # loop that buffers (a DAQ): nothing lost, so the clock speeds up
-    for k in range(200):
-        ratio = 1.2 if k % 33 == 0 else 1.6 if k % 100 == 1 else 1.0
-        governor.report(ratio * 0.2, 0.2, late_loses_data=False)
-    governor.report(0.4, 0.2, late_loses_data=False)
-    governor._last_decision -= 61.0
-    governor.report(0.2, 0.2, late_loses_data=False)
-    assert clock.speed == pytest.approx(22.0)
-    # the same window with one camera frame skipped slows it down
-    for _ in range(200):
-        governor.report(0.2, 0.2, late_loses_data=False)
-    governor.report(1.0, 0.5, late_loses_data=True)
-    governor._last_decision -= 61.0
-    governor.report(0.2, 0.2, late_loses_data=False)
-    assert clock.speed == pytest.approx(22.0 * 0.7)
-    # and 6 % late reports slow it down too
-    for k in range(100):
-        governor.report((1.6 if k < 6 else 1.0) * 0.2, 0.2, late_loses_data=False)
-    governor._last_decision -= 61.0
-    governor.report(0.2, 0.2, late_loses_data=False)
-    assert clock.speed == pytest.approx(22.0 * 0.7 * 0.7)
-
-
-def test_governor_decides_at_most_once_per_interval():
-    from labrig.clock import SpeedGovernor
-
-    clock = SimulatedClock(speed=50.0)
-    governor = SpeedGovernor(clock, interval_s=60.0)
-    for _ in range(10):
-        governor.report(interval_s=5.0, period_s=0.5)
-    assert clock.speed == 50.0
+    clock.sleep(2.0)
+    assert clock.now() - t0 >= 2.0
+    fired = []
+    clock.call_at(clock.now() + 1.0, lambda: fired.append(clock.now()))
+    assert clock.wait_for(lambda: bool(fired), timeout_s=100.0)

@@ -94,13 +94,13 @@ def test_pump_settings_default_safely_and_are_checked(tmp_path):
 
 
 def test_the_pump_is_set_up_from_the_rig_file_and_refuses_what_it_cannot_do(tmp_path):
-    from labrig.clock import SimulatedClock
     from labrig.drivers.phd_ultra import PhdUltra
     from labrig.errors import DeviceError
     from labrig.rig import PumpConfig, set_up_pump
     from labrig.sim.pump import PumpEmulator
+    from labrig.virtual_clock import VirtualClock
 
-    clock = SimulatedClock(speed=100.0)
+    clock = VirtualClock()
     infusing = write_protocol(tmp_path, "pump: {port: x}\n").protocol
     (tmp_path / "w.yaml").write_text(PROTOCOL + "  - withdraw: {rate_ml_min: 60, volume_ml: 5}\n")
     withdrawing = load_protocol(tmp_path / "w.yaml").protocol

@@ -256,12 +256,12 @@ def emulate(
     """Serve an emulated PHD ULTRA on a pseudo-terminal.
 
     Prints the device path to connect to, then serves until Ctrl-C."""
-    from labrig.clock import RealClock, SimulatedClock
+    from labrig.clock import RealClock, ScaledClock
     from labrig.sim.pump import PumpEmulator
     from labrig.sim.pump_firmware import manual_address_form
 
     address = ctx.obj["address"] if emulated_address is None else emulated_address
-    clock = RealClock() if speed == 1 else SimulatedClock(speed)
+    clock = RealClock() if speed == 1 else ScaledClock(speed)
     done = threading.Event()
     signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
     with PumpEmulator(

@@ -28,18 +28,25 @@ def default_out_path(protocol_name: str) -> Path:
     "--speed",
     type=click.FloatRange(min=0.0, min_open=True),
     default=None,
-    help="Simulated rig only: a fixed clock speed factor (default: as fast as the "
-    "machine keeps every sample).",
+    help="Simulated rig only: pace the run to X times real time (1: real time, for "
+    "training). Default: as fast as the machine computes it. The data are the same.",
+)
+@click.option(
+    "--seed",
+    type=click.IntRange(min=0),
+    default=None,
+    help="Simulated rig only: the seed of the simulation (stored in the run file); the "
+    "same protocol and seed give the same data on any machine [default: 0].",
 )
 @click.option("--dry-run", is_flag=True, help="Check and summarise the protocol; move nothing.")
-def run(protocol_file: Path, sim: bool, out_path: Path | None, speed, dry_run: bool) -> None:
+def run(protocol_file: Path, sim: bool, out_path: Path | None, speed, seed, dry_run: bool) -> None:
     """Run PROTOCOL_FILE on the rig and record it in one HDF5 file."""
     from labrig.dry_run import dry_run_report
     from labrig.protocol import load_protocol
     from labrig.rig import load_rig_config
 
     loaded = load_protocol(protocol_file)
-    rig_config = load_rig_config(loaded, force_sim=sim, speed=speed)
+    rig_config = load_rig_config(loaded, force_sim=sim, speed=speed, seed=seed)
     report = dry_run_report(loaded.protocol, rig_config)
     click.echo(report.text)
     if not report.ok:

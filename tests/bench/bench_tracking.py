@@ -18,10 +18,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from labrig.clock import SimulatedClock
 from labrig.drivers.camera import CameraLength, FrameSource
 from labrig.drivers.markers import MarkerTracker
 from labrig.sim.camera import SimCamera
+from labrig.virtual_clock import VirtualClock
 
 N_FRAMES = 200
 MM_PER_PX = 0.05
@@ -33,7 +33,7 @@ def length_mm_at(t_s: float) -> float:
 
 def scene(noise_grey: float, blur_px: float) -> SimCamera:
     return SimCamera(
-        SimulatedClock(),
+        VirtualClock(),
         length_mm_at,
         mm_per_px=MM_PER_PX,
         noise_grey=noise_grey,

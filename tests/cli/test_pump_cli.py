@@ -11,7 +11,7 @@ import pytest
 
 from labrig import cli as cli_module
 from labrig.cli import pump as pump_cli
-from labrig.clock import SimulatedClock
+from labrig.clock import ScaledClock
 from labrig.devices import PumpState
 from labrig.drivers.phd_ultra import PhdUltra
 from labrig.sim.pump import PumpEmulator
@@ -35,7 +35,7 @@ def table(out: str) -> dict[str, str]:
 
 @pytest.fixture
 def emulator():
-    with PumpEmulator(SimulatedClock(speed=100.0)) as emu:
+    with PumpEmulator(ScaledClock(100.0)) as emu:
         yield emu
 
 
@@ -125,7 +125,7 @@ def test_version(emulator, capsys):
 
 
 def test_a_stall_while_waiting_exits_as_a_device_error(capsys):
-    clock = SimulatedClock(speed=100.0)
+    clock = ScaledClock(100.0)
     with PumpEmulator(clock, load_pressure_kpa=lambda t_s: 1e4) as emulator:
         code, _, err = run_main(
             ["pump", "--port", emulator.port, "infuse", "--rate-ml-min", "1", "--wait"], capsys

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from labrig import cli as cli_module
-from labrig.clock import SimulatedClock
 from labrig.sim.camera import SimCamera
+from labrig.virtual_clock import VirtualClock
 
 MM_PER_PX = 0.08
 
@@ -17,9 +17,7 @@ MM_PER_PX = 0.08
 @pytest.fixture(scope="module")
 def video(tmp_path_factory):
     """20 frames; the second marker is painted out in frames 5-9."""
-    cam = SimCamera(
-        SimulatedClock(), lambda t: 32.0 + 4.0 * t, size=(640, 360), mm_per_px=MM_PER_PX
-    )
+    cam = SimCamera(VirtualClock(), lambda t: 32.0 + 4.0 * t, size=(640, 360), mm_per_px=MM_PER_PX)
     path = tmp_path_factory.mktemp("track") / "specimen.avi"
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 20.0, (640, 360))
     for k in range(20):

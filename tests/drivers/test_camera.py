@@ -6,11 +6,11 @@ import cv2
 import numpy as np
 import pytest
 
-from labrig.clock import SimulatedClock
 from labrig.devices import LengthSource
 from labrig.drivers.camera import CameraLength, FrameSource
 from labrig.errors import DeviceError, InputError
 from labrig.sim.camera import SimCamera
+from labrig.virtual_clock import VirtualClock
 
 MM_PER_PX = 0.08
 
@@ -18,9 +18,7 @@ MM_PER_PX = 0.08
 @pytest.fixture(scope="module")
 def video(tmp_path_factory):
     """A rendered MJPG/AVI: 640x360, the specimen stretching from 30 to 36 mm."""
-    cam = SimCamera(
-        SimulatedClock(), lambda t: 30.0 + 6.0 * t, size=(640, 360), mm_per_px=MM_PER_PX
-    )
+    cam = SimCamera(VirtualClock(), lambda t: 30.0 + 6.0 * t, size=(640, 360), mm_per_px=MM_PER_PX)
     path = tmp_path_factory.mktemp("video") / "run.avi"
     return path, cam.write_video(path, n_frames=25, fps=25.0)
 
@@ -34,7 +32,7 @@ def read_all(source):
 
 def test_length_from_a_video_file(video):
     path, truth = video
-    length = CameraLength(FrameSource.open(str(path), SimulatedClock()), mm_per_px=MM_PER_PX)
+    length = CameraLength(FrameSource.open(str(path), VirtualClock()), mm_per_px=MM_PER_PX)
     assert isinstance(length, LengthSource)
     samples = read_all(length)
     length.close()
@@ -56,7 +54,7 @@ def test_scale_from_the_first_frame_as_reference(video):
 
 
 def test_live_frames_are_stamped_on_the_shared_clock():
-    clock = SimulatedClock(speed=1)
+    clock = VirtualClock()
     cam = SimCamera(clock, lambda t: 35.0, size=(640, 360), mm_per_px=MM_PER_PX, fps=20.0)
     length = CameraLength(FrameSource(cam, clock=clock, name="simulated camera"), mm_per_px=0.08)
     for _ in range(5):
@@ -72,7 +70,7 @@ def test_live_frames_are_stamped_on_the_shared_clock():
 
 
 def test_lost_markers_in_a_video_give_nan_rows(tmp_path):
-    cam = SimCamera(SimulatedClock(), lambda t: 30.0, size=(640, 360), mm_per_px=MM_PER_PX)
+    cam = SimCamera(VirtualClock(), lambda t: 30.0, size=(640, 360), mm_per_px=MM_PER_PX)
     path = tmp_path / "lost.avi"
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, (640, 360))
     for k in range(6):
@@ -99,7 +97,7 @@ def test_missing_unreadable_and_empty_videos_are_input_errors(tmp_path):
 
 def test_a_camera_that_cannot_be_opened_is_a_device_error_naming_sim():
     with pytest.raises(DeviceError, match=r"camera 97 could not be opened.*--sim"):
-        FrameSource.open("97", SimulatedClock())
+        FrameSource.open("97", VirtualClock())
 
 
 def test_exactly_one_scale_is_required(video):
@@ -113,7 +111,7 @@ def test_exactly_one_scale_is_required(video):
 
 
 def test_exposure_timestamps_come_from_the_capture():
-    clock = SimulatedClock(speed=20.0)
+    clock = VirtualClock()
     camera = SimCamera(clock, lambda t: 40.0 + t, fps=5.0)
     frames = FrameSource(camera, clock=clock, name="sim", exposure_timestamps=True)
     stamps = [frames.read().t_s for _ in range(3)]

@@ -6,14 +6,14 @@ import cv2
 import numpy as np
 import pytest
 
-from labrig.clock import SimulatedClock
 from labrig.drivers.markers import MarkerFix, MarkerTracker, mm_per_px_from_reference
 from labrig.errors import InputError
 from labrig.sim.camera import SimCamera
+from labrig.virtual_clock import VirtualClock
 
 
 def camera(length_mm_at=lambda t: 40.0 + 3.0 * math.sin(t), **kwargs):
-    return SimCamera(SimulatedClock(), length_mm_at, **kwargs)
+    return SimCamera(VirtualClock(), length_mm_at, **kwargs)
 
 
 def centres(fix: MarkerFix) -> np.ndarray:

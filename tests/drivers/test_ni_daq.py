@@ -12,7 +12,6 @@ import pytest
 from nidaqmx.constants import TaskMode
 from nidaqmx.error_codes import DAQmxErrors
 
-from labrig.clock import SimulatedClock
 from labrig.devices import PressureSource
 from labrig.drivers import mpx5100
 from labrig.drivers.ni_daq import (
@@ -24,6 +23,7 @@ from labrig.drivers.ni_daq import (
 )
 from labrig.errors import DeviceError, InputError
 from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask, quantise
+from labrig.virtual_clock import VirtualClock
 
 # One ADC step of the USB-6009 in RSE (±10 V, 13 bits), in kPa at Vs = 5 V.
 QUANTUM_KPA = 20.0 / 2**13 / (0.009 * 5.0)
@@ -37,10 +37,8 @@ def ramp_after(t_on_s, kpa_per_s):
 class Rig:
     """The driver wired to simulated tasks; keeps each task it made for inspection."""
 
-    def __init__(self, truth, speed=50.0, sim=None, **driver):
-        # At 50x the 10 s DAQmx buffer lasts 0.2 s of real time: a busy machine's pauses
-        # must not overflow it.
-        self.clock = SimulatedClock(speed=speed)
+    def __init__(self, truth, sim=None, **driver):
+        self.clock = VirtualClock()
         self.truth = truth
         self.tasks = []
         sim = {"seed": 7, **(sim or {})}
@@ -95,9 +93,7 @@ def test_zero_then_continuous_blocks_match_the_truth():
 def test_long_run_loses_no_sample_and_timestamps_follow_the_ramp():
     rig = Rig(
         ramp_after(0.0, 0.1),
-        speed=1000.0,
         sim={"noise_kpa": 0.0, "offset_error_kpa": 0.0},
-        buffer_s=120.0,  # 0.12 s of real time: room for a busy test machine's hiccups
     )
     rig.daq.start(1000.0)
     _, t, p, _ = rig.collect(900.0, every_s=2.0)  # 15 simulated minutes
@@ -188,17 +184,17 @@ def test_zero_times_out_when_the_device_delivers_nothing():
 
 
 def test_overflow_when_read_too_late_becomes_a_clear_device_error():
-    rig = Rig(ramp_after(0, 0), speed=1000.0, buffer_s=2.0)
+    rig = Rig(ramp_after(0, 0), buffer_s=2.0)
     rig.daq.start(1000.0)  # DAQmx's smallest buffer at 1 kS/s is 10 000 samples = 10 s
     rig.clock.sleep(12.0)
     with pytest.raises(DaqOverflowError, match=r"-200279.*samples were lost.*buffer_s"):
         rig.daq.read()
     rig.daq.stop()
-    rig.clock.set_speed(20.0)  # from here on, a pause must not overflow it again
     rig.daq.start(1000.0)  # a restart recovers
     rig.clock.sleep(0.1)
     assert len(rig.daq.read()) > 0
     rig.tasks[-1].inject_overflow()
+    rig.clock.sleep(0.1)  # a read with samples waiting reaches the task
     with pytest.raises(DaqOverflowError):
         rig.daq.read()
 
@@ -225,7 +221,7 @@ def test_bad_configuration_is_a_clear_error_and_releases_the_task(driver, code):
 
 
 def test_bad_parameters_are_input_errors():
-    clock = SimulatedClock()
+    clock = VirtualClock()
     with pytest.raises(InputError, match="RSE or DIFF"):
         NiDaqPressure(clock, terminal="NRSE")
     with pytest.raises(InputError, match="min_v"):
@@ -238,7 +234,7 @@ def test_missing_ni_daqmx_is_one_line_naming_sim():
     def no_driver():
         raise nidaqmx.errors.DaqNotFoundError("Could not find an installation of NI-DAQmx.")
 
-    daq = NiDaqPressure(SimulatedClock(), task_factory=no_driver)
+    daq = NiDaqPressure(VirtualClock(), task_factory=no_driver)
     with pytest.raises(DaqNotInstalledError) as raised:
         daq.start()
     message = str(raised.value)
@@ -250,7 +246,7 @@ def test_missing_ni_daqmx_is_one_line_naming_sim():
 )
 def test_the_real_nidaqmx_task_without_the_driver_gives_that_line():
     with pytest.raises(DaqNotInstalledError, match="--sim"):
-        NiDaqPressure(SimulatedClock()).zero(0.1)
+        NiDaqPressure(VirtualClock()).zero(0.1)
 
 
 def test_importing_the_driver_does_not_import_nidaqmx():
@@ -264,7 +260,7 @@ def test_the_factories_are_what_differ(monkeypatch):
     made = []
 
     def fake_task(*args):
-        task = SimDaqTask(SimulatedClock(speed=100), ramp_after(0, 0), seed=0)
+        task = SimDaqTask(VirtualClock(), ramp_after(0, 0), seed=0)
         made.append(task)
         return task
 
@@ -275,7 +271,7 @@ def test_the_factories_are_what_differ(monkeypatch):
         "AnalogMultiChannelReader",
         lambda stream: seen.append(stream) or SimAnalogMultiChannelReader(stream),
     )
-    daq = NiDaqPressure(SimulatedClock(speed=100))
+    daq = NiDaqPressure(VirtualClock())
     daq.start()
     daq.stop()
     assert len(made) == 1 and seen == [made[0].in_stream]
@@ -318,7 +314,7 @@ def test_zero_under_the_recommended_wiring_judges_the_range_daqmx_uses():
     rig.daq.stop()
     assert not flags.any()
     # The same supply samples against the requested range: most would be flagged.
-    task = SimDaqTask(SimulatedClock(speed=100), ramp_after(0, 0), supply_v=5.0, seed=3)
+    task = SimDaqTask(VirtualClock(), ramp_after(0, 0), supply_v=5.0, seed=3)
     task.ai_channels.add_ai_voltage_chan(
         "Dev1/ai1",
         terminal_config=nidaqmx.constants.TerminalConfiguration.RSE,
@@ -364,7 +360,7 @@ def test_the_task_is_committed_before_the_start_time_is_taken():
             calls.append("start")
             super().start()
 
-    clock = SimulatedClock(speed=50)
+    clock = VirtualClock()
     daq = NiDaqPressure(
         clock,
         task_factory=lambda: Logged(clock, ramp_after(0, 0)),
@@ -377,7 +373,7 @@ def test_the_task_is_committed_before_the_start_time_is_taken():
 
 def test_samples_are_stamped_at_the_rate_daqmx_coerced():
     truth = TimeRecorder()
-    rig = Rig(truth, speed=50.0)
+    rig = Rig(truth)
     rig.daq.start(700.0)
     assert rig.daq.sample_clock_hz == 12e6 / 17_142  # 700.035 S/s, not 700
     _, t, _, _ = rig.collect(20.0, every_s=0.5)
@@ -393,7 +389,7 @@ def test_long_runs_are_re_anchored_on_the_host_clock():
     # A sample clock 1000 ppm fast: stamped at the nominal rate, 300 s of samples would
     # end 0.3 s late. Re-anchoring every 10 s keeps them within the observation error.
     truth = TimeRecorder()
-    rig = Rig(truth, speed=200.0, sim={"clock_error_ppm": 1000.0}, buffer_s=400.0)
+    rig = Rig(truth, sim={"clock_error_ppm": 1000.0}, buffer_s=400.0)
     rig.daq.start(100.0)
     _, t, _, _ = rig.collect(300.0, every_s=1.0)
     rig.daq.stop()
@@ -407,7 +403,7 @@ def test_long_runs_are_re_anchored_on_the_host_clock():
 
 def test_a_read_that_times_out_part_way_keeps_what_it_returned():
     truth = TimeRecorder()
-    rig = Rig(truth, speed=20.0, read_timeout_s=0.2)
+    rig = Rig(truth, read_timeout_s=0.2)
     rig.daq.start(1000.0)
     rig.clock.sleep(0.5)
     first = rig.daq.read()
@@ -427,7 +423,7 @@ def test_a_read_that_times_out_part_way_keeps_what_it_returned():
 
 def test_a_disagreement_no_crystal_has_is_not_believed(caplog):
     # 1 % is not a drifting crystal (~1e-4): the stamps keep the nominal period.
-    rig = Rig(TimeRecorder(), speed=200.0, sim={"clock_error_ppm": 10_000.0}, buffer_s=100.0)
+    rig = Rig(TimeRecorder(), sim={"clock_error_ppm": 10_000.0}, buffer_s=100.0)
     rig.daq.start(100.0)
     with caplog.at_level("WARNING", logger="labrig.drivers.ni_daq"):
         _, t, _, _ = rig.collect(30.0, every_s=1.0)

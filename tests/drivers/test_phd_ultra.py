@@ -16,7 +16,6 @@ import time
 import pytest
 import serial
 
-from labrig.clock import SimulatedClock
 from labrig.devices import Pump, PumpState
 from labrig.drivers.phd_ultra import PhdUltra
 from labrig.drivers.phd_ultra_errors import (
@@ -28,17 +27,17 @@ from labrig.drivers.phd_ultra_errors import (
     PumpStalled,
     PumpTimeout,
 )
-from labrig.sim.pump import PumpEmulator
+from labrig.sim.pump import LOAD_CHECK_S, PumpEmulator
 from labrig.sim.pump_firmware import manual_address_form
+from labrig.virtual_clock import VirtualClock
 
-SPEED = 100.0  # a 30 s run takes 0.3 s
 TIMEOUT_S = 0.2
 DISPLAY_ML = 1e-4  # '1.2345 ml': the pump's counters have 4 decimals
 
 
 @pytest.fixture
 def clock():
-    return SimulatedClock(speed=SPEED)
+    return VirtualClock()
 
 
 @pytest.fixture
@@ -462,9 +461,10 @@ def test_the_pump_stalls_at_the_force_limit_it_was_given(clock):
             with pytest.raises(PumpStalled):
                 pump.wait_until_stopped(poll_s=0.1, timeout_s=600.0)
             stalled_ml = emu.net_volume_ml(clock.now())
-    # Stalled only once the load passed the limit (the load is checked every few ms of
-    # host time, so how far past it depends on the host, not on the pump).
-    assert limit_kpa / kpa_per_ml <= stalled_ml < 10.0
+    # Stalled once the load passed the limit, at the first load check after it (every
+    # LOAD_CHECK_S of clock time, at 0.1 mL/s).
+    crossing_ml = limit_kpa / kpa_per_ml
+    assert crossing_ml <= stalled_ml <= crossing_ml + 0.1 * LOAD_CHECK_S + 1e-9
 
 
 def test_replies_slower_than_the_old_half_second_pass_by_default(clock, emulator):

@@ -2,8 +2,6 @@
 talking to the pty pump emulator, SimDaqTask and SimCamera, all fed by one plant."""
 
 import textwrap
-import threading
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -46,27 +44,29 @@ class Outcome:
         return emulator.net_volume_ml(self.end_s) == emulator.net_volume_ml(self.end_s + 30.0)
 
 
-def run_sim(tmp_path, text, *, inject=None, speed=100.0) -> Outcome:
-    """Run protocol ``text`` on a fresh simulated rig; ``inject(rig)`` runs in a thread."""
+def run_sim(tmp_path, text, *, inject=None, speed=None, seed=0, name="run.h5") -> Outcome:
+    """Run protocol ``text`` on a fresh simulated rig; ``inject(rig)`` runs in a thread
+    that takes part in the rig's time, so it acts at a definite rig time and holds time
+    still while it acts."""
     protocol_path = tmp_path / "protocol.yaml"
     protocol_path.write_text(text)
     loaded = load_protocol(protocol_path)
-    rig = build_rig(loaded.protocol, sim_rig_config(speed))
-    if inject is not None:
-        threading.Thread(target=inject, args=(rig,), daemon=True).start()
-    result = Runner(loaded, rig, tmp_path / "run.h5").run()
+    rig = build_rig(loaded.protocol, sim_rig_config(speed, seed))
+    # the main thread takes part in time before the injector starts: alone, a waiting
+    # injector would see everyone waiting and let time run to its timeout
+    with rig.clock.participate():
+        if inject is not None:
+            rig.clock.start_thread(lambda: inject(rig), "inject")
+        result = Runner(loaded, rig, tmp_path / name).run()
     return Outcome(result, rig, rig.clock.now())
 
 
-def when_volume_exceeds(rig, volume_ml, timeout_s=30.0) -> bool:
-    """Block (host time) until the specimen holds ``volume_ml``."""
-    deadline = time.monotonic() + timeout_s
+def when_volume_exceeds(rig, volume_ml, timeout_s=3600.0) -> bool:
+    """Wait (rig time) until the specimen holds ``volume_ml``."""
     emulator = rig.simulation.emulator
-    while time.monotonic() < deadline:
-        if emulator.net_volume_ml(rig.clock.now()) > volume_ml:
-            return True
-        time.sleep(0.002)
-    return False
+    return rig.clock.wait_for(
+        lambda: emulator.net_volume_ml(rig.clock.now()) > volume_ml, timeout_s=timeout_s
+    )
 
 
 def short_protocol(max_pressure_kpa=95, camera_fps=2) -> str:

@@ -2,20 +2,11 @@
 plant's truth: pressure within the sensor noise, volume within the pump's resolution,
 length within the tracking error."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
-from simrig import run_sim
+from conftest import DEMO
 
 from labrig.storage import open_run, read_log, repetition_statuses
-
-DEMO = Path(__file__).parents[2] / "protocols" / "demo.yaml"
-
-
-@pytest.fixture(scope="module")
-def demo(tmp_path_factory):
-    return run_sim(tmp_path_factory.mktemp("demo"), DEMO.read_text(), speed=50.0)
 
 
 def test_demo_completes_with_every_repetition(demo):
@@ -41,9 +32,9 @@ def test_pressure_matches_the_plant_within_sensor_noise(demo):
 
 
 def test_volume_matches_the_pump_within_its_resolution(demo):
-    """Every logged volume lies on the plunger's true trajectory: exact while the pump
-    stands, and while it moves at most a little host latency (times the clock's speed)
-    away in time from its stamp."""
+    """Every logged volume lies on the plunger's true trajectory, at its stamp: the
+    driver's exchange takes no rig time on the virtual clock, so the only error is the
+    pump's display resolution."""
     emulator = demo.rig.simulation.emulator
     with open_run(demo.path) as run:
         for rep in (1, 2, 3):
@@ -58,10 +49,8 @@ def test_volume_matches_the_pump_within_its_resolution(demo):
             moving = np.abs(truth - 0.5 * (later + earlier)) < 1e-9
             moving &= np.abs(rate_ml_s) > 1e-3
             assert np.all(np.abs(volume[standing] - truth[standing]) < 1e-3)
-            offset_s = (volume[moving] - truth[moving]) / rate_ml_s[moving]
-            assert moving.sum() > 50 and standing.sum() > 10
-            assert np.median(np.abs(offset_s)) < 0.5  # 10 ms of host time at 50x
-            assert np.max(np.abs(offset_s)) < 5.0
+            assert moving.sum() > 500 and standing.sum() > 10
+            assert np.all(np.abs(volume[moving] - truth[moving]) < 1e-3)
             assert volume.max() == pytest.approx(38.0, abs=1e-3)
             assert volume[-1] == pytest.approx(0.0, abs=1e-3)
 

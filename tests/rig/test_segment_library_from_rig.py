@@ -30,7 +30,7 @@ PROTOCOL = textwrap.dedent(
 
 
 def test_a_characterised_segment_reproduces_the_specimen(tmp_path, monkeypatch):
-    outcome = run_sim(tmp_path, PROTOCOL, speed=None)  # governed: load cannot thin data
+    outcome = run_sim(tmp_path, PROTOCOL)
     assert outcome.result.status == "complete", outcome.result.reason
     library = tmp_path / "library"
     add_from_run(outcome.path, "MEASURED-B46", library)

@@ -6,12 +6,12 @@ import cv2
 import numpy as np
 import pytest
 
-from labrig.clock import SimulatedClock
 from labrig.sim.camera import SimCamera
+from labrig.virtual_clock import VirtualClock
 
 
 def camera(**kwargs):
-    kwargs.setdefault("clock", SimulatedClock(speed=50))
+    kwargs.setdefault("clock", VirtualClock())
     kwargs.setdefault("length_mm_at", lambda t: 40.0)
     return SimCamera(**kwargs)
 
@@ -64,7 +64,7 @@ def test_noise_and_lighting_drift():
 
 
 def test_read_is_a_capture_paced_by_the_clock():
-    clock = SimulatedClock(speed=2)
+    clock = VirtualClock()
     cam = camera(clock=clock, fps=10.0, size=(320, 240), mm_per_px=0.2)
     stamps = []
     for _ in range(4):
@@ -81,7 +81,7 @@ def test_read_is_a_capture_paced_by_the_clock():
 
 
 def test_a_reader_behind_gets_the_queued_frames_and_loses_only_what_fell_out():
-    clock = SimulatedClock(speed=2)  # slow enough that rendering takes no frame time
+    clock = VirtualClock()  # slow enough that rendering takes no frame time
     cam = camera(clock=clock, fps=10.0, size=(160, 120), mm_per_px=0.4)
     start = cam.read()[1] is not None and cam.get(cv2.CAP_PROP_POS_MSEC)
     clock.sleep(0.25)  # 2.5 frames behind: frames 1 and 2 are queued

@@ -17,7 +17,6 @@ from nidaqmx.task import InStream, Task, Timing
 from nidaqmx.task.channels import AIChannel
 from nidaqmx.task.collections import AIChannelCollection
 
-from labrig.clock import SimulatedClock
 from labrig.drivers import mpx5100
 from labrig.sim.daq import (
     SimAIChannel,
@@ -28,6 +27,7 @@ from labrig.sim.daq import (
     SimTiming,
     quantise,
 )
+from labrig.virtual_clock import VirtualClock
 
 RSE = TerminalConfiguration.RSE
 DIFF = TerminalConfiguration.DIFF
@@ -48,7 +48,7 @@ class Recorder:
 
 def make_task(clock=None, truth=None, **kwargs):
     kwargs.setdefault("seed", 1)
-    return SimDaqTask(clock or SimulatedClock(speed=100), truth or Recorder(), **kwargs)
+    return SimDaqTask(clock or VirtualClock(), truth or Recorder(), **kwargs)
 
 
 def started(task, rate=1000.0, channels=("Dev1/ai0",), **chan):
@@ -144,7 +144,7 @@ def test_closed_task_is_invalid_and_context_manager_closes():
 
 
 def test_one_sample_per_period_none_lost_however_late_the_reads():
-    clock = SimulatedClock(speed=200)
+    clock = VirtualClock()
     truth = Recorder()
     task, reader = started(make_task(clock, truth, noise_kpa=0.0), rate=500.0)
     total = 0
@@ -201,7 +201,7 @@ def test_quantise_saturates_at_both_ends():
 
 
 def test_buffer_overflows_when_not_read_in_time_and_stays_failed():
-    clock = SimulatedClock(speed=500)
+    clock = VirtualClock()
     task, reader = started(make_task(clock), rate=100.0)  # buffer: 1000 samples = 10 s
     clock.sleep(11.0)
     for _ in range(2):
@@ -214,7 +214,7 @@ def test_buffer_overflows_when_not_read_in_time_and_stays_failed():
 
 
 def test_injected_overflow_and_timeout():
-    clock = SimulatedClock(speed=100)
+    clock = VirtualClock()
     task, reader = started(make_task(clock))
     task.inject_overflow()
     with pytest.raises(DaqReadError) as raised:
@@ -233,7 +233,7 @@ def test_injected_overflow_and_timeout():
 
 
 def test_a_read_for_more_than_arrives_times_out_with_what_it_got():
-    clock = SimulatedClock(speed=100)
+    clock = VirtualClock()
     _, reader = started(make_task(clock), rate=1000.0)
     data = np.empty((1, 100_000))
     with pytest.raises(DaqReadError) as raised:
@@ -243,10 +243,9 @@ def test_a_read_for_more_than_arrives_times_out_with_what_it_got():
 
 
 def test_read_all_available_and_array_shape_check():
-    clock = SimulatedClock(speed=100)
+    clock = VirtualClock()
     task, reader = started(make_task(clock), channels=("Dev1/ai0", "Dev1/ai1"))
     clock.sleep(0.2)
-    clock.set_speed(1e-9)  # hold time still, so what is available cannot change
     n = task.in_stream.avail_samp_per_chan
     assert n >= 150
     data = np.empty((2, n))
@@ -309,7 +308,7 @@ def test_rse_is_quantised_to_13_bits():
     ("requested", "divisor"), [(1000.0, 12_000), (700.0, 17_142), (48_000.0, 250)]
 )
 def test_the_sample_clock_rate_is_coerced_to_the_timebase(requested, divisor):
-    clock = SimulatedClock(speed=200)
+    clock = VirtualClock()
     truth = Recorder()
     task, reader = started(make_task(clock, truth), rate=requested)
     rate = 12e6 / divisor  # by hand: the timebase over a whole number, at or above
@@ -338,7 +337,7 @@ def test_commit_checks_what_start_checks_and_counts_nothing_yet():
 
 
 def test_a_read_of_what_is_available_never_waits_or_times_out():
-    clock = SimulatedClock(speed=100)
+    clock = VirtualClock()
     task, reader = started(make_task(clock), rate=1000.0)
     clock.sleep(0.2)
     task.inject_read_timeout()  # a fault for a read that waits, not for this one
@@ -352,7 +351,7 @@ def test_a_read_of_what_is_available_never_waits_or_times_out():
 
 
 def test_a_sample_clock_off_the_host_clock():
-    clock = SimulatedClock(speed=200)
+    clock = VirtualClock()
     truth = Recorder()
     task, reader = started(make_task(clock, truth, clock_error_ppm=1000.0), rate=100.0)
     clock.sleep(1.0)
