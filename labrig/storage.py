@@ -21,7 +21,7 @@ import platform
 import subprocess
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -132,8 +132,11 @@ class RunWriter:
         repetitions: int,
         with_length: bool,
         flush_interval_s: float = 0.5,
+        tap: Callable[[int, str, dict[str, np.ndarray]], None] | None = None,
     ) -> None:
         self.path = Path(path)
+        # sees every append (repetition, log, columns) as written: the live view's feed
+        self.tap = tap
         self.path.parent.mkdir(parents=True, exist_ok=True)
         if repetitions < 1:
             raise ValueError("a run has at least one repetition")
@@ -220,6 +223,8 @@ class RunWriter:
                 raise RuntimeError(f"{self.path}: the run file is already closed")
             self._pending.setdefault((repetition, log), []).append(rows)
             self._flush_if_due()
+        if self.tap is not None:
+            self.tap(repetition, log, rows)
 
     def _write_pending(self) -> None:
         """Write the gathered rows, one resize and one write per dataset (under the lock)."""
