@@ -29,7 +29,7 @@ def print_summary(data, plot_png: Path | None = None) -> None:
     from rich import box
     from rich.table import Table
 
-    from labrig.model.scan_summary import METRICS, summarise
+    from labrig.model.scan.scan_summary import METRICS, summarise
 
     summary = summarise(data)
     console = _console()
@@ -67,7 +67,7 @@ def print_summary(data, plot_png: Path | None = None) -> None:
             "(largest worker)"
         )
     if plot_png is not None:
-        from labrig.model.scan_summary import plot_fig4
+        from labrig.model.scan.scan_summary import plot_fig4
 
         plot_fig4(data, plot_png)
         console.print(f"plot: {plot_png}")
@@ -133,8 +133,9 @@ def scan(
         TimeRemainingColumn,
     )
 
-    from labrig.model.scan import ScanInterrupted, load_library, run_scan
-    from labrig.model.scan_file import read_scan
+    from labrig.model.scan.run import run_scan
+    from labrig.model.scan.scan import ScanInterrupted, load_library
+    from labrig.model.scan.scan_file import read_scan
 
     _check_png(plot_png)
     library = load_library(library_spec)
@@ -197,7 +198,7 @@ def scan(
 def scan_summary(scan_file: Path, plot_png: Path | None) -> None:
     """Per transition type of the scan in SCAN_FILE: the count and the ranges of dE,
     dv, dl, dp."""
-    from labrig.model.scan_file import read_scan
+    from labrig.model.scan.scan_file import read_scan
 
     _check_png(plot_png)
     print_summary(read_scan(scan_file), plot_png)
@@ -213,8 +214,8 @@ def rank(scan_file: Path, by: str, top: int) -> None:
     from rich import box
     from rich.table import Table
 
-    from labrig.model.scan_file import read_scan
-    from labrig.model.scan_summary import METRICS, rank_designs
+    from labrig.model.scan.scan_file import read_scan
+    from labrig.model.scan.scan_summary import METRICS, rank_designs
 
     if top < 1:
         raise InputError(f"--top {top}: must be at least 1")

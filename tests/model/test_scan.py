@@ -9,13 +9,13 @@ import h5py
 import numpy as np
 import pytest
 
-import labrig.model.scan as scan_module
+import labrig.model.scan.scan as scan_module
 from labrig.errors import InputError
-from labrig.model.actuator import Actuator
-from labrig.model.library import LIBRARY_NAMES, analytical_segment
-from labrig.model.measured import write_csv
-from labrig.model.path import quasi_static_path
-from labrig.model.scan import (
+from labrig.model.actuator.equilibria import Actuator
+from labrig.model.actuator.path import quasi_static_path
+from labrig.model.actuator.transitions import transitions
+from labrig.model.scan.run import run_scan
+from labrig.model.scan.scan import (
     Chunk,
     ScanLibrary,
     combination_at,
@@ -24,11 +24,11 @@ from labrig.model.scan import (
     load_library,
     make_chunks,
     run_chunk,
-    run_scan,
 )
-from labrig.model.scan_file import read_scan
-from labrig.model.scan_summary import plot_fig4, rank_designs, summarise
-from labrig.model.transitions import transitions
+from labrig.model.scan.scan_file import read_scan
+from labrig.model.scan.scan_summary import plot_fig4, rank_designs, summarise
+from labrig.model.segments.library import LIBRARY_NAMES, analytical_segment
+from labrig.model.segments.measured import write_csv
 
 # eight segments across the library: every braid length, a segment without a peak
 # (B40-T30), near-flat dips and the deepest one
