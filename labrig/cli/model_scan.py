@@ -110,6 +110,13 @@ PLOT_OPTION = click.option(
     help="The HDF5 file the scan is streamed to.",
 )
 @click.option("--workers", type=int, default=None, help="Processes (default: every core).")
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="tcp://HOST:PORT",
+    help="Run the chunks on this dask.distributed cluster instead of local processes "
+    "(pip install 'labrig[cluster]'; docs/scan.md).",
+)
 @click.option("--resume", is_flag=True, help="Continue an interrupted scan in --out.")
 @click.option("--deflate", is_flag=True, help="Also deflate each actuator back to zero.")
 @PLOT_OPTION
@@ -118,6 +125,7 @@ def scan(
     library_spec: str,
     out: Path,
     workers: int | None,
+    scheduler: str | None,
     resume: bool,
     deflate: bool,
     plot_png: Path | None,
@@ -138,6 +146,11 @@ def scan(
     from labrig.model.scan.scan_file import read_scan
 
     _check_png(plot_png)
+    if scheduler is not None:
+        import logging
+
+        # dask logs a lost connection with its traceback; the scan says it in one line
+        logging.getLogger("distributed").setLevel(logging.CRITICAL)
     library = load_library(library_spec)
     columns = (
         TextColumn(f"n = {n}"),
@@ -178,6 +191,7 @@ def scan(
                 deflate=deflate,
                 progress=show,
                 stop=stop,
+                scheduler=scheduler,
             )
         except (ScanInterrupted, KeyboardInterrupt):
             bar.stop()
