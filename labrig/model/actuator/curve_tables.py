@@ -23,7 +23,8 @@ from collections.abc import Sequence
 from functools import lru_cache
 
 import numpy as np
-from numba import njit
+
+from labrig.model.actuator.jit import njit
 
 # Newton on a branch's cubic piece stops when the step is below this fraction of the
 # sample spacing (the interpolant itself is only defined to rounding, ~1e-16).

@@ -34,9 +34,9 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from numba import njit
 
 from labrig.model.actuator.curve_tables import tables_of, total_energy, total_length
+from labrig.model.actuator.jit import njit
 from labrig.model.actuator.kernel import CurveKernel, kernel_of
 from labrig.model.segments.curve import SegmentCurve
 

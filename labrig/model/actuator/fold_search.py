@@ -17,7 +17,6 @@ start state passed in (``START``).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from labrig.model.actuator.curve_tables import (
     BRANCH_RISING,
@@ -31,6 +30,7 @@ from labrig.model.actuator.curve_tables import (
     pressure_and_slope,
     volumes_on_branches,
 )
+from labrig.model.actuator.jit import njit
 from labrig.model.actuator.roots import bracketed_root
 
 NOT_FOUND, AT_PRESSURE, AT_VOLUME, START = range(4)

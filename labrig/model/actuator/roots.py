@@ -12,9 +12,8 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from labrig.model.actuator.curve_tables import objective
+from labrig.model.actuator.jit import njit
 
 # absolute and relative tolerances on a root (added), and the most iterations
 XTOL = 1e-12

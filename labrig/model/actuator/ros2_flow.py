@@ -18,10 +18,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from labrig.model.actuator.curve_tables import compensated_sum, pressure_and_slope
 from labrig.model.actuator.equilibria import stable_slopes
+from labrig.model.actuator.jit import njit
 
 GAMMA = 1.0 + 1.0 / math.sqrt(2.0)  # ROS2, L-stable
 
