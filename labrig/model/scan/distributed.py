@@ -93,20 +93,28 @@ def run_chunks_on_cluster(
     stop: threading.Event | None = None,
 ) -> None:
     """Run ``chunks`` on the cluster of ``client``; every result to ``sink`` in chunk
-    order. At most 2 * threads + 2 chunks are in flight (as on the local pool), so the
-    client's and the workers' memory stays bounded however long the scan. ``stop`` set:
+    order. At most 2 * threads + 2 chunks are in flight (as on the local pool; threads
+    of the workers there are at the time), so the client's and the workers' memory
+    stays bounded however long the scan. ``stop`` set:
     ScanInterrupted after the next result, the rest cancelled. A scheduler gone or a
     chunk that killed its workers (dask retries it on others first): ClusterLost."""
     from distributed import KilledWorker
 
     if not chunks:
         return
-    window = 2 * cluster_threads(client) + 2
-    # one copy per worker, sent once: chunks refer to it by its key
+    # one copy per worker, sent once (a worker that joins later gets it from a peer):
+    # chunks refer to it by its key
     shared = client.scatter(library, broadcast=True)
     todo = iter(chunks)
-    first = [c for _, c in zip(range(window), todo, strict=False)]
-    pending = deque(client.map(run_chunk, [shared] * len(first), first, pure=False))
+    pending: deque = deque()
+
+    def fill() -> None:
+        """Map chunks up to the window of the cluster as it is now (workers may come)."""
+        wanted = 2 * cluster_threads(client) + 2 - len(pending)
+        more = [c for _, c in zip(range(max(wanted, 0)), todo, strict=False)]
+        pending.extend(client.map(run_chunk, [shared] * len(more), more, pure=False))
+
+    fill()
     try:
         while pending:
             try:
@@ -118,9 +126,7 @@ def run_chunks_on_cluster(
                     f"({type(exc).__name__}: {exc}); the finished chunks are kept, the "
                     "same command with --resume continues it"
                 ) from None
-            chunk = next(todo, None)
-            if chunk is not None:
-                pending.append(client.submit(run_chunk, shared, chunk, pure=False))
+            fill()
             sink(result)
             if stop is not None and stop.is_set():
                 raise ScanInterrupted("the scan was stopped; its finished chunks are kept")

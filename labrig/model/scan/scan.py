@@ -5,13 +5,8 @@ The unit of work is a ``Chunk``: a run of consecutive combinations in lexicograp
 order, named by its index and its first and last rank. ``run_chunk(library, chunk)`` is a
 pure function, chunk in, ``ChunkResult`` (plain numpy arrays) out: it never touches the
 file, so the same chunks run in-process, on a local process pool (``run_chunks``, and
-``labrig.model.scan.run`` for a whole scan into a file) or on a distributed engine.
-With Dask, for a library of measured segments that outgrows one machine::
-
-    lib = client.scatter(library, broadcast=True)
-    futures = client.map(run_chunk, [lib] * len(chunks), chunks)
-    for future in futures:  # in chunk order: the client is the only writer
-        scan_file.append(future.result())
+``labrig.model.scan.run`` for a whole scan into a file) or on a dask.distributed
+cluster (``labrig.model.scan.distributed``), for a library that outgrows one machine.
 
 Every curve's scalar kernel is built once per process (``kernel_of``), before
 the workers fork, not once per actuator. A failure on one actuator is recorded with its
