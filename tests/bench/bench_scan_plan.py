@@ -28,9 +28,10 @@ from pathlib import Path
 CLUSTER_CORES = 64
 
 
-def _sample(library, n: int, count: int, *, repeat: bool) -> tuple[float, float]:
-    """(core seconds per actuator, transitions per actuator) on random combinations
-    (with ``repeat``, a segment may be drawn more than once)."""
+def _sample(library, n: int, count: int, *, repeat: bool) -> tuple[float, float, int]:
+    """(core seconds per actuator, transitions per actuator, failed actuators) on random
+    combinations (with ``repeat``, a segment may be drawn more than once); a failure is
+    counted as a scan records it."""
     from labrig.model.scan.scan import scan_actuator
 
     rng = random.Random(2016)
@@ -38,11 +39,14 @@ def _sample(library, n: int, count: int, *, repeat: bool) -> tuple[float, float]
     draw = (lambda: rng.choices(items, k=n)) if repeat else (lambda: rng.sample(items, n))
     combos = [tuple(sorted(draw())) for _ in range(count)]
     scan_actuator(library, combos[0])  # compiled code loaded before timing
-    found = 0
+    found = failed = 0
     started = time.process_time()
     for combo in combos:
-        found += len(scan_actuator(library, combo))
-    return (time.process_time() - started) / count, found / count
+        try:
+            found += len(scan_actuator(library, combo))
+        except Exception:
+            failed += 1
+    return (time.process_time() - started) / count, found / (count - failed), failed
 
 
 def _hours(seconds: float) -> str:
@@ -84,15 +88,16 @@ def main() -> None:
     print(f"{args.sample} random actuators per scan, one core; efficiency {args.efficiency}")
     print(
         f"| scan | actuators | ms per actuator (one core) | transitions per actuator | "
-        f"core time | this machine ({cores} cores) | {CLUSTER_CORES}-core cluster | file |"
+        f"failed in sample | core time | this machine ({cores} cores) | "
+        f"{CLUSTER_CORES}-core cluster | file |"
     )
-    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for label, library, n, total, repeat in plans:
-        seconds, per_actuator = _sample(library, n, args.sample, repeat=repeat)
+        seconds, per_actuator, failed = _sample(library, n, args.sample, repeat=repeat)
         core_s = seconds * total
         size = total * per_actuator * (52 + 2 * n)
         print(
-            f"| {label} | {total:,} | {seconds * 1e3:.2f} | {per_actuator:.1f} | "
+            f"| {label} | {total:,} | {seconds * 1e3:.2f} | {per_actuator:.1f} | {failed} | "
             f"{_hours(core_s)} | {_hours(core_s / (cores * args.efficiency))} | "
             f"{_hours(core_s / (CLUSTER_CORES * args.efficiency))} | {size / 2**30:.2f} GiB |"
         )
