@@ -268,14 +268,18 @@ def bench_scan(n: int, folder: Path) -> ScanRow:
     )
 
 
-def bench_scans(ns, log=print) -> list[ScanRow]:
-    rows = []
+def bench_scans(ns, log=print, keep: Path | None = None) -> list[ScanRow]:
+    """The scans of ``ns``; their files in ``keep`` (scan_n<N>.h5, for their failures
+    or a ranking) or in a temporary folder removed at the end."""
+    if keep is not None:
+        return [_logged(bench_scan(n, keep), log) for n in ns]
     with tempfile.TemporaryDirectory() as folder:
-        for n in ns:
-            row = bench_scan(n, Path(folder))
-            log(f"  scan n = {n}: {row.scan_s:.1f} s")
-            rows.append(row)
-    return rows
+        return [_logged(bench_scan(n, Path(folder)), log) for n in ns]
+
+
+def _logged(row: ScanRow, log) -> ScanRow:
+    log(f"  scan n = {row.n}: {row.scan_s:.1f} s, {row.failed} failed")
+    return row
 
 
 def markdown(solvers: list[SolverRow], sample_size: int, scans: list[ScanRow]) -> str:
