@@ -108,8 +108,8 @@ def _backstop(protocol: Protocol, rig: RigConfig, report: DryRunReport) -> None:
 
 def _predict_pressure(protocol: Protocol, volume_ml: float, report: DryRunReport) -> None:
     """The model's peak pressure up to the largest volume, against the limit."""
-    from labrig.model.library import load_segment
-    from labrig.model.prediction import predicted_peak_pressure_kpa
+    from labrig.model.actuator.prediction import predicted_peak_pressure_kpa
+    from labrig.model.segments.library import load_segment
 
     segments = [load_segment(spec) for spec in protocol.specimen.segments]
     peak_kpa, at_ml = predicted_peak_pressure_kpa(segments, volume_ml)

@@ -231,7 +231,7 @@ def _build_sim_rig(protocol: Protocol, config: RigConfig) -> Rig:
     from labrig.drivers.camera import CameraLength, FrameSource
     from labrig.drivers.ni_daq import NiDaqPressure
     from labrig.drivers.phd_ultra import PhdUltra
-    from labrig.model.library import load_segment
+    from labrig.model.segments.library import load_segment
     from labrig.sim.camera import SimCamera
     from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
     from labrig.sim.plant import Plant

@@ -3,7 +3,7 @@
 The paper predicts combined actuators from the measured curves of their segments. A
 single-segment run becomes such a segment with ``labrig library add RUN.h5 --name NAME``:
 the mean inflation curve of its averaged repetitions is fitted to the segment's
-rise-fall-rise shape (``labrig.model.measured``) and stored as ``NAME.csv`` (the
+rise-fall-rise shape (``labrig.model.segments.measured``) and stored as ``NAME.csv`` (the
 measured-curve format, ``volume_ml,pressure_kpa,length_mm``) beside ``NAME.json``, its
 provenance: the run file (path and SHA-256), its title, start time and specimen, the
 repetitions averaged, the labrig version, and the fit's notes.
@@ -19,8 +19,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import re
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,46 +26,17 @@ from pathlib import Path
 import numpy as np
 
 from labrig.errors import InputError
+from labrig.model.segments.library import find_measured, is_measured_name, resolve_library_dir
 
-ENV_VAR = "LABRIG_LIBRARY"
-DEFAULT_DIR = Path("library")
-_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 LIBRARY_GRID_ML = 0.01
-
-
-def resolve_library_dir(explicit: str | Path | None = None) -> Path:
-    """The measured-segment directory: the explicit one, $LABRIG_LIBRARY, or ./library."""
-    if explicit is not None:
-        return Path(explicit)
-    return Path(os.environ.get(ENV_VAR) or DEFAULT_DIR)
-
-
-def _is_name(text: str) -> bool:
-    return _NAME.fullmatch(text) is not None and not text.lower().endswith(".csv")
-
-
-def find_measured(name: str, directory: str | Path | None = None) -> Path | None:
-    """The CSV of measured segment ``name`` (exact name first, then ignoring case), or
-    None if the library has no such segment."""
-    if not _is_name(name):
-        return None
-    folder = resolve_library_dir(directory)
-    exact = folder / f"{name}.csv"
-    if exact.is_file():
-        return exact
-    if folder.is_dir():
-        for candidate in folder.glob("*.csv"):
-            if candidate.stem.lower() == name.lower():
-                return candidate
-    return None
 
 
 def check_new_name(name: str, directory: Path, replace: bool) -> None:
     """InputError unless ``name`` can be added to the library at ``directory``."""
-    from labrig.model.gent import GENT_NAMES
-    from labrig.model.library import LIBRARY_NAMES
+    from labrig.model.segments.gent import GENT_NAMES
+    from labrig.model.segments.library import LIBRARY_NAMES
 
-    if not _is_name(name):
+    if not is_measured_name(name):
         raise InputError(
             f"--name {name!r}: use 1-64 letters, digits, '_', '-' or '.', starting with a "
             "letter or digit, not ending in .csv"
@@ -116,7 +85,7 @@ def add_measured(
     zero at v = 0, linear extension), so a library segment is what a CSV of the same
     data would give; what the fit did is recorded in the provenance.
     """
-    from labrig.model.measured import HEADER, load_csv, write_csv
+    from labrig.model.segments.measured import HEADER, load_csv, write_csv
 
     folder = resolve_library_dir(directory)
     check_new_name(name, folder, replace)

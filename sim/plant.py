@@ -34,7 +34,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
-from labrig.model.segment import SegmentCurve
+from labrig.model.segments.curve import SegmentCurve
 
 
 class _ScalarCurve:

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from scipy.signal import find_peaks
 
-from labrig.model.library import load_segment
+from labrig.model.segments.library import load_segment
 from labrig.sim.plant import Plant
 from labrig.storage import RunWriter
 

@@ -24,7 +24,7 @@ import numpy as np
 from labrig.analysis.curves import DEFLATE, INFLATE, PHASES
 from labrig.analysis.transitions import AgreedTransition
 from labrig.errors import LabrigError
-from labrig.model.segment import SegmentCurve
+from labrig.model.segments.curve import SegmentCurve
 
 SAMPLE_DV_ML = 0.05
 
@@ -91,10 +91,10 @@ def predict(
     sources = tuple(curve.source for curve in curves)
     if len(curves) == 1:
         return _single_segment(curves[0], fittings_length_mm, v_max_ml, deflate, names, sources)
-    from labrig.model.actuator import Actuator
-    from labrig.model.descent import FlowError
-    from labrig.model.path import quasi_static_path, sample_path
-    from labrig.model.transitions import transitions
+    from labrig.model.actuator.descent import FlowError
+    from labrig.model.actuator.equilibria import Actuator
+    from labrig.model.actuator.path import quasi_static_path, sample_path
+    from labrig.model.actuator.transitions import transitions
 
     actuator = Actuator(list(curves))
     try:
@@ -130,7 +130,7 @@ def predict(
 
 
 def _single_segment(curve, fittings_length_mm, v_max_ml, deflate, names, sources) -> Prediction:
-    from labrig.model.prediction import predicted_inflation
+    from labrig.model.actuator.prediction import predicted_inflation
 
     v, p, length = predicted_inflation([curve], v_max_ml, SAMPLE_DV_ML)
     # under volume control a lone segment runs back down its own curve

@@ -9,6 +9,7 @@ unrelated commands. A ``LabrigError`` becomes one clear line on stderr and its e
 from __future__ import annotations
 
 import importlib
+import os
 import sys
 
 import click
@@ -68,8 +69,25 @@ def cli() -> None:
     store them in HDF5, and compare them with the snap-through stability model."""
 
 
+# commands that solve one actuator: a few hundred calls of the solver's inner loops,
+# faster as plain Python than loading (or, on a fresh install, compiling) the machine
+# code (labrig.model.actuator.jit)
+_ONE_ACTUATOR = (("model", "path"), ("model", "curve"))
+
+
+def _solves_one_actuator(args: list[str]) -> bool:
+    return tuple(args[:2]) in _ONE_ACTUATOR or (args[:1] == ["run"] and "--dry-run" in args)
+
+
 def main(argv: list[str] | None = None) -> None:
-    """Console entry point: run the CLI, turning labrig's own errors into one line."""
+    """Console entry point: run the CLI, turning labrig's own errors into one line.
+
+    Run as the console script (``argv`` None), it chooses how the model's inner loops
+    run before anything imports them: see ``_ONE_ACTUATOR``. Called with ``argv`` (by
+    tests, in a process that may hold the compiled model already) it leaves that alone.
+    """
+    if argv is None and _solves_one_actuator(sys.argv[1:]):
+        os.environ.setdefault("LABRIG_JIT", "python")
     try:
         result = cli.main(args=argv, prog_name="labrig", standalone_mode=False)
     except click.exceptions.Abort:

@@ -35,7 +35,12 @@ def bench() -> None:
     type=click.Path(dir_okay=False, path_type=Path),
     help="Also write the tables as Markdown to this file.",
 )
-def model_bench(quick: bool, scans: str | None, out: Path | None) -> None:
+@click.option(
+    "--keep-scans",
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Keep the scan files (scan_n<N>.h5) in this existing folder.",
+)
+def model_bench(quick: bool, scans: str | None, out: Path | None, keep_scans: Path | None) -> None:
     """Run time against error for each model solver and resolution (the fast path, the
     paper's Nelder-Mead algorithm, the pressure-grid equilibria) on a fixed sample of
     pairs and triples, then the time and memory of full scans."""
@@ -55,6 +60,12 @@ def model_bench(quick: bool, scans: str | None, out: Path | None) -> None:
         settings = replace(settings, scan_ns=ns)
     if out is not None and not out.parent.is_dir():
         raise InputError(f"--out {out}: the folder {out.parent} does not exist")
+    if keep_scans is not None:
+        if not keep_scans.is_dir():
+            raise InputError(f"--keep-scans {keep_scans}: no such folder")
+        taken = [keep_scans / f"scan_n{n}.h5" for n in settings.scan_ns]
+        if any(f.exists() for f in taken):
+            raise InputError(f"--keep-scans {keep_scans}: it holds scan_n<N>.h5 files already")
 
     def log(line: str) -> None:
         click.echo(line, err=True)
@@ -63,7 +74,7 @@ def model_bench(quick: bool, scans: str | None, out: Path | None) -> None:
     solvers, sample_size = bench_solvers(settings, log=log)
     if settings.scan_ns:
         log("full scans")
-    scan_rows = bench_scans(settings.scan_ns, log=log)
+    scan_rows = bench_scans(settings.scan_ns, log=log, keep=keep_scans)
     text = markdown(solvers, sample_size, scan_rows)
     click.echo(text)
     if out is not None:

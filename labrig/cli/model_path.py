@@ -5,7 +5,7 @@ With ``--deflate`` the path is inflation to the end volume followed by deflation
 zero (the rig withdraws between repetitions, so the hysteresis matters): the path arrays
 run up and then down in volume, and every transition says in which direction it
 happened. Without ``--v-end-ml`` inflation ends where no further transition is possible
-(``labrig.model.path.default_end_volume_ml``).
+(``labrig.model.actuator.path.default_end_volume_ml``).
 """
 
 from __future__ import annotations
@@ -115,10 +115,10 @@ def path(
         raise InputError(f"--v-end-ml {v_end_ml}: must be > 0")
     if plot_png is not None and not plot_png.parent.is_dir():
         raise InputError(f"--plot {plot_png}: the folder {plot_png.parent} does not exist")
-    from labrig.model.actuator import Actuator
-    from labrig.model.library import load_segment
-    from labrig.model.path import quasi_static_path, sample_path
-    from labrig.model.transitions import transitions
+    from labrig.model.actuator.equilibria import Actuator
+    from labrig.model.actuator.path import quasi_static_path, sample_path
+    from labrig.model.actuator.transitions import transitions
+    from labrig.model.segments.library import load_segment
 
     actuator = Actuator([load_segment(s) for s in segs])
     started = time.perf_counter()

@@ -29,7 +29,7 @@ def print_summary(data, plot_png: Path | None = None) -> None:
     from rich import box
     from rich.table import Table
 
-    from labrig.model.scan_summary import METRICS, summarise
+    from labrig.model.scan.scan_summary import METRICS, summarise
 
     summary = summarise(data)
     console = _console()
@@ -67,7 +67,7 @@ def print_summary(data, plot_png: Path | None = None) -> None:
             "(largest worker)"
         )
     if plot_png is not None:
-        from labrig.model.scan_summary import plot_fig4
+        from labrig.model.scan.scan_summary import plot_fig4
 
         plot_fig4(data, plot_png)
         console.print(f"plot: {plot_png}")
@@ -110,6 +110,13 @@ PLOT_OPTION = click.option(
     help="The HDF5 file the scan is streamed to.",
 )
 @click.option("--workers", type=int, default=None, help="Processes (default: every core).")
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="tcp://HOST:PORT",
+    help="Run the chunks on this dask.distributed cluster instead of local processes "
+    "(pip install 'labrig[cluster]'; docs/scan.md).",
+)
 @click.option("--resume", is_flag=True, help="Continue an interrupted scan in --out.")
 @click.option("--deflate", is_flag=True, help="Also deflate each actuator back to zero.")
 @PLOT_OPTION
@@ -118,6 +125,7 @@ def scan(
     library_spec: str,
     out: Path,
     workers: int | None,
+    scheduler: str | None,
     resume: bool,
     deflate: bool,
     plot_png: Path | None,
@@ -133,10 +141,16 @@ def scan(
         TimeRemainingColumn,
     )
 
-    from labrig.model.scan import ScanInterrupted, load_library, run_scan
-    from labrig.model.scan_file import read_scan
+    from labrig.model.scan.run import run_scan
+    from labrig.model.scan.scan import ScanInterrupted, load_library
+    from labrig.model.scan.scan_file import read_scan
 
     _check_png(plot_png)
+    if scheduler is not None:
+        import logging
+
+        # dask logs a lost connection with its traceback; the scan says it in one line
+        logging.getLogger("distributed").setLevel(logging.CRITICAL)
     library = load_library(library_spec)
     columns = (
         TextColumn(f"n = {n}"),
@@ -177,6 +191,7 @@ def scan(
                 deflate=deflate,
                 progress=show,
                 stop=stop,
+                scheduler=scheduler,
             )
         except (ScanInterrupted, KeyboardInterrupt):
             bar.stop()
@@ -197,7 +212,7 @@ def scan(
 def scan_summary(scan_file: Path, plot_png: Path | None) -> None:
     """Per transition type of the scan in SCAN_FILE: the count and the ranges of dE,
     dv, dl, dp."""
-    from labrig.model.scan_file import read_scan
+    from labrig.model.scan.scan_file import read_scan
 
     _check_png(plot_png)
     print_summary(read_scan(scan_file), plot_png)
@@ -213,8 +228,8 @@ def rank(scan_file: Path, by: str, top: int) -> None:
     from rich import box
     from rich.table import Table
 
-    from labrig.model.scan_file import read_scan
-    from labrig.model.scan_summary import METRICS, rank_designs
+    from labrig.model.scan.scan_file import read_scan
+    from labrig.model.scan.scan_summary import METRICS, rank_designs
 
     if top < 1:
         raise InputError(f"--top {top}: must be at least 1")

@@ -25,7 +25,7 @@ def prediction_json(protocol: Protocol) -> dict:
     """The prediction as the page draws it (``ready`` true; ``error`` if none)."""
     from labrig.analysis.compare import predict
     from labrig.errors import LabrigError
-    from labrig.model.library import load_segment
+    from labrig.model.segments.library import load_segment
 
     the_plan = plan(protocol)
     segments = list(protocol.specimen.segments)

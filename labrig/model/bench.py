@@ -4,18 +4,18 @@ Every solver runs on the same fixed sample of actuators (the paper's named combi
 plus pairs and triples of the library drawn with a fixed seed), inflating to the same
 volume, side by side in one process:
 
-- ``fast``: the continuation of ``labrig.model.path`` at its accuracy settings (the
+- ``fast``: the continuation of ``labrig.model.actuator.path`` at its accuracy settings (the
   fold screen's margin, the flow's local error per step);
-- ``nelder-mead``: the paper's incremental algorithm (``labrig.model.reference``) at
+- ``nelder-mead``: the paper's incremental algorithm (``labrig.model.reference.nelder_mead``) at
   several volume increments;
 - ``grid``: the path read off the equilibria on an equispaced pressure grid
-  (``labrig.model.grid_path``, the paper's Fig. S5 method) at several grid sizes.
+  (``labrig.model.reference.grid_path``, the paper's Fig. S5 method) at several grid sizes.
 
 The "very fine reference" is the fast path at its tightest settings (``REFERENCE``): the
 sum 1/k_i computed exactly at every sample pressure of every segment along every
 softening piece (no screen), and the flow after a snap integrated to 1e-3 of a sample
 spacing per step (~1e-4 mL; the flow tolerance is in units of the tables' mean sample
-spacing, ``labrig.model.descent.settle``).
+spacing, ``labrig.model.actuator.descent.settle``).
 Its transition volumes are not samples: a fold is a root of sum 1/k_i (Eq. 10) to
 1e-11 kPa and a peak crossing is an exact sample of the segment's table, so no
 increment or grid limits it; the tight settings only guard against a fold hidden
@@ -44,10 +44,10 @@ from pathlib import Path
 
 import numpy as np
 
-from labrig.model.actuator import Actuator
-from labrig.model.descent import FLOW_TOL
-from labrig.model.library import LIBRARY_NAMES, analytical_segment
-from labrig.model.path import SCREEN_MARGIN
+from labrig.model.actuator.descent import FLOW_TOL
+from labrig.model.actuator.equilibria import Actuator
+from labrig.model.actuator.path import SCREEN_MARGIN
+from labrig.model.segments.library import LIBRARY_NAMES, analytical_segment
 
 NAMED_PAIRS = (("B46-T20", "B46-T22"), ("B48-T30", "B50-T20"), ("B44-T30", "B48-T26"))
 NAMED_TRIPLE = ("B40-T28", "B44-T30", "B50-T24")
@@ -126,8 +126,8 @@ def _from_states(actuator: Actuator, found) -> list[Found]:
 def solve_fast(
     actuator: Actuator, v_end_ml: float | None, setting: tuple[float, float]
 ) -> list[Found]:
-    from labrig.model.path import quasi_static_path
-    from labrig.model.transitions import transitions
+    from labrig.model.actuator.path import quasi_static_path
+    from labrig.model.actuator.transitions import transitions
 
     margin, flow_tol = setting
     path = quasi_static_path(actuator, v_end_ml, screen_margin=margin, flow_tol=flow_tol)
@@ -138,13 +138,13 @@ def solve_fast(
 def solve_nelder_mead(actuator: Actuator, v_end_ml: float, dv_ml: float) -> list[Found]:
     """The paper's algorithm; a transition's volume is its last increment before it, and
     a snap's state after is one increment later (as the algorithm sees them)."""
-    from labrig.model.reference import reference_path
+    from labrig.model.reference.nelder_mead import reference_path
 
     return _from_states(actuator, reference_path(actuator, v_end_ml, dv_ml=dv_ml).transitions)
 
 
 def solve_grid(actuator: Actuator, v_end_ml: float, n_points: int) -> list[Found]:
-    from labrig.model.grid_path import grid_path
+    from labrig.model.reference.grid_path import grid_path
 
     return _from_states(actuator, grid_path(actuator, v_end_ml, n_points=n_points))
 
@@ -247,7 +247,7 @@ class ScanRow:
 def bench_scan(n: int, folder: Path) -> ScanRow:
     """A full scan of the analytical library by the real command in a fresh process
     (so that its peak memory is its own)."""
-    from labrig.model.scan_file import read_scan
+    from labrig.model.scan.scan_file import read_scan
 
     out = folder / f"scan_n{n}.h5"
     command = [sys.executable, "-m", "labrig", "model", "scan", "--n", str(n), "--out", str(out)]
@@ -268,14 +268,18 @@ def bench_scan(n: int, folder: Path) -> ScanRow:
     )
 
 
-def bench_scans(ns, log=print) -> list[ScanRow]:
-    rows = []
+def bench_scans(ns, log=print, keep: Path | None = None) -> list[ScanRow]:
+    """The scans of ``ns``; their files in ``keep`` (scan_n<N>.h5, for their failures
+    or a ranking) or in a temporary folder removed at the end."""
+    if keep is not None:
+        return [_logged(bench_scan(n, keep), log) for n in ns]
     with tempfile.TemporaryDirectory() as folder:
-        for n in ns:
-            row = bench_scan(n, Path(folder))
-            log(f"  scan n = {n}: {row.scan_s:.1f} s")
-            rows.append(row)
-    return rows
+        return [_logged(bench_scan(n, Path(folder)), log) for n in ns]
+
+
+def _logged(row: ScanRow, log) -> ScanRow:
+    log(f"  scan n = {row.n}: {row.scan_s:.1f} s, {row.failed} failed")
+    return row
 
 
 def markdown(solvers: list[SolverRow], sample_size: int, scans: list[ScanRow]) -> str:

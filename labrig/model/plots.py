@@ -15,8 +15,8 @@ from pathlib import Path as FilePath
 
 import numpy as np
 
-from labrig.model.path import DEFLATE, INFLATE, Path, SampledPath
-from labrig.model.transitions import Transition
+from labrig.model.actuator.path import DEFLATE, INFLATE, Path, SampledPath
+from labrig.model.actuator.transitions import Transition
 
 _STYLE = {INFLATE: ("tab:blue", "-", "inflation"), DEFLATE: ("tab:orange", "--", "deflation")}
 

@@ -14,7 +14,7 @@ from labrig.analysis.compare import (
 )
 from labrig.analysis.curves import DEFLATE, INFLATE
 from labrig.analysis.transitions import AgreedTransition
-from labrig.model.library import analytical_segment
+from labrig.model.segments.library import analytical_segment
 
 
 def test_rmse_by_hand_over_the_points_both_have():
@@ -91,7 +91,7 @@ def test_single_segment_run_against_its_curve(segment_run):
 
 
 def test_library_actuator_run_matches_the_model(library_run):
-    pytest.importorskip("labrig.model.path", reason="the actuator path solver")
+    pytest.importorskip("labrig.model.actuator.path", reason="the actuator path solver")
     result = analyse(library_run.path)
     comparison = result.comparison
     assert comparison.prediction.segments == ("B44-T22", "B50-T20")

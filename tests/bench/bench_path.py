@@ -16,8 +16,8 @@ import time
 
 
 def _time_paths(actuators, deflate=False):
-    from labrig.model.path import quasi_static_path
-    from labrig.model.transitions import transitions
+    from labrig.model.actuator.path import quasi_static_path
+    from labrig.model.actuator.transitions import transitions
 
     found = 0
     t0 = time.perf_counter()
@@ -32,11 +32,11 @@ def main() -> None:
     parser.add_argument("--quadruples", type=int, default=1000)
     args = parser.parse_args()
 
-    from labrig.model.actuator import Actuator
-    from labrig.model.library import LIBRARY_NAMES, analytical_segment
-    from labrig.model.path import quasi_static_path
-    from labrig.model.reference import reference_path
-    from labrig.model.transitions import transitions
+    from labrig.model.actuator.equilibria import Actuator
+    from labrig.model.actuator.path import quasi_static_path
+    from labrig.model.actuator.transitions import transitions
+    from labrig.model.reference.nelder_mead import reference_path
+    from labrig.model.segments.library import LIBRARY_NAMES, analytical_segment
 
     segments = {name: analytical_segment(name) for name in LIBRARY_NAMES}
     # load (or compile) the solver's compiled loops before timing anything

@@ -13,7 +13,7 @@ import numpy as np
 
 def main() -> None:
     t0 = time.perf_counter()
-    from labrig.model import library
+    from labrig.model.segments import library
 
     t_import = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -24,12 +24,12 @@ def main() -> None:
         library.analytical_segment(name)
     t_cached = time.perf_counter() - t0
     samples = [len(c.v_ml) for c in curves]
-    print(f"import labrig.model.library            {t_import * 1e3:8.1f} ms")
+    print(f"import labrig.model.segments.library            {t_import * 1e3:8.1f} ms")
     print(f"build all 36 analytical segments (cold) {t_cold * 1e3:8.1f} ms")
     print(f"  again (cached)                        {t_cached * 1e3:8.3f} ms")
     print(f"  samples per table                     {min(samples)}-{max(samples)}")
 
-    from labrig.model.measured import load_csv
+    from labrig.model.segments.measured import load_csv
 
     clean = library.analytical_segment("B46-T20")
     rng = np.random.default_rng(0)

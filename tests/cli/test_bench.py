@@ -7,13 +7,16 @@ import re
 import pytest
 
 from labrig.cli import main
+from labrig.model.scan.scan_file import read_scan
 
 
 @pytest.mark.slow
 def test_bench_model_quick_runs_end_to_end(tmp_path, capsys):
     out = tmp_path / "bench.md"
+    kept = tmp_path / "scans"
+    kept.mkdir()
     with pytest.raises(SystemExit) as exited:
-        main(["bench", "model", "--quick", "--out", str(out)])
+        main(["bench", "model", "--quick", "--out", str(out), "--keep-scans", str(kept)])
     text, err = capsys.readouterr()
     assert exited.value.code == 0, err
     assert out.read_text() == text.rstrip("\n") + "\n"
@@ -37,4 +40,6 @@ def test_bench_model_quick_runs_end_to_end(tmp_path, capsys):
     assert ("grid", "1,000 pressures") in rows
     scan = rows[("2", "630")]
     assert int(scan[2].replace(",", "")) > 1000  # transitions of the n = 2 scan
-    assert re.search(r"scan n = 2: [0-9.]+ s", err)
+    assert re.search(r"scan n = 2: [0-9.]+ s, 0 failed", err)
+    data = read_scan(kept / "scan_n2.h5")  # the scan behind the row, kept
+    assert data.complete and data.row_stop == int(scan[2].replace(",", ""))

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from labrig.cli import main
-from labrig.model.library import analytical_segment, load_segment
+from labrig.model.segments.library import analytical_segment, load_segment
 
 
 def run(argv, capsys):

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from labrig.cli import main
-from labrig.model.library import analytical_segment
-from labrig.model.measured import write_csv
+from labrig.model.segments.library import analytical_segment
+from labrig.model.segments.measured import write_csv
 
 
 def run(argv, capsys):

@@ -12,9 +12,9 @@ import h5py
 import pytest
 
 from labrig.cli import main
-from labrig.model.library import LIBRARY_NAMES, analytical_segment
-from labrig.model.measured import write_csv
-from labrig.model.scan_file import read_scan
+from labrig.model.scan.scan_file import read_scan
+from labrig.model.segments.library import LIBRARY_NAMES, analytical_segment
+from labrig.model.segments.measured import write_csv
 
 
 def run(argv, capsys):

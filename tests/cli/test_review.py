@@ -46,7 +46,7 @@ def test_show_uses_the_stored_analysis(segment_run, copy_of, capsys):
 def test_plot_writes_a_png(snap_run, tmp_path, capsys):
     import matplotlib.image
 
-    pytest.importorskip("labrig.model.path", reason="the actuator path solver")
+    pytest.importorskip("labrig.model.actuator.path", reason="the actuator path solver")
     out_png = tmp_path / "fig2c.png"
     code, out, _ = run(["plot", snap_run.path, "-o", out_png], capsys)
     assert code == 0
@@ -134,7 +134,7 @@ def test_compare_with_an_unknown_segment_is_one_line(segment_run, capsys):
 
 
 def test_compare_a_library_actuator(library_run, capsys):
-    pytest.importorskip("labrig.model.path", reason="the actuator path solver")
+    pytest.importorskip("labrig.model.actuator.path", reason="the actuator path solver")
     code, out, _ = run(["compare", library_run.path], capsys)
     assert code == 0
     snaps = [s.split() for s in out.splitlines() if "snap (" in s]

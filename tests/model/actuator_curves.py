@@ -9,7 +9,7 @@ for the coincident-peak cases where that ratio decides stability.
 
 import numpy as np
 
-from labrig.model.segment import SegmentCurve
+from labrig.model.segments.curve import SegmentCurve
 
 
 def cubic_pressure(v, peak_ml, valley_ml, peak_kpa):

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from actuator_curves import cubic_pressure, cubic_segment, random_cubic
 
-from labrig.model.actuator import Actuator, hessian, is_stable, stable_scalar
-from labrig.model.kernel import CurveKernel
+from labrig.model.actuator.equilibria import Actuator, hessian, is_stable, stable_scalar
+from labrig.model.actuator.kernel import CurveKernel
 
 
 def explicit_hessian(k):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq, fsolve
 
-from labrig.model.braided import (
+from labrig.model.segments.braided import (
     BraidedSegment,
     braid_force_n,
     hoop_stretch_sq,

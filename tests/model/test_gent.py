@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from labrig.model.gent import (
+from labrig.model.segments.gent import (
     GENT_NAMES,
     GentSphere,
     gent_membrane,

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from actuator_curves import cubic_segment
 
-from labrig.model.actuator import Actuator
-from labrig.model.grid_path import grid_path
-from labrig.model.library import analytical_segment
-from labrig.model.path import quasi_static_path
-from labrig.model.transitions import transitions
+from labrig.model.actuator.equilibria import Actuator
+from labrig.model.actuator.path import quasi_static_path
+from labrig.model.actuator.transitions import transitions
+from labrig.model.reference.grid_path import grid_path
+from labrig.model.segments.library import analytical_segment
 
 NAMED = [
     ("B48-T30", "B50-T20"),

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from labrig.errors import InputError
-from labrig.model.braided import BraidedSegment
-from labrig.model.library import LIBRARY_NAMES, analytical_segment, load_segment
-from labrig.model.measured import write_csv
+from labrig.model.segments.braided import BraidedSegment
+from labrig.model.segments.library import LIBRARY_NAMES, analytical_segment, load_segment
+from labrig.model.segments.measured import write_csv
 
 
 def test_the_36_names_of_the_paper():

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from labrig.errors import InputError
-from labrig.model.library import analytical_segment
-from labrig.model.measured import load_csv, write_csv
-from labrig.model.shape_fit import isotonic_blocks, prefix_isotonic_sse
+from labrig.model.segments.library import analytical_segment
+from labrig.model.segments.measured import load_csv, write_csv
+from labrig.model.segments.shape_fit import isotonic_blocks, prefix_isotonic_sse
 
 HEADER = "volume_ml,pressure_kpa,length_mm"
 GAIN, OFFSET_KPA = 1.02, 0.8

@@ -7,16 +7,16 @@ import numpy as np
 import pytest
 from actuator_curves import cubic_segment, kinked_segment, random_cubic
 
-from labrig.model.actuator import Actuator, hessian, is_stable
-from labrig.model.library import analytical_segment
-from labrig.model.path import (
+from labrig.model.actuator.equilibria import Actuator, hessian, is_stable
+from labrig.model.actuator.path import (
     DEFLATE,
     INFLATE,
     default_end_volume_ml,
     quasi_static_path,
     sample_path,
 )
-from labrig.model.transitions import transitions
+from labrig.model.actuator.transitions import transitions
+from labrig.model.segments.library import analytical_segment
 
 PAIR = ("A", 4.0, 10.0, 30.0), ("B", 5.0, 13.0, 33.0)
 TRIPLE = (*PAIR, ("C", 3.5, 9.0, 28.0))

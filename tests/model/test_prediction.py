@@ -4,8 +4,8 @@ an actuator's predicted pressure equals every segment's pressure at the path's s
 import numpy as np
 import pytest
 
-from labrig.model.library import analytical_segment
-from labrig.model.prediction import predicted_inflation, predicted_peak_pressure_kpa
+from labrig.model.actuator.prediction import predicted_inflation, predicted_peak_pressure_kpa
+from labrig.model.segments.library import analytical_segment
 
 
 def test_single_segment_is_its_curve():

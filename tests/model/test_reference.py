@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from actuator_curves import cubic_segment, random_cubic
 
-from labrig.model.actuator import Actuator
-from labrig.model.library import analytical_segment
-from labrig.model.path import INFLATE, quasi_static_path
-from labrig.model.reference import reference_path
-from labrig.model.transitions import transitions
+from labrig.model.actuator.equilibria import Actuator
+from labrig.model.actuator.path import INFLATE, quasi_static_path
+from labrig.model.actuator.transitions import transitions
+from labrig.model.reference.nelder_mead import reference_path
+from labrig.model.segments.library import analytical_segment
 
 
 def assert_paths_agree(actuator, dv_ml, jump_ml=None):

@@ -8,14 +8,15 @@ import math
 import h5py
 import numpy as np
 import pytest
+from scan_helpers import SMALL, assert_same_contents, small_library
 
-import labrig.model.scan as scan_module
+import labrig.model.scan.scan as scan_module
 from labrig.errors import InputError
-from labrig.model.actuator import Actuator
-from labrig.model.library import LIBRARY_NAMES, analytical_segment
-from labrig.model.measured import write_csv
-from labrig.model.path import quasi_static_path
-from labrig.model.scan import (
+from labrig.model.actuator.equilibria import Actuator
+from labrig.model.actuator.path import quasi_static_path
+from labrig.model.actuator.transitions import transitions
+from labrig.model.scan.run import run_scan
+from labrig.model.scan.scan import (
     Chunk,
     ScanLibrary,
     combination_at,
@@ -24,19 +25,11 @@ from labrig.model.scan import (
     load_library,
     make_chunks,
     run_chunk,
-    run_scan,
 )
-from labrig.model.scan_file import read_scan
-from labrig.model.scan_summary import plot_fig4, rank_designs, summarise
-from labrig.model.transitions import transitions
-
-# eight segments across the library: every braid length, a segment without a peak
-# (B40-T30), near-flat dips and the deepest one
-SMALL = LIBRARY_NAMES[::5]
-
-
-def small_library():
-    return ScanLibrary("test", tuple(analytical_segment(n) for n in SMALL))
+from labrig.model.scan.scan_file import read_scan
+from labrig.model.scan.scan_summary import plot_fig4, rank_designs, summarise
+from labrig.model.segments.library import LIBRARY_NAMES, analytical_segment
+from labrig.model.segments.measured import write_csv
 
 
 @pytest.mark.parametrize(("n_items", "k"), [(7, 3), (36, 2), (9, 5), (6, 6)])
@@ -131,31 +124,12 @@ def test_a_failing_actuator_is_recorded_and_the_chunk_goes_on(monkeypatch):
     assert set(result.actuator.tolist()) == set(range(28)) - set(result.failed_actuator.tolist())
 
 
-def _file_contents(path):
-    with h5py.File(path, "r") as h5:
-        out = {}
-        h5.visititems(
-            lambda name, obj: (
-                out.__setitem__(name, obj[()]) if isinstance(obj, h5py.Dataset) else None
-            )
-        )
-    out.pop("chunks/seconds")  # the only thing that depends on the machine's load
-    return out
-
-
-def _assert_same_contents(a, b):
-    first, second = _file_contents(a), _file_contents(b)
-    assert first.keys() == second.keys()
-    for key in first:
-        np.testing.assert_array_equal(first[key], second[key], err_msg=key)
-
-
 def test_the_file_is_the_same_with_one_or_two_workers(tmp_path):
     library = small_library()
     one, two = tmp_path / "one.h5", tmp_path / "two.h5"
     run_scan(library, 3, one, workers=1, chunk_size=7)
     run_scan(library, 3, two, workers=2, chunk_size=7)
-    _assert_same_contents(one, two)
+    assert_same_contents(one, two)
     data = read_scan(two)
     assert data.complete and data.actuators_done == 56 and data.n_combinations == 56
     assert data.workers == 2 and data.elapsed_s > 0 and data.worker_peak_rss_mib > 10
@@ -186,7 +160,7 @@ def test_an_interrupted_scan_resumes_to_the_same_file(tmp_path):
     seen = []
     run_scan(library, 2, cut, workers=2, resume=True, progress=seen.append)
     assert seen[0].chunks_done == 3 and seen[-1].actuators_done == 28
-    _assert_same_contents(whole, cut)
+    assert_same_contents(whole, cut)
     assert read_scan(cut).complete
 
 

@@ -4,7 +4,7 @@ known analytically."""
 import numpy as np
 import pytest
 
-from labrig.model.segment import SegmentCurve
+from labrig.model.segments.curve import SegmentCurve
 
 
 def cubic(v):

@@ -24,11 +24,11 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from scipy.interpolate import PchipInterpolator
 
-from labrig.model.actuator import Actuator, is_stable
-from labrig.model.path import INFLATE, quasi_static_path, sample_path
-from labrig.model.scan import Chunk, ScanLibrary, make_chunks, run_chunks
-from labrig.model.segment import SegmentCurve
-from labrig.model.transitions import transitions
+from labrig.model.actuator.equilibria import Actuator, is_stable
+from labrig.model.actuator.path import INFLATE, quasi_static_path, sample_path
+from labrig.model.actuator.transitions import transitions
+from labrig.model.scan.scan import Chunk, ScanLibrary, make_chunks, run_chunks
+from labrig.model.segments.curve import SegmentCurve
 
 STRESS = settings(
     max_examples=50,
@@ -206,7 +206,7 @@ def test_noisy_measured_curves(tmp_path_factory, knots, seed):
     the measured-curve loader's shape fit, then the path. Valleys stay 2 kPa (7 noise
     sigmas) above zero: a fitted valley below 0 kPa asks another segment for a pressure
     below its unpressurised state, outside the curves (a FlowError, docs/scan.md)."""
-    from labrig.model.measured import load_csv
+    from labrig.model.segments.measured import load_csv
 
     rng = np.random.default_rng(seed)
     folder = tmp_path_factory.mktemp("noisy")

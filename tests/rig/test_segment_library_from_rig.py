@@ -6,7 +6,7 @@ import textwrap
 import pytest
 from simrig import run_sim
 
-from labrig.model.library import analytical_segment, load_segment
+from labrig.model.segments.library import analytical_segment, load_segment
 from labrig.segment_library import add_from_run
 
 PROTOCOL = textwrap.dedent(

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from labrig.model.segment import SegmentCurve
+from labrig.model.segments.curve import SegmentCurve
 from labrig.sim.plant import Plant
 
 V = np.linspace(0.0, 80.0, 1601)

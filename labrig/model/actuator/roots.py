@@ -3,7 +3,7 @@
 scipy's ``brentq`` does the same in C but needs finite values at both ends and costs a
 few tens of microseconds per call in overhead; here an infinite end value (the slope
 term 1/k at a branch end where k = 0) is allowed and only its sign is used. The
-function whose root is sought is one of the compiled ``labrig.model.curve_tables``
+function whose root is sought is one of the compiled ``labrig.model.actuator.curve_tables``
 objectives (``excess_volume``, ``inverse_slope_sum``, ``pair_imbalance``), named by
 its number, so a whole root search runs without returning to Python.
 """
@@ -12,9 +12,8 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
-from labrig.model.curve_tables import objective
+from labrig.model.actuator.curve_tables import objective
+from labrig.model.actuator.jit import njit
 
 # absolute and relative tolerances on a root (added), and the most iterations
 XTOL = 1e-12

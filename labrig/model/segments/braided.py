@@ -14,7 +14,7 @@ docs/model.md.
 
 Lengths in mm, forces in N, moduli in MPa; N*mm = mJ, so energies per mm^3 are MPa.
 What this module produces is a ``SegmentCurve``; turning names into segments is
-``labrig.model.library``'s job.
+``labrig.model.segments.library``'s job.
 """
 
 from __future__ import annotations
@@ -25,8 +25,8 @@ from functools import cached_property
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
-from labrig.model.segment import SegmentCurve
-from labrig.model.tabulate import tabulate
+from labrig.model.segments.curve import SegmentCurve
+from labrig.model.segments.tabulate import tabulate
 
 # The latex tube of the paper (main text and SI).
 R_TUBE_MM = 6.35

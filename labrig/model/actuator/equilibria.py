@@ -6,7 +6,7 @@ supplied volumes add up to the total (Eq. 2). The paper's operational method (Fi
 finds every equilibrium at once: for each pressure of a grid, every volume of every
 segment on every monotone branch, and every combination of those. ``equilibria`` does
 exactly that, vectorised over pressures and branch combinations; it is what the v1-v2
-plots show. The quasi-static path does not need the grid (``labrig.model.path``).
+plots show. The quasi-static path does not need the grid (``labrig.model.actuator.path``).
 
 Stability (Eq. 10, derived here in the form used everywhere in labrig). With
 v_n = v - sum_{i<n} v_i, the Hessian of the reduced energy (Eq. 9) is
@@ -34,11 +34,11 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from numba import njit
 
-from labrig.model.curve_tables import tables_of, total_energy, total_length
-from labrig.model.kernel import CurveKernel
-from labrig.model.segment import SegmentCurve
+from labrig.model.actuator.curve_tables import tables_of, total_energy, total_length
+from labrig.model.actuator.jit import njit
+from labrig.model.actuator.kernel import CurveKernel, kernel_of
+from labrig.model.segments.curve import SegmentCurve
 
 
 def is_stable(k) -> np.ndarray:
@@ -118,7 +118,7 @@ class Actuator:
 
     @cached_property
     def kernels(self) -> tuple[CurveKernel, ...]:
-        return tuple(s.kernel for s in self.segments)
+        return tuple(kernel_of(s) for s in self.segments)
 
     def energy_mj(self, v_i_ml: Sequence[float]) -> float:
         """Total stored energy, Eq. 3 (from the unpressurised state)."""

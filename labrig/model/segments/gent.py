@@ -20,8 +20,8 @@ from functools import cache, cached_property
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
-from labrig.model.segment import SegmentCurve
-from labrig.model.tabulate import tabulate
+from labrig.model.segments.curve import SegmentCurve
+from labrig.model.segments.tabulate import tabulate
 
 R_SPHERE_MM = 10.0
 H_A_MM = 1.0

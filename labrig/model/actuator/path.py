@@ -9,7 +9,7 @@ to event:
 - a segment reaches the end of its branch (its peak, its valley): it changes branch; if
   it crosses its peak this is a stable transition (the paper's (0, 1));
 - a fold: on a combination with one segment past its peak (one k_m < 0), the state is
-  stable while sum_i 1/k_i < 0 (see ``labrig.model.actuator``); where that sum reaches
+  stable while sum_i 1/k_i < 0 (see ``labrig.model.actuator.equilibria``); where that sum reaches
   zero, v(p) turns, the state is lost and the actuator snaps at constant volume. The fold
   is a root of sum 1/k_i found to ~1e-11 kPa, so its volume (an extremum of v(p)) is
   exact, not limited by a grid;
@@ -19,12 +19,12 @@ to event:
   taken (lowest segment index on a tie); if none, the state is lost there.
 
 A lost state goes where the overdamped flow between the segments takes it
-(``labrig.model.descent``), started from the fold along the direction the path was
+(``labrig.model.actuator.descent``), started from the fold along the direction the path was
 moving (the fold's null vector), then the new state is put on its branch combination by
 solving sum_i v_i(p) = v. Deflation runs the same machinery with v decreasing.
 
 The path is a list of ``Piece``s (one combination, a pressure interval) and ``Event``s;
-``sample_path`` turns it into arrays for plots and JSON, ``labrig.model.transitions`` into
+``sample_path`` turns it into arrays for plots and JSON, ``labrig.model.actuator.transitions`` into
 the paper's transitions.
 """
 
@@ -38,8 +38,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from labrig.model.actuator import Actuator, stable_scalar
-from labrig.model.curve_tables import (
+from labrig.model.actuator.curve_tables import (
     EXCESS_VOLUME,
     excess_volume,
     inverse_sum_of,
@@ -47,9 +46,10 @@ from labrig.model.curve_tables import (
     tables_of,
     volumes_on_branches,
 )
-from labrig.model.descent import FLOW_TOL, FlowError, settle, volume_unit_ml
-from labrig.model.fold_search import AT_PRESSURE, AT_VOLUME, START, at_volume_of, find_fold
-from labrig.model.roots import XTOL, bracketed_root
+from labrig.model.actuator.descent import FLOW_TOL, FlowError, settle, volume_unit_ml
+from labrig.model.actuator.equilibria import Actuator, stable_scalar
+from labrig.model.actuator.fold_search import AT_PRESSURE, AT_VOLUME, START, at_volume_of, find_fold
+from labrig.model.actuator.roots import XTOL, bracketed_root
 
 INFLATE = 1
 DEFLATE = -1
@@ -151,7 +151,7 @@ def quasi_static_path(
 
     ``screen_margin`` and ``flow_tol`` are the solver's accuracy settings (the fold
     screen's margin, see ``_Tracer._find_fold``, and the flow's local error per step in
-    units of the tables' sample spacing, see ``labrig.model.descent.settle``); the
+    units of the tables' sample spacing, see ``labrig.model.actuator.descent.settle``); the
     defaults are what every command uses, the benchmark varies them."""
     tracer = _Tracer(actuator, screen_margin=screen_margin, flow_tol=flow_tol)
     v_end = default_end_volume_ml(actuator) if v_end_ml is None else float(v_end_ml)

@@ -34,7 +34,7 @@ import numpy as np
 
 import labrig
 from labrig.errors import InputError
-from labrig.model.scan import (
+from labrig.model.scan.scan import (
     TRANSITION_FIELDS,
     Chunk,
     ChunkResult,

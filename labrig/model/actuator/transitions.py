@@ -31,7 +31,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from labrig.model.path import INFLATE, Event, Path, State, state_on_piece
+from labrig.model.actuator.path import INFLATE, Event, Path, State, state_on_piece
 
 
 @dataclass(frozen=True)

@@ -1,14 +1,14 @@
-"""The n >= 3 flow integrator of ``labrig.model.descent``, compiled with numba.
+"""The n >= 3 flow integrator of ``labrig.model.actuator.descent``, compiled with numba.
 
 The flow after a snap is where a scan spends most of its time: about 4 flows per
 quadruple, 50-150 Rosenbrock steps each, each step a handful of piecewise-cubic
 evaluations and three Sherman-Morrison solves on n floats. In CPython that is ~5 ms per
 flow (60 % of a quadruple); compiled, ~0.1 ms. The algorithm is the one described in
-``labrig.model.descent`` (ROS2, Shampine's filtered error estimate, the energy check,
+``labrig.model.actuator.descent`` (ROS2, Shampine's filtered error estimate, the energy check,
 the step limit from the secular equation); the sums that the pure-Python version took
 with ``math.fsum`` are compensated (Neumaier) sums here, so the rounding is the same.
 
-It reads the actuator's curves as packed arrays (``labrig.model.curve_tables``).
+It reads the actuator's curves as packed arrays (``labrig.model.actuator.curve_tables``).
 Compilation takes a few seconds once; the machine code is cached next to this file
 (``cache=True``) and reused by every later process, including scan workers.
 """
@@ -18,10 +18,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from labrig.model.actuator import stable_slopes
-from labrig.model.curve_tables import compensated_sum, pressure_and_slope
+from labrig.model.actuator.curve_tables import compensated_sum, pressure_and_slope
+from labrig.model.actuator.equilibria import stable_slopes
+from labrig.model.actuator.jit import njit
 
 GAMMA = 1.0 + 1.0 / math.sqrt(2.0)  # ROS2, L-stable
 

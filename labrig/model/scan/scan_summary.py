@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from labrig.model.scan_file import BLOCK_ROWS, ScanData
+from labrig.model.scan.scan_file import BLOCK_ROWS, ScanData
 
 METRICS = ("dE", "dv", "dl", "dp")
 # the paper's colours for its three n = 2 types; anything else gets its own

@@ -2,7 +2,7 @@
 
 Small volume increments; at each, a local Nelder-Mead minimisation of the reduced energy
 E~(v_1..v_{n-1}) (Eq. 4, v_n from Eq. 2) starting from the previous state, as the paper
-did in Matlab. It shares only the segment curves with ``labrig.model.path``: no
+did in Matlab. It shares only the segment curves with ``labrig.model.actuator.path``: no
 branches, no folds, no flow. Two of the model-notes' traps are avoided as the notes say:
 
 - the initial simplex is a tenth of the volume increment (trap 2): the default 5 %
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from labrig.model.actuator import Actuator
+from labrig.model.actuator.equilibria import Actuator
 
 
 @dataclass(frozen=True)

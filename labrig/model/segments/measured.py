@@ -7,7 +7,7 @@ is refused with one line naming the file, the line and what is allowed.
 A table that already has the segment's shape (at most one peak followed by one valley,
 as written by ``write_csv`` or ``labrig library add``) is used as it is. Raw data with
 noise is averaged on a volume grid and fitted to the rise-fall-rise shape
-(``labrig.model.shape_fit``); its samples are the centres of the fitted blocks. Either
+(``labrig.model.segments.shape_fit``); its samples are the centres of the fitted blocks. Either
 way the pressure is then referred to zero at v = 0 (the unpressurised state is at
 atmospheric pressure, so what the curve shows there is a residual sensor offset; a gain
 error cannot be seen and stays), and a curve that ends below P_END_KPA is extended along
@@ -24,8 +24,12 @@ from pathlib import Path
 import numpy as np
 
 from labrig.errors import InputError
-from labrig.model.segment import SegmentCurve
-from labrig.model.shape_fit import DIP_NOISE_FACTOR, binned_trimmed_means, fit_rise_fall_rise
+from labrig.model.segments.curve import SegmentCurve
+from labrig.model.segments.shape_fit import (
+    DIP_NOISE_FACTOR,
+    binned_trimmed_means,
+    fit_rise_fall_rise,
+)
 
 HEADER = ("volume_ml", "pressure_kpa", "length_mm")
 MIN_ROWS = 10

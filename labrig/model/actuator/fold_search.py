@@ -1,6 +1,6 @@
 """The search for the first fold along a piece of the path, compiled with numba.
 
-What is searched and why is explained in ``labrig.model.path`` (``_find_fold``): the
+What is searched and why is explained in ``labrig.model.actuator.path`` (``_find_fold``): the
 screened sum of 1/k at every sample pressure of every segment in the piece
 (``curve_tables.fold_screen``), exact states at the flagged pressures, brackets refined
 down to the falling segment's sample spacing (8 points per level, in order, so the
@@ -17,9 +17,8 @@ start state passed in (``START``).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from labrig.model.curve_tables import (
+from labrig.model.actuator.curve_tables import (
     BRANCH_RISING,
     BREAKPOINTS,
     INVERSE_SLOPE_SUM,
@@ -31,7 +30,8 @@ from labrig.model.curve_tables import (
     pressure_and_slope,
     volumes_on_branches,
 )
-from labrig.model.roots import bracketed_root
+from labrig.model.actuator.jit import njit
+from labrig.model.actuator.roots import bracketed_root
 
 NOT_FOUND, AT_PRESSURE, AT_VOLUME, START = range(4)
 # bracket refinement: points per level, and levels at most (a bracket shrinks 8-fold
@@ -43,7 +43,7 @@ _MAX_PENDING = _SPLIT * 12 + 2
 @njit(cache=True)
 def at_volume_of(tables, branches, m, v_m):
     """The state on ``branches`` where segment m holds v_m (its pressure sets the
-    others'); (p, v, k). ``labrig.model.path._Tracer.at_volume_of`` calls this too."""
+    others'); (p, v, k). ``labrig.model.actuator.path._Tracer.at_volume_of`` calls this too."""
     p, k_m = pressure_and_slope(tables, m, v_m)
     k_m = max(k_m, 0.0) if tables[BRANCH_RISING][m, branches[m]] else min(k_m, 0.0)
     v, k = volumes_on_branches(tables, branches, p)

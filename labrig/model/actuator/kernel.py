@@ -5,7 +5,7 @@ root search on a fold, one flow step, one energy difference). numpy's per-call o
 (about a microsecond per array operation, tens of microseconds per interpolant call)
 would dominate that work, so the PCHIP pieces are copied once into Python lists (for
 the energies and lengths, evaluated with Horner's rule here) and into packed arrays for
-the compiled pressure, slope and branch inversion (``labrig.model.curve_tables``, the
+the compiled pressure, slope and branch inversion (``labrig.model.actuator.curve_tables``, the
 hottest calls). The numbers are those of ``SegmentCurve`` (same cubic pieces, same
 linear continuation past both ends); ``SegmentCurve.volume_on_branch`` is the vectorised
 counterpart of ``volume_on_branch`` here and the tests hold them equal.
@@ -14,10 +14,11 @@ counterpart of ``volume_on_branch`` here and the tests hold them equal.
 from __future__ import annotations
 
 import math
+import weakref
 from functools import cached_property
 
-from labrig.model import curve_tables
-from labrig.model.segment import SegmentCurve
+from labrig.model.actuator import curve_tables
+from labrig.model.segments.curve import SegmentCurve
 
 # fractions of a sample interval at which slope profiles close in on an extremum
 _TOWARD_END = (0.5, 0.25, 0.1, 0.03, 0.01, 0.003, 0.001)
@@ -168,3 +169,16 @@ class CurveKernel:
         """(v, dp/dv) on ``branch`` at pressure ``p``; the caller keeps ``p`` within the
         branch's pressure range (values outside are clamped to its ends)."""
         return curve_tables.volume_on_branch(self.tables, 0, branch, p)
+
+
+_KERNELS: weakref.WeakKeyDictionary[SegmentCurve, CurveKernel] = weakref.WeakKeyDictionary()
+
+
+def kernel_of(curve: SegmentCurve) -> CurveKernel:
+    """The curve's kernel, built once per curve: a scan puts the same curves in thousands
+    of actuators. Kept here rather than on the curve, so that the segments package
+    never imports the path solver; it lives as long as the curve does."""
+    kernel = _KERNELS.get(curve)
+    if kernel is None:
+        kernel = _KERNELS[curve] = CurveKernel(curve)
+    return kernel

@@ -4,25 +4,20 @@ transitions.
 The unit of work is a ``Chunk``: a run of consecutive combinations in lexicographic
 order, named by its index and its first and last rank. ``run_chunk(library, chunk)`` is a
 pure function, chunk in, ``ChunkResult`` (plain numpy arrays) out: it never touches the
-file, so the same chunks run in-process, on a local process pool (``run_scan``) or on a
-distributed engine. With Dask, for a library of measured segments that outgrows one
-machine::
+file, so the same chunks run in-process, on a local process pool (``run_chunks``, and
+``labrig.model.scan.run`` for a whole scan into a file) or on a dask.distributed
+cluster (``labrig.model.scan.distributed``), for a library that outgrows one machine.
 
-    lib = client.scatter(library, broadcast=True)
-    futures = client.map(run_chunk, [lib] * len(chunks), chunks)
-    for future in futures:  # in chunk order: the client is the only writer
-        scan_file.append(future.result())
-
-Every curve's scalar kernel is built once per process (``SegmentCurve.kernel``), before
+Every curve's scalar kernel is built once per process (``kernel_of``), before
 the workers fork, not once per actuator. A failure on one actuator is recorded with its
 error text and the scan goes on. Results are written by the parent only, chunk after
-chunk in order (``labrig.model.scan_file``), so the file is the same whatever the
+chunk in order (``labrig.model.scan.scan_file``), so the file is the same whatever the
 number of workers, and an interrupted scan resumes at its first unfinished chunk.
 
 What is computed per actuator: the quasi-static path under inflation from the
 unpressurised state to ``default_end_volume_ml`` (past which no transition can happen),
 optionally followed by deflation back to zero, and its transitions
-(``labrig.model.transitions``), the fields of ``labrig model path --json``.
+(``labrig.model.actuator.transitions``), the fields of ``labrig model path --json``.
 """
 
 from __future__ import annotations
@@ -42,10 +37,11 @@ from pathlib import Path
 import numpy as np
 
 from labrig.errors import InputError
-from labrig.model.actuator import Actuator
-from labrig.model.path import quasi_static_path
-from labrig.model.segment import SegmentCurve
-from labrig.model.transitions import transitions
+from labrig.model.actuator.equilibria import Actuator
+from labrig.model.actuator.kernel import kernel_of
+from labrig.model.actuator.path import quasi_static_path
+from labrig.model.actuator.transitions import transitions
+from labrig.model.segments.curve import SegmentCurve
 
 ANALYTICAL = "analytical"
 GENT = "gent"
@@ -80,13 +76,13 @@ class ScanLibrary:
 def load_library(spec: str | None) -> ScanLibrary:
     """``analytical`` (default: the 36 braided segments), ``gent`` (the three membranes
     of Fig. S1) or a folder of measured curves (every ``*.csv`` in it, by file name)."""
-    from labrig.model import library
+    from labrig.model.segments import library
 
     if spec is None or spec.strip().lower() == ANALYTICAL:
         names = library.LIBRARY_NAMES
         return ScanLibrary(ANALYTICAL, tuple(library.analytical_segment(n) for n in names))
     if spec.strip().lower() == GENT:
-        from labrig.model.gent import GENT_NAMES, gent_membrane
+        from labrig.model.segments.gent import GENT_NAMES, gent_membrane
 
         return ScanLibrary(GENT, tuple(gent_membrane(n) for n in sorted(GENT_NAMES)))
     folder = Path(spec)
@@ -95,7 +91,7 @@ def load_library(spec: str | None) -> ScanLibrary:
             f"--library {spec!r}: use 'analytical' (the 36 braided segments), 'gent', or a "
             "folder of measured curves (CSV files volume_ml,pressure_kpa,length_mm)"
         )
-    from labrig.model.measured import load_csv
+    from labrig.model.segments.measured import load_csv
 
     files = sorted(folder.glob("*.csv"))
     if len(files) < 2:
@@ -188,7 +184,7 @@ class ChunkResult:
 
 def scan_actuator(library: ScanLibrary, combo: tuple[int, ...], *, deflate: bool = False):
     """The transitions of the actuator made of segments ``combo`` of ``library``. Each
-    curve's scalar kernel is built once per process (``SegmentCurve.kernel``) and shared
+    curve's scalar kernel is built once per process (``kernel_of``) and shared
     by every actuator the curve is in."""
     actuator = Actuator([library.curves[i] for i in combo])
     return transitions(quasi_static_path(actuator, deflate=deflate))
@@ -251,7 +247,7 @@ def _init_worker(library: ScanLibrary) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _WORKER_LIBRARY = library
     for curve in library.curves:
-        curve.kernel  # noqa: B018 (built once here, before the first chunk)
+        kernel_of(curve)  # built once here, before the first chunk
 
 
 def _run_in_worker(chunk: Chunk) -> ChunkResult:
@@ -294,7 +290,7 @@ def run_chunks(
             raise ScanInterrupted("the scan was stopped; its finished chunks are kept")
 
     for curve in library.curves:  # built before any fork, so that workers inherit them
-        curve.kernel  # noqa: B018
+        kernel_of(curve)
     if workers <= 1 or len(chunks) <= 1:
         for chunk in chunks:
             check_stop()
@@ -325,75 +321,4 @@ def _take(iterator: Iterator[Chunk], count: int) -> list[Chunk]:
         if item is None:
             break
         out.append(item)
-    return out
-
-
-# --- a whole scan into a file ---------------------------------------------------------------
-@dataclass(frozen=True)
-class ScanProgress:
-    actuators_done: int
-    actuators_total: int
-    chunks_done: int
-    chunks_total: int
-
-
-def run_scan(
-    library: ScanLibrary,
-    n: int,
-    out: Path,
-    *,
-    workers: int | None = None,
-    resume: bool = False,
-    deflate: bool = False,
-    chunk_size: int | None = None,
-    progress: Callable[[ScanProgress], None] | None = None,
-    stop: threading.Event | None = None,
-) -> Path:
-    """Scan every combination of ``n`` segments of ``library`` into ``out`` (HDF5).
-
-    With ``resume`` the file must hold an interrupted scan of the same library, n and
-    ``deflate``; its finished chunks are kept and the rest computed. Setting ``stop``
-    ends the scan after the chunk in hand (ScanInterrupted). On any exception the file
-    is closed with every finished chunk in it.
-    """
-    from labrig.model.scan_file import ScanFile
-
-    if not 2 <= n <= min(MAX_N, len(library.curves)):
-        raise InputError(
-            f"--n {n}: choose 2..{min(MAX_N, len(library.curves))} "
-            f"({len(library.curves)} segments in the library)"
-        )
-    workers = default_workers() if workers is None else workers
-    if workers < 1:
-        raise InputError(f"--workers {workers}: must be at least 1")
-    total = math.comb(len(library.curves), n)
-    if resume:
-        if not out.is_file():
-            raise InputError(f"--resume: {out} does not exist; start the scan without --resume")
-        scan = ScanFile.resume(out, library, n, deflate=deflate)
-    else:
-        if out.exists():
-            raise InputError(
-                f"--out {out}: the file exists; --resume continues it, or remove it first"
-            )
-        if not out.parent.is_dir():
-            raise InputError(f"--out {out}: the folder {out.parent} does not exist")
-        size = default_chunk_size(total) if chunk_size is None else chunk_size
-        scan = ScanFile.create(out, library, n, chunk_size=size, deflate=deflate)
-    chunks = scan.pending_chunks()
-    done = {"chunks": scan.chunks_done, "actuators": total - sum(c.stop - c.start for c in chunks)}
-
-    def sink(result: ChunkResult) -> None:
-        scan.append(result)
-        done["chunks"] += 1
-        done["actuators"] += result.n_actuators
-        if progress is not None:
-            progress(ScanProgress(done["actuators"], total, done["chunks"], scan.n_chunks))
-
-    if progress is not None:
-        progress(ScanProgress(done["actuators"], total, done["chunks"], scan.n_chunks))
-    try:
-        run_chunks(library, chunks, sink, workers=workers, stop=stop)
-    finally:
-        scan.close(workers=workers, parent_peak_rss_mib=peak_rss_mib())
     return out

@@ -106,14 +106,6 @@ class SegmentCurve:
     def _l(self) -> PchipInterpolator:
         return PchipInterpolator(self.v_ml, self.l_mm, extrapolate=False)
 
-    @cached_property
-    def kernel(self):
-        """This curve's scalar evaluator for the path solver (``labrig.model.kernel``),
-        built once per curve: a scan puts the same curves in thousands of actuators."""
-        from labrig.model.kernel import CurveKernel  # the kernel module imports this one
-
-        return CurveKernel(self)
-
     @property
     def v_max_ml(self) -> float:
         return float(self.v_ml[-1])

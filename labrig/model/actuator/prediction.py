@@ -11,7 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from labrig.model.segment import SegmentCurve
+from labrig.model.segments.curve import SegmentCurve
 
 
 def predicted_inflation(
@@ -26,8 +26,8 @@ def predicted_inflation(
         (segment,) = segments
         v = np.linspace(0.0, v_max_ml, max(2, int(np.ceil(v_max_ml / dv_ml)) + 1))
         return v, segment.pressure_kpa(v), segment.length_mm(v)
-    from labrig.model.actuator import Actuator
-    from labrig.model.path import quasi_static_path, sample_path
+    from labrig.model.actuator.equilibria import Actuator
+    from labrig.model.actuator.path import quasi_static_path, sample_path
 
     path = sample_path(quasi_static_path(Actuator(segments), v_max_ml), dv_ml)
     return path.v_ml, path.p_kpa, path.l_mm

@@ -18,9 +18,9 @@ L-stable Rosenbrock method (ROS2, Verwer et al. 1999): the stiffening walls make
 system stiff, and its Jacobian is diagonal plus rank one, so each linear solve is a
 Sherman-Morrison formula on floats. Near the end the steps grow and the method becomes
 Newton's, so the end state is an equilibrium to rounding. The integrator is compiled
-(``labrig.model.ros2_flow``): it is most of a scan's work.
+(``labrig.model.actuator.ros2_flow``): it is most of a scan's work.
 
-This module returns volumes only; ``labrig.model.path`` turns them into a state on a
+This module returns volumes only; ``labrig.model.actuator.path`` turns them into a state on a
 branch combination and checks it is stable.
 """
 
@@ -31,11 +31,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from labrig.model import ros2_flow
-from labrig.model.actuator import hessian, stable_scalar
-from labrig.model.curve_tables import PAIR_IMBALANCE, pair_imbalance, tables_of
-from labrig.model.kernel import CurveKernel
-from labrig.model.roots import XTOL, bracketed_root
+from labrig.model.actuator import ros2_flow
+from labrig.model.actuator.curve_tables import PAIR_IMBALANCE, pair_imbalance, tables_of
+from labrig.model.actuator.equilibria import hessian, stable_scalar
+from labrig.model.actuator.kernel import CurveKernel
+from labrig.model.actuator.roots import XTOL, bracketed_root
 
 # pushes off unstable equilibria before a flow is declared stuck
 MAX_SADDLE_ESCAPES = 100

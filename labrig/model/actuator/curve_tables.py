@@ -9,7 +9,7 @@ plus ~0.6 us to call from Python.
 ``pack`` copies the PCHIP pieces of one or more segments into arrays padded to one
 length (a tuple of arrays, ``pack``); ``CurveKernel`` holds the tables of its own segment, a path
 solver those of its actuator (``tables_of``), and the post-snap flow
-(``labrig.model.ros2_flow``) reads the same arrays. The numbers are those of
+(``labrig.model.actuator.ros2_flow``) reads the same arrays. The numbers are those of
 ``SegmentCurve``: the same cubic pieces, the same linear continuation past both ends.
 
 Compilation takes a few seconds once; the machine code is cached next to this file
@@ -23,7 +23,8 @@ from collections.abc import Sequence
 from functools import lru_cache
 
 import numpy as np
-from numba import njit
+
+from labrig.model.actuator.jit import njit
 
 # Newton on a branch's cubic piece stops when the step is below this fraction of the
 # sample spacing (the interpolant itself is only defined to rounding, ~1e-16).
@@ -379,7 +380,7 @@ def singular_distance(tables, i, branch, p):
 def fold_screen(tables, profiles, branches, p_from, p_to, margin):
     """Pressures strictly between p_from and p_to, in the order the path meets them,
     where the screened sum of 1/k comes within ``margin`` of its terms' magnitudes
-    from 0 (``labrig.model.path``, ``_find_fold``): each segment's slope profile,
+    from 0 (``labrig.model.actuator.path``, ``_find_fold``): each segment's slope profile,
     interpolated linearly in p and divided by sqrt of the distance to the branch's
     extremum, summed over the segments, at every profile pressure of every segment."""
     lo, hi = min(p_from, p_to), max(p_from, p_to)
@@ -412,7 +413,7 @@ def fold_screen(tables, profiles, branches, p_from, p_to, margin):
     return flagged[::-1] if p_to < p_from else flagged
 
 
-# The functions whose roots the solver seeks (``labrig.model.roots``), by number: a
+# The functions whose roots the solver seeks (``labrig.model.actuator.roots``), by number: a
 # compiled function passed as an argument would cost ~7 us per call to type and could
 # not be cached.
 EXCESS_VOLUME, INVERSE_SLOPE_SUM, PAIR_IMBALANCE = range(3)

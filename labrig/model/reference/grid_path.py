@@ -1,6 +1,6 @@
 """The inflation path from the equilibria on a pressure grid (the paper's operational
 method, Fig. S5), kept as a baseline for the benchmark: how accurate a grid is, and at
-what cost, next to the continuation of ``labrig.model.path``.
+what cost, next to the continuation of ``labrig.model.actuator.path``.
 
 ``Actuator.equilibria`` gives every equilibrium at every grid pressure, grouped here by
 branch combination (on one combination each segment is a function of p, so its grid
@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from labrig.model.actuator import Actuator
+from labrig.model.actuator.equilibria import Actuator
 
 
 @dataclass(frozen=True)
@@ -128,7 +128,7 @@ def _cross(combos, key, g, s, v_pre, ran_out, branches, direction_of):
     grid points g and g + s) switched, at grid point g or g + s, with at least the
     volume of the point left and v growing on it; None if there is none.
 
-    As in ``labrig.model.path``: moving in pressure direction s, a segment on a rising
+    As in ``labrig.model.actuator.path``: moving in pressure direction s, a segment on a rising
     branch with s > 0 (a falling one with s < 0) goes on to the next branch, otherwise
     back to the previous one; a branch whose whole pressure range lies between two grid
     points (a dip shallower than the spacing) is hopped over.

@@ -13,7 +13,7 @@ the noise, the curve is fitted as one rising branch instead: a dip the data cann
 resolve is not reported.
 
 This module only fits numbers; reading files and building the ``SegmentCurve`` is
-``labrig.model.measured``'s job.
+``labrig.model.segments.measured``'s job.
 """
 
 from __future__ import annotations
