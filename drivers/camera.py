@@ -198,22 +198,36 @@ class FrameSource:
             return self._read_file()
         if self._reader is None:
             self._reader = self.clock.start_thread(self._read_frames, f"{self.name} reader")
-        self.clock.wait_for(
-            lambda: self._latest_seq > self._taken_seq or self._error is not None,
-            timeout_s=FRAME_TIMEOUT_S,
-        )
-        with self._lock:
-            if self._latest_seq > self._taken_seq:
-                self._taken_seq = self._latest_seq
-                self.n_frames += 1
-                return self._latest
-            error = self._error
-        if error is not None:
-            raise error
-        raise DeviceError(f"{self.name} sent no frame for {FRAME_TIMEOUT_S:g} s")
+        fps = float(self.capture.get(cv2.CAP_PROP_FPS) or 0.0)
+        timeout_s = max(FRAME_TIMEOUT_S, 3.0 / fps) if fps > 0 else FRAME_TIMEOUT_S
+        while True:
+            grabbed = self.n_grabbed
+            self.clock.wait_for(
+                lambda: self._latest_seq > self._taken_seq or self._error is not None,
+                timeout_s=timeout_s,
+            )
+            with self._lock:
+                if self._latest_seq > self._taken_seq:
+                    self._taken_seq = self._latest_seq
+                    self.n_frames += 1
+                    return self._latest
+                error = self._error
+            if error is not None:
+                raise error
+            if self.n_grabbed == grabbed:  # not even a warm-up frame came meanwhile
+                raise DeviceError(f"{self.name} sent no frame for {timeout_s:g} s")
 
     def _read_frames(self) -> None:
-        """The reader thread: every frame the camera streams, the latest kept."""
+        """The reader thread: every frame the camera streams, the latest kept. Whatever
+        ends it early is kept for ``read()`` to raise: a reader that died quietly would
+        look like a camera that stopped sending."""
+        try:
+            self._read_every_frame()
+        except Exception as exc:
+            with self._lock:
+                self._error = DeviceError(f"{self.name} reader failed: {exc!r}")
+
+    def _read_every_frame(self) -> None:
         while not self._stopping:
             ok, image = self.capture.read()
             t_host_s = self.clock.now()  # right after the grab, before any processing

@@ -460,8 +460,8 @@ class Runner:
 
     def _read_length(self) -> None:
         sample = self.rig.length.read()
-        if sample is None:
-            return
+        if sample is None or self._stop_loops.is_set():
+            return  # a frame that came after the loops were told to stop is not recorded
         self.writer.append_length(
             self._current_repetition(),
             sample.t_s,

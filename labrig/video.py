@@ -24,7 +24,6 @@ import queue
 import threading
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 FOURCC = {".avi": "MJPG", ".mkv": "MJPG", ".mp4": "mp4v"}
@@ -46,7 +45,7 @@ class VideoRecorder:
         self.error: OSError | None = None
         self._queue: queue.Queue = queue.Queue(maxsize=queue_frames)
         self._thread: threading.Thread | None = None
-        self._writer: cv2.VideoWriter | None = None
+        self._writer = None  # a cv2.VideoWriter once the first frame gives the size
 
     def add(self, image) -> None:
         """Hand one frame over (an array or an array-like that renders on access)."""
@@ -68,6 +67,8 @@ class VideoRecorder:
                 self.error = exc
 
     def _write(self, image: np.ndarray) -> None:
+        import cv2  # only a run with a video needs OpenCV's writer
+
         if self._writer is None:
             height, width = image.shape[:2]
             self._writer = cv2.VideoWriter(

@@ -167,6 +167,8 @@ class SimCamera:
         """The sensor-size frame's pixels [y0:y1, x0:x1]: the same values whichever box
         is asked for, so a region read alone equals that region of the whole frame."""
         out = np.empty((y1 - y0, x1 - x0, 3), dtype=np.uint8)
+        if out.size == 0:
+            return out
         gain, centres = frame.gain, frame.centres
         _fill(out, 0, 0, x1 - x0, y1 - y0, self.background_bgr * gain)
         ends_px = 3 * self.radius_px + 40  # the band runs a little past the markers

@@ -5,6 +5,8 @@ import math
 import cv2
 import numpy as np
 import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 
 from labrig.sim.camera import SimCamera
 from labrig.virtual_clock import VirtualClock
@@ -185,3 +187,26 @@ def test_exposure_and_focus_are_kept_and_read_back():
     assert cam.set(cv2.CAP_PROP_AUTOFOCUS, 0.0) and cam.set(cv2.CAP_PROP_FOCUS, 20.0)
     assert cam.get(cv2.CAP_PROP_EXPOSURE) == 50.0 and cam.get(cv2.CAP_PROP_FOCUS) == 20.0
     assert not cam.set(cv2.CAP_PROP_ZOOM, 2.0)  # a control this camera does not have
+
+
+@settings(max_examples=60, deadline=None)
+@example(t=0.0, box=(0, 0, 0, 0), seed=0)  # an empty region (found by hypothesis)
+@given(
+    t=st.floats(0.0, 30.0),
+    box=st.tuples(
+        st.integers(-50, 700), st.integers(-50, 1300), st.integers(0, 300), st.integers(0, 300)
+    ),
+    seed=st.integers(0, 3),
+)
+def test_any_region_a_tracker_reads_is_that_region_of_the_full_frame(t, box, seed):
+    """Whatever box is read (cut by the edges, empty, across dots and band), the lazily
+    rendered pixels are the full frame's (the tracker must see the frame the video
+    records)."""
+    cam = _SHARED[seed]
+    frame = cam.frame_at(t)
+    full = np.asarray(frame)
+    y0, x0, h, w = box
+    np.testing.assert_array_equal(frame[y0 : y0 + h, x0 : x0 + w], full[y0 : y0 + h, x0 : x0 + w])
+
+
+_SHARED = [camera(length_mm_at=lambda t: 40.0 + t, seed=s, mm_per_px=0.05) for s in range(4)]
