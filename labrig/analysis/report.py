@@ -72,7 +72,7 @@ def run_table(record: RunRecord) -> Table:
          f"{protocol.limits.max_volume_ml:g} mL"),
         ("acquisition", f"pressure {protocol.acquisition.pressure_rate_hz:g} Hz, camera "
          + (f"{protocol.acquisition.camera_fps:g} fps" if protocol.acquisition.camera_fps
-            else "none")),
+            else "none") + (", video" if protocol.acquisition.video else "")),
         ("analysis", f"mean of the last {protocol.analysis.average_last}, compare with the "
          f"model: {'yes' if protocol.analysis.compare_model else 'no'}"),
         ("zero offset", _num(record.zero_offset_kpa, ".3f", " kPa")),
