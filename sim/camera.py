@@ -363,6 +363,7 @@ class SimFrame:
         self.size = camera.height * camera.width * 3
         self._resized_to: tuple[int, int] | None = None
         self._full: np.ndarray | None = None
+        self._regions: list[tuple[int, int, int, int, np.ndarray]] = []  # last rendered
 
     def resized(self, size: tuple[int, int]) -> SimFrame:
         """This frame as the camera's scaler delivers it at another streaming size."""
@@ -379,9 +380,19 @@ class SimFrame:
                 y0, y1, dy = rows.indices(h)
                 x0, x1, dx = cols.indices(w)
                 if dy == dx == 1:
-                    region = self.camera._render_box(self, x0, y0, max(x1, x0), max(y1, y0))
+                    region = self._region(x0, y0, max(x1, x0), max(y1, y0))
                     return region[(slice(None), slice(None), *key[2:])]
         return np.asarray(self)[key]
+
+    def _region(self, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
+        """The pixels of a box: cut from a box rendered before that holds it (the
+        tracker's centroid windows lie inside its search windows), else rendered."""
+        for bx0, by0, bx1, by1, pixels in self._regions:
+            if bx0 <= x0 and by0 <= y0 and x1 <= bx1 and y1 <= by1:
+                return pixels[y0 - by0 : y1 - by0, x0 - bx0 : x1 - bx0].copy()
+        pixels = self.camera._render_box(self, x0, y0, x1, y1)
+        self._regions = [*self._regions[-3:], (x0, y0, x1, y1, pixels)]
+        return pixels.copy()
 
     def __array__(self, dtype=None, copy=None) -> np.ndarray:
         if self._full is None:

@@ -58,7 +58,7 @@ def run_protocol(protocol: Path, out: Path) -> tuple[float, float]:
         capture_output=True,
         text=True,
     )
-    run_s = float(re.search(r"rig time in ([0-9.]+) s", done.stdout)[1])
+    run_s = float(re.search(r"rig\s+time\s+in\s+([0-9.]+)\s+s", done.stdout + done.stderr)[1])
     return time.monotonic() - wall0, run_s
 
 
