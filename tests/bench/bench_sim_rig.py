@@ -15,6 +15,7 @@ Run: python tests/bench/bench_sim_rig.py [--burners N] [--camera-only]
 """
 
 import argparse
+import json
 import re
 import subprocess
 import sys
@@ -62,7 +63,7 @@ def run_protocol(protocol: Path, out: Path) -> tuple[float, float]:
     return time.monotonic() - wall0, run_s
 
 
-def camera_cost(tmp: Path) -> None:
+def camera_cost(tmp: Path, video: bool = True) -> None:
     """The demo at 2 fps without video, at 30 fps without and with video."""
     demo = (ROOT / "protocols" / "demo.yaml").read_text()
     variants = {
@@ -71,7 +72,9 @@ def camera_cost(tmp: Path) -> None:
         "30 fps, video": demo.replace("camera_fps: 30}", "camera_fps: 30, video: true}"),
     }
     print(f"{'demo.yaml':<20} {'process s':>10} {'run s':>8} {'x process':>10} {'x run':>7} "
-          f"{'frames':>7} {'video frames':>13} {'video MB':>9}")  # fmt: skip
+          f"{'frames':>7} {'video frames':>13} {'video MB':>9}  snap (2,1)")  # fmt: skip
+    if not video:
+        del variants["30 fps, video"]
     base = None
     for k, (name, text) in enumerate(variants.items()):
         protocol = tmp / f"demo_{k}.yaml"
@@ -90,14 +93,29 @@ def camera_cost(tmp: Path) -> None:
             size = f"{video.stat().st_size / 1e6:.0f}"
         print(
             f"{name:<20} {wall_s:10.1f} {run_s:8.1f} {wall_s / base[0]:10.2f} "
-            f"{run_s / base[1]:7.2f} {frames:7d} {n_video:>13} {size:>9}"
+            f"{run_s / base[1]:7.2f} {frames:7d} {n_video:>13} {size:>9}  {snap_dl(out)}"
         )
+
+
+def snap_dl(path: Path) -> str:
+    """The demo's snap (2,1): measured against the model's length change."""
+    done = subprocess.run(
+        [sys.executable, "-m", "labrig", "compare", str(path), "--json"],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    for t in json.loads(done.stdout)["transitions"]:
+        if (t["type"], t["alpha"], t["beta"]) == ("snap", 2, 1) and t["dl_meas_mm"] is not None:
+            return f"snap dl {t['dl_meas_mm']:+.2f} mm (model {t['dl_mm']:+.2f})"
+    return "snap dl not measured"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--burners", type=int, default=0)
     parser.add_argument("--camera-only", action="store_true")
+    parser.add_argument("--no-video", action="store_true", help="leave the video run out")
     args = parser.parse_args()
     burners = [
         subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.burners)
@@ -109,7 +127,7 @@ def main() -> None:
     )
     try:
         with tempfile.TemporaryDirectory() as tmp:
-            camera_cost(Path(tmp))
+            camera_cost(Path(tmp), video=not args.no_video)
             for name in () if args.camera_only else PROTOCOLS:
                 out = Path(tmp) / f"{name}.h5"
                 wall0 = time.monotonic()
