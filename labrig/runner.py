@@ -120,6 +120,7 @@ class Runner:
         *,
         on_progress: Callable[[Progress], None] | None = None,
         timing: Timing | None = None,
+        data_tap: Callable[[int, str, dict], None] | None = None,
     ) -> None:
         self.loaded = loaded
         self.protocol = loaded.protocol
@@ -154,6 +155,7 @@ class Runner:
         self._last_progress_s = float("-inf")
         self.shutdown_errors: list[str] = []
         self.writer: RunWriter | None = None
+        self.data_tap = data_tap  # sees every append to the run file (the live view)
         self.video: VideoRecorder | None = None
 
     # --- public --------------------------------------------------------------------
@@ -167,6 +169,7 @@ class Runner:
             rig_config_text=self.rig.config_text,
             repetitions=max(1, self.plan.repetitions),
             with_length=self.rig.length is not None,
+            tap=self.data_tap,
             video_file=self._video_path().name if self._video_path() else None,
         )
         if self._video_path() is not None:

@@ -21,7 +21,7 @@ import platform
 import subprocess
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -135,8 +135,11 @@ class RunWriter:
         with_length: bool,
         video_file: str | None = None,
         flush_interval_s: float = 0.5,
+        tap: Callable[[int, str, dict[str, np.ndarray]], None] | None = None,
     ) -> None:
         self.path = Path(path)
+        # sees every append (repetition, log, columns) as written: the live view's feed
+        self.tap = tap
         self.path.parent.mkdir(parents=True, exist_ok=True)
         if repetitions < 1:
             raise ValueError("a run has at least one repetition")
@@ -223,21 +226,25 @@ class RunWriter:
     def _append(self, repetition: int, log: str, columns: dict[str, np.ndarray]) -> None:
         if not 1 <= repetition <= self.repetitions:
             raise ValueError(f"repetition {repetition} outside 1..{self.repetitions}")
-        self._append_to(f"entry/repetitions/{repetition_name(repetition)}/{log}", columns)
+        rows = self._append_to(f"entry/repetitions/{repetition_name(repetition)}/{log}", columns)
+        if rows is not None and self.tap is not None:
+            self.tap(repetition, log, rows)
 
-    def _append_to(self, where: str, columns: dict[str, np.ndarray]) -> None:
+    def _append_to(self, where: str, columns: dict[str, np.ndarray]) -> dict | None:
+        """Gather rows for the group at ``where``; the rows, or None if there were none."""
         lengths = {len(np.atleast_1d(values)) for values in columns.values()}
         if len(lengths) != 1:
             raise ValueError(f"{where}: columns of different lengths {sorted(lengths)}")
         (count,) = lengths
         if count == 0:
-            return
+            return None
         rows = {field: np.atleast_1d(values) for field, values in columns.items()}
         with self._lock:
             if self._closed:
                 raise RuntimeError(f"{self.path}: the run file is already closed")
             self._pending.setdefault(where, []).append(rows)
             self._flush_if_due()
+        return rows
 
     def _write_pending(self) -> None:
         """Write the gathered rows, one resize and one write per dataset (under the lock)."""

@@ -117,7 +117,7 @@ class VirtualClock:
         self._running = 0  # participants running now (normally 0 or 1)
         self._handovers = 0  # counts every dispatch: shows that time is being handed on
         self._waiting: list[_Member] = []
-        self._timers: list[tuple[float, int, _Timer]] = []
+        self._timers: list[tuple[int, int, _Timer]] = []  # (due ns, order, timer)
         self._local = threading.local()
         self._pace_wall0 = time.monotonic()
         self._pace_virtual0 = self._now_ns

@@ -29,9 +29,11 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "protocol": ("labrig.cli.protocol", "protocol"),
     "pump": ("labrig.cli.pump", "pump"),
     "recover": ("labrig.cli.review", "recover"),
+    "rig": ("labrig.cli.rig", "rig"),
     "run": ("labrig.cli.run", "run"),
     "show": ("labrig.cli.review", "show"),
     "track": ("labrig.cli.track", "track"),
+    "watch": ("labrig.cli.watch", "watch"),
 }
 
 

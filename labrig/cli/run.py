@@ -39,7 +39,31 @@ def default_out_path(protocol_name: str) -> Path:
     "same protocol and seed give the same data on any machine [default: 0].",
 )
 @click.option("--dry-run", is_flag=True, help="Check and summarise the protocol; move nothing.")
-def run(protocol_file: Path, sim: bool, out_path: Path | None, speed, seed, dry_run: bool) -> None:
+@click.option("--live", is_flag=True, help="Serve a live view of the run on 127.0.0.1.")
+@click.option(
+    "--live-port",
+    type=click.IntRange(0, 65535),
+    default=None,
+    help="Port of the live view (implies --live; default: any free port).",
+)
+@click.option(
+    "--live-hold",
+    type=click.FloatRange(min=0.0),
+    default=5.0,
+    show_default=True,
+    help="Seconds the live view stays up after the run (for the page to see the end).",
+)
+def run(
+    protocol_file: Path,
+    sim: bool,
+    out_path: Path | None,
+    speed,
+    seed,
+    dry_run: bool,
+    live: bool,
+    live_port: int | None,
+    live_hold: float,
+) -> None:
     """Run PROTOCOL_FILE on the rig and record it in one HDF5 file."""
     from labrig.dry_run import dry_run_report
     from labrig.protocol import load_protocol
@@ -53,10 +77,20 @@ def run(protocol_file: Path, sim: bool, out_path: Path | None, speed, seed, dry_
         raise click.exceptions.Exit(2)
     if dry_run:
         return
-    _run(loaded, rig_config, out_path or default_out_path(loaded.protocol.name))
+    live_view = None
+    if live or live_port is not None:
+        from labrig.live.session import LiveView
+
+        live_view = LiveView(loaded.protocol, live_port or 0).start()
+        click.echo(f"live view: {live_view.url}", err=True)
+    try:
+        _run(loaded, rig_config, out_path or default_out_path(loaded.protocol.name), live_view)
+    finally:
+        if live_view is not None:
+            live_view.close(live_hold)
 
 
-def _run(loaded, rig_config, out_path: Path) -> None:
+def _run(loaded, rig_config, out_path: Path, live_view=None) -> None:
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn
 
@@ -99,11 +133,16 @@ def _run(loaded, rig_config, out_path: Path) -> None:
                 length=f"{snapshot.length_mm:5.1f} mm" if math.isfinite(snapshot.length_mm) else "",
                 left=f"{snapshot.remaining_s / 60:4.1f} min left",
             )
+            if live_view is not None:
+                live_view.state.progress(snapshot)
 
         wall0 = time.monotonic()
         rig_t0 = rig.clock.now()
-        result = Runner(loaded, rig, out_path, on_progress=show).run()
+        tap = live_view.state.tap if live_view is not None else None
+        result = Runner(loaded, rig, out_path, on_progress=show, data_tap=tap).run()
         rig_s, wall_s = rig.clock.now() - rig_t0, time.monotonic() - wall0
+    if live_view is not None:
+        live_view.finish(result.status, result.reason)
     if rig.simulation is not None:
         console.print(
             f"simulated {rig_s / 60:.1f} min of rig time in {wall_s:.1f} s "

@@ -4,11 +4,12 @@ counts; a hold is its length; identical repetitions last identically long)."""
 
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
 from conftest import DEMO
-from simrig import run_sim
+from simrig import run_sim, short_protocol
 
 from labrig.storage import open_run, read_log
 
@@ -80,3 +81,19 @@ def test_identical_repetitions_last_identically_and_a_hold_is_its_length(demo):
     # the plunger stands at 38 mL from the target stop until the withdrawal starts
     at_top = t[np.abs(volume - 38.0) < 1e-9]
     assert at_top[-1] - at_top[0] == pytest.approx(5.0, abs=1e-9)
+
+
+def test_speed_paces_the_run_without_changing_its_data(tmp_path):
+    text = short_protocol()
+    wall0 = time.monotonic()
+    paced = run_sim(tmp_path, text, speed=50.0, name="paced.h5")
+    paced_wall_s = time.monotonic() - wall0
+    unpaced = run_sim(tmp_path, text, name="unpaced.h5")
+    with open_run(paced.path) as a, open_run(unpaced.path) as b:
+        for rep in (1, 2):
+            for name in SERIES:
+                x, y = read_log(a, rep, name), read_log(b, rep, name)
+                assert np.array_equal(x.time_s, y.time_s), (rep, name)
+                assert np.array_equal(x.fields["value"], y.fields["value"], equal_nan=True)
+    # pacing only ever waits: 85 s of rig time cannot take less than 85 / 50 s of wall
+    assert paced.end_s > 80.0 and paced_wall_s >= paced.end_s / 50.0 - 0.3

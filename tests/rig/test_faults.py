@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from simrig import run_sim, short_protocol, when_volume_exceeds
 
+from labrig.errors import InputError
 from labrig.storage import open_run, read_log, repetition_statuses
 
 PRESSURE_PERIOD_S = 0.2  # the runner reads the DAQ every 0.2 s of rig time
@@ -182,41 +183,38 @@ def test_interlock_trips_while_the_main_loop_is_away(tmp_path):
     assert t[first] < pump_stopped_at(outcome, t) <= t[first] + PRESSURE_PERIOD_S
 
 
+def flushed_pressure_samples(path) -> int:
+    """Pressure samples of repetition 1 a reader sees in a run file being written."""
+    try:
+        with open_run(path) as run:
+            return len(read_log(run, 1, "pressure"))
+    except (OSError, KeyError, InputError):
+        return 0  # not created yet, or caught between the layout and the first flush
+
+
 def test_sigkill_leaves_a_readable_file_with_the_data(tmp_path):
     protocol = tmp_path / "p.yaml"
     protocol.write_text(short_protocol())
     out = tmp_path / "killed.h5"
+    command = ["run", str(protocol), "--sim", "--out", str(out), "--speed", "10"]
     process = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "labrig",
-            "run",
-            str(protocol),
-            "--sim",
-            "--out",
-            str(out),
-            "--speed",
-            "10",
-        ],
+        [sys.executable, "-m", "labrig", *command],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
     )
-    deadline = time.monotonic() + 60
-    while not out.exists() and time.monotonic() < deadline:
+    # kill it mid-run, once the file shows 20 s of pressure (whatever the host's speed)
+    deadline = time.monotonic() + 120
+    while flushed_pressure_samples(out) < 20_000 and time.monotonic() < deadline:
         assert process.poll() is None, process.stderr.read().decode()
         time.sleep(0.1)
-    time.sleep(4.0)
-    killed_at = time.monotonic()
+    seen = flushed_pressure_samples(out)
     os.kill(process.pid, signal.SIGKILL)
     process.wait()
-    assert out.exists()
     with pytest.raises(OSError):
         h5py.File(out, "r")  # the killed writer's flag is set
     with open_run(out) as run:
         pressure = read_log(run, 1, "pressure")
         assert run["entry/status"][()] == b"running"
-    # 4 s of host time at 10x is 40 s of rig time; at most 1 s of host time is lost
-    span_s = pressure.time_s[-1] - pressure.time_s[0]
-    assert span_s > (4.0 - 1.0 - (time.monotonic() - killed_at)) * 10.0 - 10.0
-    assert len(pressure) > 10_000
+    # everything a reader saw before the kill is still there, without a gap
+    assert len(pressure) >= seen >= 20_000
+    assert np.all(np.diff(pressure.time_s) == pytest.approx(0.001))

@@ -1,0 +1,131 @@
+"""``labrig rig check``: the simulated rig passes; each fault a technician meets is
+found, named, and exits 2; the check moves nothing."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from labrig.cli import main
+from labrig.clock import RealClock
+from labrig.rig import PressureConfig, PumpConfig
+from labrig.rig_check import check_pressure, check_pump
+from labrig.sim.pump import PumpEmulator
+
+BENCH = "protocols/rigs/bench.yaml"
+# what the check may send: queries, NVRAM writes off, and the stop the driver sends
+# after a reply that never came (a stop moves nothing)
+READ_ONLY = {"ver", "version", "nvram off", "diameter", "svolume", "irate lim", "wrate lim",
+             "status", "ivolume", "wvolume", "stop"}  # fmt: skip
+
+
+def rig_check(capsys, *args: str) -> tuple[int, dict[str, str]]:
+    with pytest.raises(SystemExit) as exit_info:
+        main(["rig", "check", *args])
+    out = capsys.readouterr().out
+    lines = {line.split()[0]: line for line in out.splitlines() if line.strip()}
+    return exit_info.value.code, lines
+
+
+def test_the_simulated_rig_passes(capsys):
+    code, lines = rig_check(capsys, BENCH, "--sim")
+    assert code == 0, lines
+    assert " ok " in lines["pump"] and "PHD ULTRA" in lines["pump"]
+    assert "syringe 27.60 mm, 50 mL" in lines["pump"] and "infuse" in lines["pump"]
+    assert "supply 5.000 V on Dev1/ai1" in lines["pressure"]
+    assert "+0.80 kPa" in lines["pressure"]  # the simulated sensor's offset error
+    assert "1280x720" in lines["camera"] and "both markers found" in lines["camera"]
+    assert lines["rig"] == "rig check: 3 of 3 devices ok"
+
+
+@pytest.mark.parametrize(
+    ("fault", "device", "words"),
+    [
+        ("no-reply", "pump", ["no reply", "switched on, the cable"]),
+        ("wrong-address", "pump", ["no reply at address 3", "answers at address 0",
+                                   "set pump.address: 0"]),
+        ("daq-missing", "pressure", ["-200220", "a DAQ named Dev2", "USB cable"]),
+        ("marker-hidden", "camera", ["markers lost", "both markers in view"]),
+        ("sensor-offset", "pressure", ["+4.00 kPa", "0 +- 2.5 kPa", "open to atmosphere"]),
+    ],
+)  # fmt: skip
+def test_each_fault_is_named_and_exits_2(capsys, fault, device, words):
+    code, lines = rig_check(capsys, BENCH, "--sim", "--fault", fault)
+    assert code == 2
+    assert " FAIL " in lines[device]
+    for word in words:
+        assert word in lines[device], lines[device]
+    others = [name for name in ("pump", "pressure", "camera") if name != device]
+    assert all(" ok " in lines[name] for name in others), lines
+    assert lines["rig"].endswith(f"failed: {device}")
+
+
+def test_the_pump_check_finds_the_address_and_moves_nothing():
+    clock = RealClock()
+    with PumpEmulator(clock, address=5) as emulator:
+        wrong = check_pump(PumpConfig(port=emulator.port, address=2), clock)
+        assert not wrong.ok and "answers at address 5" in wrong.found
+        right = check_pump(PumpConfig(port=emulator.port, address=5), clock)
+        assert right.ok, right.line()
+        assert "at address 5" in right.found
+        sent = {line[2:] if line[:2].isdigit() else line for line in emulator.received}
+        assert sent <= READ_ONLY, sent - READ_ONLY
+        assert emulator.net_volume_ml(clock.now()) == 0.0
+
+
+def test_a_missing_ni_daqmx_driver_is_named():
+    import nidaqmx
+
+    try:
+        nidaqmx.system.System.local().driver_version  # noqa: B018
+    except Exception:
+        pass
+    else:
+        pytest.skip("NI-DAQmx is installed on this machine")
+    check = check_pressure(PressureConfig(), RealClock())
+    assert not check.ok
+    assert "NI-DAQmx" in check.found and "installdriver" in check.check
+
+
+def test_a_bad_rig_file_is_one_line(tmp_path, capsys):
+    bad = tmp_path / "rig.yaml"
+    bad.write_text("pump: {port: /dev/ttyUSB0, address: 120}\n")
+    with pytest.raises(SystemExit) as exit_info:
+        main(["rig", "check", str(bad)])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and str(bad) in err and "address" in err
+    with pytest.raises(SystemExit) as exit_info:
+        main(["rig", "check"])
+    assert exit_info.value.code == 2
+
+
+def test_a_bench_rig_with_a_video_and_a_pump_on_a_port(tmp_path):
+    """The bench path end to end: a rig file whose pump is on a serial device (the
+    emulator's pty) and whose camera is a video file read with a reference distance;
+    NI-DAQmx is absent here, and the check says so without stopping the others."""
+    from labrig.rig import RigConfig
+    from labrig.rig_check import check_rig
+    from labrig.sim.camera import SimCamera
+
+    video = tmp_path / "markers.avi"
+    truth = SimCamera(RealClock(), lambda t: 60.0, mm_per_px=0.08).write_video(
+        video, n_frames=5, fps=10.0
+    )
+    with PumpEmulator(RealClock()) as emulator:
+        config = RigConfig(
+            pump={"port": emulator.port},
+            camera={"source": str(video), "reference_distance_mm": 60.0},
+        )
+        checks = {c.device: c for c in check_rig(config)}
+    assert checks["pump"].ok, checks["pump"].line()
+    camera = checks["camera"]
+    assert camera.ok, camera.line()
+    distance_px = float(np.hypot(*np.diff(truth.centres_px[0], axis=0)[0]))
+    found = re.search(r"([\d.]+) px = 60 mm \(reference: ([\d.]+) mm/px\)", camera.found)
+    assert found, camera.found
+    assert abs(float(found[1]) - distance_px) < 0.2  # the tracker's sub-pixel centres
+    assert abs(float(found[2]) - 0.08) < 1e-4
+    assert "10 fps" in camera.found and "1280x720" in camera.found
