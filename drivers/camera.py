@@ -289,6 +289,12 @@ class CameraLength:
         self.mm_per_px = mm_per_px
         self.reference_distance_mm = reference_distance_mm
 
+    @property
+    def waits_for_frames(self) -> bool:
+        """True when ``read`` waits for the camera's next frame (a live camera): its
+        reader needs no pacing of its own. A video file is read as fast as asked."""
+        return not self.frames.is_file
+
     def read(self) -> LengthSample | None:
         frame = self.frames.read()
         if frame is None:

@@ -388,9 +388,12 @@ class Runner:
         )
 
     def _camera_loop(self) -> None:
-        # no period of its own: the camera's read waits for its next frame, so every
-        # frame the camera streams (at the protocol's camera_fps) is tracked
-        self._device_loop("camera", None, self._read_length)
+        # a live camera's read waits for its next frame: no period of its own, so every
+        # frame it streams (at the protocol's camera_fps) is tracked; a video file
+        # standing in for the camera is read at camera_fps
+        waits = getattr(self.rig.length, "waits_for_frames", False)
+        period_s = None if waits else 1.0 / self.protocol.acquisition.camera_fps
+        self._device_loop("camera", period_s, self._read_length)
 
     def _device_loop(
         self,

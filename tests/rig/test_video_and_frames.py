@@ -182,3 +182,32 @@ def test_a_failed_scale_calibration_faults_the_run(tmp_path):
     assert outcome.pump_is_stopped()
     with open_run(outcome.path) as run:
         assert run["entry/status"][()] == b"faulted"
+
+
+def test_a_video_file_standing_in_for_the_camera_is_read_at_camera_fps(tmp_path):
+    """A file's read does not wait for frames: the camera loop paces it. Were it read
+    in a loop without a wait, virtual time would never move and the run never end."""
+    from labrig.drivers.camera import CameraLength, FrameSource
+    from labrig.protocol import load_protocol
+    from labrig.rig import build_rig, sim_rig_config
+    from labrig.runner import Runner
+    from labrig.sim.camera import SimCamera
+    from labrig.virtual_clock import VirtualClock
+
+    video = tmp_path / "specimen.avi"
+    SimCamera(VirtualClock(), lambda t: 50.0, size=(640, 360), mm_per_px=0.1).write_video(
+        video, n_frames=40, fps=25.0
+    )
+    protocol = tmp_path / "p.yaml"
+    protocol.write_text(short_protocol(camera_fps=2))
+    loaded = load_protocol(protocol)
+    rig = build_rig(loaded.protocol, sim_rig_config())
+    rig.length.close()
+    rig.length = CameraLength(FrameSource.open_file(video), mm_per_px=0.1)
+    with rig.clock.participate():
+        result = Runner(loaded, rig, tmp_path / "run.h5").run()
+    assert result.status == "complete", result.reason
+    with open_run(result.path) as run:
+        length = read_log(run, 1, "length")
+    assert len(length) == 40 and length.fields["ok"].all()  # every frame, then the end
+    assert length.fields["value"] == pytest.approx(np.full(40, 50.0), abs=0.02)
