@@ -77,7 +77,9 @@ class CameraConfig(Strict):
         5, ge=0, le=300, description="Frames dropped at start while the auto exposure settles"
     )
 
-    def settings(self, protocol_fps: float):
+    def settings(self, protocol_fps: float | None):
+        """What the driver sets on the camera (the rate: this file's, else the
+        protocol's camera_fps; None leaves the camera's own)."""
         from labrig.drivers.camera import CameraSettings
 
         return CameraSettings(
