@@ -11,14 +11,26 @@ The transport is a parameter: ``task_factory`` makes the task (default
 for a simulated rig; nothing else differs. nidaqmx is imported only when a task is
 made, so importing this module is cheap and works without it.
 
+What DAQmx really does is read back after the task is committed
+(``TaskMode.TASK_COMMIT``: the configuration is checked and the device programmed, so
+``start`` only starts it): the sample clock rate it coerced the requested one to
+(``timing.samp_clk_rate``), and the hardware range and resolution of each channel
+(``ai_rng_low``/``ai_rng_high``/``ai_resolution``: RSE on the USB-6009 is always ±10 V
+at 13 bits, whatever was asked). Saturation is judged against that range.
+
 Timestamps: the sample clock is the device's, so sample k of an acquisition is taken at
-t_start + k/rate. t_start is read on the shared clock around ``task.start()`` (the
-midpoint of the clock just before and just after the call): it is uncertain by half the
-call's duration, a few ms on USB, and that error is the same for every sample of the run.
+t_start + k/rate with the coerced rate. t_start is read on the shared clock around
+``task.start()`` (the midpoint of the clock just before and just after the call): it is
+uncertain by half the call's duration, a few ms on USB, the same for every sample. The
+device's crystal and the host's clock disagree by up to ~100 ppm (0.36 s an hour), so
+every ``REANCHOR_S`` the driver compares the number of samples acquired
+(``in_stream.total_samp_per_chan_acquired``) with the clock and slews the stamps onto
+the host clock over the next interval, keeping them continuous and increasing.
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from typing import Any
 
@@ -34,9 +46,16 @@ SAMPLES_NOT_YET_AVAILABLE = -200284  # read timeout
 OVERFLOW_CODES = {
     -200279: "SAMPLES_NO_LONGER_AVAILABLE",  # the host buffer was overwritten
     -200010: "INPUT_FIFO_OVERFLOW",  # the device's own FIFO
-    -200621: "onboard device memory overflow",
+    -200361: "INPUT_FIFO_OVERFLOW_2",  # onboard memory overflow: USB did not keep up
+    -200714: "ACQ_STOPPED_DRIVER_CANT_XFER_DATA_FAST_ENOUGH",
 }
 TERMINALS = ("RSE", "DIFF")
+log = logging.getLogger(__name__)
+# How often (in clock seconds) the sample stamps are re-anchored on the host clock, and
+# the largest disagreement believed: a crystal is off by ~1e-4, the host by less; a
+# larger one means the observation was delayed (a stalled host), not a drifting clock.
+REANCHOR_S = 10.0
+MAX_CLOCK_DISAGREEMENT = 2e-3
 
 
 class DaqNotInstalledError(DeviceError):
@@ -119,9 +138,18 @@ class NiDaqPressure:
         self._reader_factory = reader_factory
         self._task: Any = None
         self._reader: Any = None
+        self.sample_clock_hz: float | None = None  # the coerced rate, once committed
+        self.adc_ranges_v: list[tuple[float, float]] = []  # per channel, as DAQmx uses them
+        self.adc_bits: list[int] = []
         self._t_start_s = 0.0
+        self._start_slack_s = 0.0
         self._n_read = 0  # samples per channel read since the acquisition started
         self._unread: list[np.ndarray] = []  # read by zero() during a run, for read()
+        # Stamps: sample k is at _anchor_t_s + (k - _anchor_k) * _s_per_sample.
+        self._anchor_k = 0
+        self._anchor_t_s = 0.0
+        self._s_per_sample = 0.0
+        self._next_reanchor_s = float("inf")
 
     # -- PressureSource ------------------------------------------------------------------
 
@@ -167,10 +195,15 @@ class NiDaqPressure:
             raise self._translate(exc, "reading the number of available samples") from exc
         blocks, self._unread = self._unread, []
         if n > 0:
+            # n samples are in the buffer already: the read returns at once
             blocks.append(self._read_samples(n, timeout_s=self.read_timeout_s))
         if not blocks:
-            return self._block(np.empty((len(self.channels), 0)))
-        return self._block(np.concatenate(blocks, axis=1))
+            block = self._block(np.empty((len(self.channels), 0)))
+        else:
+            block = self._block(np.concatenate(blocks, axis=1))
+        if self.clock.now() >= self._next_reanchor_s:
+            self._reanchor()
+        return block
 
     def stop(self) -> None:
         """Stop and release the task; safe to call at any time."""
@@ -193,9 +226,10 @@ class NiDaqPressure:
         return float(rate_hz)
 
     def _open(self, rate_hz: float) -> None:
-        """Make, configure and start the task; every DAQmx error becomes a DeviceError."""
+        """Make, configure, commit and start the task, reading back what DAQmx coerced;
+        every DAQmx error becomes a DeviceError."""
         import nidaqmx
-        from nidaqmx.constants import AcquisitionType, TerminalConfiguration
+        from nidaqmx.constants import AcquisitionType, TaskMode, TerminalConfiguration
         from nidaqmx.errors import DaqError, DaqNotFoundError, DaqNotSupportedError
         from nidaqmx.stream_readers import AnalogMultiChannelReader
 
@@ -210,18 +244,25 @@ class NiDaqPressure:
             ) from exc
         started = False
         try:
-            for channel in self.channels:
+            added = [
                 task.ai_channels.add_ai_voltage_chan(
                     channel,
                     terminal_config=TerminalConfiguration[self.terminal],
                     min_val=self.min_v,
                     max_val=self.max_v,
                 )
+                for channel in self.channels
+            ]
             task.timing.cfg_samp_clk_timing(
                 rate_hz,
                 sample_mode=AcquisitionType.CONTINUOUS,
                 samps_per_chan=max(2, round(rate_hz * self.buffer_s)),
             )
+            # Everything slow happens here, so start() below is short and t_start sharp.
+            task.control(TaskMode.TASK_COMMIT)
+            sample_clock_hz = float(task.timing.samp_clk_rate)
+            ranges_v = [(float(c.ai_rng_low), float(c.ai_rng_high)) for c in added]
+            bits = [round(c.ai_resolution) for c in added]
             reader = reader_factory(task.in_stream)
             before_s = self.clock.now()
             task.start()
@@ -233,27 +274,95 @@ class NiDaqPressure:
             if not started:
                 task.close()
         self._task, self._reader = task, reader
+        self.sample_clock_hz, self.adc_ranges_v, self.adc_bits = sample_clock_hz, ranges_v, bits
         self._t_start_s = 0.5 * (before_s + after_s)
+        self._start_slack_s = 0.5 * (after_s - before_s)
+        self._anchor_k, self._anchor_t_s = 0, self._t_start_s
+        self._s_per_sample = 1.0 / sample_clock_hz
+        self._next_reanchor_s = self._t_start_s + REANCHOR_S
         self._n_read = 0
         self._unread = []
 
+    def _reanchor(self) -> None:
+        """Slew the stamps onto the host clock, as far as it can be observed.
+
+        The newest acquired sample, N - 1, was taken between one sample period before
+        the count was read and the moment it was read, give or take the start's own
+        uncertainty. From the start to that window: the sample period on the host
+        clock, and how well it is known; it replaces the nominal one only where they
+        differ by more than that. Then the stamp of sample N - 1, if it lies outside
+        the window, is brought to its edge over the next ``REANCHOR_S``, starting from
+        the next unstamped sample, so the stamps stay continuous and increasing.
+        """
+        try:
+            before_s = self.clock.now()
+            acquired = int(self._task.in_stream.total_samp_per_chan_acquired)
+            after_s = self.clock.now()
+        except _daq_error() as exc:
+            raise self._translate(exc, "reading the number of samples acquired") from exc
+        self._next_reanchor_s = after_s + REANCHOR_S
+        if acquired < 2:
+            return
+        nominal_s = 1.0 / self.sample_clock_hz
+        # The window's ends are possible times (a read exactly at a sample's instant):
+        # a hair of margin keeps rounding from taking them for a disagreement.
+        margin_s = 1e-9 * nominal_s
+        early_s = before_s - nominal_s - self._start_slack_s - margin_s
+        late_s = after_s + self._start_slack_s + margin_s
+        k_obs = acquired - 1
+        line_s = (0.5 * (early_s + late_s) - self._t_start_s) / k_obs
+        known_s = 0.5 * (late_s - early_s) / k_obs
+        if known_s > MAX_CLOCK_DISAGREEMENT * nominal_s:
+            return  # the host stalled around the read or the start: nothing to learn
+        if abs(line_s - nominal_s) - known_s > MAX_CLOCK_DISAGREEMENT * nominal_s:
+            log.warning(
+                "the DAQ's sample clock seems %.0f ppm off the host clock: not believed",
+                1e6 * (line_s / nominal_s - 1.0),
+            )
+            return
+        period_s = nominal_s if abs(line_s - nominal_s) <= known_s else line_s
+        t_obs = self._stamp(np.array([k_obs]))[0]
+        error_s = 0.0
+        if t_obs < early_s:
+            error_s = early_s - t_obs
+        elif t_obs > late_s:
+            error_s = late_s - t_obs
+        error_s = float(np.clip(error_s, -0.5 * REANCHOR_S, 0.5 * REANCHOR_S))
+        k_next = self._n_read
+        self._anchor_t_s = self._stamp(np.array([k_next]))[0]
+        self._anchor_k = k_next
+        self._s_per_sample = period_s + error_s / (REANCHOR_S * self.sample_clock_hz)
+
+    def _stamp(self, k: np.ndarray) -> np.ndarray:
+        return self._anchor_t_s + (k - self._anchor_k) * self._s_per_sample
+
     def _read_samples(self, n: int, timeout_s: float) -> np.ndarray:
-        """The next n samples per channel (channels x n volts), counted in ``_n_read``."""
+        """The next n samples per channel (channels x n volts), counted in ``_n_read``.
+        A read that times out part-way has still taken what it returned from the
+        buffer: those are counted and kept for the next ``read``, so later stamps
+        stay right."""
         data = np.empty((len(self.channels), n))
         try:
             n_got = self._reader.read_many_sample(
                 data, number_of_samples_per_channel=n, timeout=timeout_s
             )
         except _daq_error() as exc:
+            n_partial = getattr(exc, "samps_per_chan_read", 0) or 0
+            if n_partial > 0:
+                self._n_read += n_partial
+                self._unread.append(data[:, :n_partial])
             raise self._translate(exc, "reading samples") from exc
         data = data[:, :n_got]
         self._n_read += n_got
         return data
 
     def _to_raw_kpa(self, data: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Un-zeroed pressure from the volts, and where any channel was beyond the ADC."""
+        """Un-zeroed pressure from the volts, and where any channel was beyond the ADC's
+        range as DAQmx set it up (not the narrower range asked for)."""
         v_supply = data[1] if len(self.channels) == 2 else self.supply_v
-        adc_flags = np.any(mpx5100.beyond_adc_range(data, self.min_v, self.max_v), axis=0)
+        adc_flags = np.zeros(data.shape[1], dtype=bool)
+        for row, (low_v, high_v), bits in zip(data, self.adc_ranges_v, self.adc_bits, strict=True):
+            adc_flags |= mpx5100.beyond_adc_range(row, low_v, high_v, bits)
         return mpx5100.pressure_kpa(data[0], v_supply), adc_flags
 
     def _block(self, data: np.ndarray) -> PressureBlock:
@@ -262,7 +371,7 @@ class NiDaqPressure:
         p_raw_kpa, adc_flags = self._to_raw_kpa(data)
         p_kpa = p_raw_kpa - self.offset_kpa
         return PressureBlock(
-            t_s=self._t_start_s + k / self.rate_hz,
+            t_s=self._stamp(k),
             pressure_kpa=p_kpa,
             out_of_range=adc_flags | mpx5100.beyond_sensor_range(p_kpa),
         )

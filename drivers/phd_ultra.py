@@ -20,6 +20,14 @@ Safety rules, from the traps in hardware.md 1.2 and 1.6:
   after a timeout the driver first waits one more deadline for the late reply.
 - Stalls send nothing by themselves: ``status()`` reports them and
   ``wait_until_stopped()`` polls for them.
+
+What ``connect()`` assumes of a pump left by other software (issue 16): it may be in
+``poll on`` (prompts end with XON) or ``poll remote`` (no prompts), so ``poll off`` goes
+first and its reply may never come; the address form the firmware wants is unknown, so
+with ``address_form="auto"`` the forms are tried in turn and the answered one is kept;
+NVRAM writes are switched off by the first accepted form, and none accepted only warns
+(memory wear must not block a run); an infuse-only model refuses withdraw commands, so
+``can_withdraw`` says which it is and nothing withdraw-related is asked of it.
 """
 
 from __future__ import annotations
@@ -45,16 +53,21 @@ from .phd_ultra_errors import (
     PumpProtocolError,
     PumpStalled,
     PumpTimeout,
+    PumpUnknownCommand,
 )
 from .phd_ultra_protocol import (
     ADDRESS_FORMS,
+    AUTO_ADDRESS_FORM,
     Reply,
     StatusLine,
+    candidate_address_forms,
     check_refusal,
+    force_limit_pressure_kpa,
     format_rate,
     format_volume,
     frame_command,
     parse_diameter_mm,
+    parse_force_pct,
     parse_rate_limits,
     parse_rate_ml_min,
     parse_reply,
@@ -67,12 +80,17 @@ from .phd_ultra_protocol import (
 log = logging.getLogger(__name__)
 
 DEFAULT_BAUD = 115200
+# How long a reply may take. A PHD ULTRA answers in milliseconds, but one busy redrawing
+# its screen (after a run command, a target alarm) has been seen to take longer than the
+# 0.5 s once used here; a longer deadline costs nothing while the pump answers.
+DEFAULT_TIMEOUT_S = 2.0
 # How long one read of the port may block: short, so a reply's deadline is honoured
 # within this much and a closing port is noticed quickly.
 READ_SLICE_S = 0.02
 # NVRAM writes off, in the order of the evidence: chembot on a real PHD ULTRA, then the
-# Pico Plus / Legato drivers of the same command family (hardware.md 1.3).
-NVRAM_OFF_COMMANDS = ("nvram off", "nvram none")
+# Pico Plus / Legato drivers of the same command family, then the Pump 33 DDS manual's
+# `rsave` (hardware.md 1.3).
+NVRAM_OFF_COMMANDS = ("nvram off", "nvram none", "rsave off")
 # Readbacks agree with what was sent to within the 4-decimal formatting.
 READBACK_REL_TOL = 1e-3
 _RUNNING = (PumpState.INFUSING, PumpState.WITHDRAWING)
@@ -89,7 +107,7 @@ class RateLimits:
     """What the pump accepts for the current syringe (``irate lim`` / ``wrate lim``)."""
 
     infuse_ml_min: tuple[float, float]
-    withdraw_ml_min: tuple[float, float]
+    withdraw_ml_min: tuple[float, float] | None  # None on an infuse-only pump
 
 
 class PhdUltra:
@@ -97,6 +115,11 @@ class PhdUltra:
 
     Use ``PhdUltra.open(port)`` for a real port or URL; the constructor takes an already
     open transport and sends nothing until ``connect()``.
+
+    After ``connect()``: ``address_form`` is the form the pump answered, ``can_withdraw``
+    whether it takes withdraw commands, ``nvram_off_command`` the command that switched
+    off its memory writes (None if none was accepted), and ``connect_warnings`` what a
+    person should know about the connection (for the rig check).
     """
 
     def __init__(
@@ -104,24 +127,35 @@ class PhdUltra:
         transport,
         *,
         address: int = 0,
-        address_form: str = "digits",
+        address_form: str = AUTO_ADDRESS_FORM,
         clock: Clock | None = None,
-        timeout_s: float = 0.5,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
         port_name: str | None = None,
     ) -> None:
         if not 0 <= address <= 99:
             raise ValueError(f"pump address must be 0-99, got {address}")
-        if address_form not in ADDRESS_FORMS:
-            raise ValueError(f"address_form must be one of {ADDRESS_FORMS}, got {address_form!r}")
+        forms = (*ADDRESS_FORMS, AUTO_ADDRESS_FORM)
+        if address_form not in forms:
+            raise ValueError(f"address_form must be one of {forms}, got {address_form!r}")
+        if not timeout_s > 0:
+            raise ValueError(f"reply timeout must be > 0 s, got {timeout_s}")
         self.address = address
-        self.address_form = address_form
+        self._forms = (
+            candidate_address_forms(address)
+            if address_form == AUTO_ADDRESS_FORM
+            else (address_form,)
+        )
+        self.address_form = self._forms[0]
         self.clock = clock or RealClock()
         self.timeout_s = timeout_s
         self.port_name = port_name or str(getattr(transport, "port", "the serial port"))
         self.firmware = ""
         self.syringe: Syringe | None = None
+        self.can_withdraw = True
+        self.nvram_off_command: str | None = None
+        self.connect_warnings: list[str] = []
         self._transport = transport
-        self._limits: RateLimits | None = None
+        self._limits: dict[str, tuple[float, float]] = {}
         self._lost: Exception | None = None
         self._resync_due = False
         self._io_lock = threading.Lock()
@@ -141,10 +175,10 @@ class PhdUltra:
         *,
         baudrate: int = DEFAULT_BAUD,
         address: int = 0,
-        address_form: str = "digits",
+        address_form: str = AUTO_ADDRESS_FORM,
         exclusive: bool = True,
         clock: Clock | None = None,
-        timeout_s: float = 0.5,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
     ) -> PhdUltra:
         """Open ``port`` (a device path or a pyserial URL) at 8N1, no flow control, and
         connect. ``exclusive`` locks the port so a second program gets a clear error."""
@@ -182,11 +216,71 @@ class PhdUltra:
         return pump
 
     def connect(self) -> None:
-        """Identify the pump, switch off NVRAM writes, read the syringe settings."""
-        self.firmware = self.identify()
+        """Switch poll mode off and identify the pump (finding the address form), switch
+        off NVRAM writes, learn whether it withdraws, read the syringe settings."""
+        self.connect_warnings = []
+        self._find_address_form()
         self._switch_off_nvram()
+        self.can_withdraw = self._probe_withdraw()
         self.syringe = self.read_syringe()
-        log.info("connected to %s at address %d on %s", self.firmware, self.address, self.port_name)
+        log.info(
+            "connected to %s at address %d (%s form) on %s%s",
+            self.firmware,
+            self.address,
+            self.address_form,
+            self.port_name,
+            "" if self.can_withdraw else ", infuse only",
+        )
+
+    def _find_address_form(self) -> None:
+        """For each candidate form: ``poll off`` (its reply may not come), then ``ver``,
+        which must be answered. A pump ignores a command in a form it does not take,
+        so a wrong form costs two timeouts and the late-reply wait."""
+        tried = []
+        for form in self._forms:
+            self.address_form = form
+            self._switch_off_poll()
+            try:
+                self.firmware = self._probe("ver", expect_payload=True).text
+            except PumpTimeout as exc:
+                tried.append(f"{frame_command('ver', address=self.address, address_form=form)!r}")
+                last = exc
+                continue
+            if tried:
+                log.info("the pump answers the %s address form (no answer to %s)", form, tried)
+            return
+        raise PumpTimeout(
+            f"no answer from a pump at address {self.address} on {self.port_name} to "
+            f"{' or '.join(tried)} within {self.timeout_s:g} s each: check the address, "
+            "baud rate and cable"
+        ) from last
+
+    def _switch_off_poll(self) -> None:
+        """``poll off``: prompts without XON, and event prompts. A pump in ``poll remote``
+        sends no prompt, so no reply is a normal answer; a firmware that does not know
+        the command is one that has no poll mode to leave."""
+        try:
+            self._probe("poll off", expect_payload=False)
+        except PumpTimeout:
+            log.info("no reply to 'poll off' (a pump in poll remote sends no prompt)")
+        except PumpProtocolError as exc:
+            log.info("an unexpected reply to 'poll off' (%s): going on", exc)
+        except PumpCommandError as exc:
+            log.info("the pump refused 'poll off' (%s): assuming it has no poll mode", exc)
+
+    def _probe(self, command: str, *, expect_payload: bool) -> Reply:
+        """One exchange whose failure is an answer, not a fault: no stop is sent."""
+        return self._exchange(command, expect_payload=expect_payload, stop_on_fault=False)
+
+    def _probe_withdraw(self) -> bool:
+        """An infuse-only pump refuses withdraw commands; the withdrawn counter is the
+        harmless one to ask (``status()`` reads it anyway)."""
+        try:
+            self._query("wvolume")
+        except PumpCommandError as exc:
+            log.info("the pump refused 'wvolume' (%s): an infuse-only pump", exc.pump_text)
+            return False
+        return True
 
     def close(self) -> None:
         """Release the port. The pump keeps doing what it was doing."""
@@ -210,17 +304,27 @@ class PhdUltra:
         return self._query("version").lines
 
     def _switch_off_nvram(self) -> None:
+        """The first of ``NVRAM_OFF_COMMANDS`` the pump accepts. None accepted is a
+        warning: every setting is then written to the pump's memory, which wears it,
+        but a run must not be refused for it."""
         refusals = []
         for command in NVRAM_OFF_COMMANDS:
             try:
                 self._command(command)
+                self.nvram_off_command = command
                 return
             except PumpCommandError as exc:
                 refusals.append(f"{command!r}: {exc.pump_text}")
-        raise PumpCommandError(
-            " / ".join(NVRAM_OFF_COMMANDS),
-            "no way to switch off NVRAM writes was accepted (" + "; ".join(refusals) + ")",
+        self.nvram_off_command = None
+        warning = (
+            "the pump accepted none of "
+            + ", ".join(map(repr, NVRAM_OFF_COMMANDS))
+            + " ("
+            + "; ".join(refusals)
+            + "): its memory is written at every setting change"
         )
+        log.warning(warning)
+        self.connect_warnings.append(warning)
 
     def read_syringe(self) -> Syringe:
         return Syringe(
@@ -230,7 +334,7 @@ class PhdUltra:
 
     def configure_syringe(self, diameter_mm: float, volume_ml: float) -> None:
         """Set the syringe's inner diameter and nominal volume; the rate limits follow."""
-        self._limits = None
+        self._limits = {}
         self._command(f"diameter {diameter_mm:.4f}")
         self._command(f"svolume {format_volume(volume_ml, smallest='ul')}")
         self.syringe = self.read_syringe()
@@ -238,21 +342,59 @@ class PhdUltra:
         self._verify("syringe volume", self.syringe.volume_ml, volume_ml, "mL")
 
     def rate_limits(self) -> RateLimits:
-        """The rate range the pump accepts for the current syringe (asked once per syringe)."""
-        if self._limits is None:
-            self._limits = RateLimits(
-                infuse_ml_min=parse_rate_limits(self._query("irate lim").text),
-                withdraw_ml_min=parse_rate_limits(self._query("wrate lim").text),
+        """The rate range the pump accepts for the current syringe (each direction asked
+        once per syringe; the withdraw range is None on an infuse-only pump)."""
+        return RateLimits(
+            infuse_ml_min=self._rate_limits("irate"),
+            withdraw_ml_min=self._rate_limits("wrate") if self.can_withdraw else None,
+        )
+
+    def _rate_limits(self, command: str) -> tuple[float, float]:
+        if command not in self._limits:
+            self._limits[command] = parse_rate_limits(self._query(f"{command} lim").text)
+        return self._limits[command]
+
+    # ---- force limit ---------------------------------------------------------------
+
+    def set_force_limit(self, percent: int) -> None:
+        """Set the force at which the pump stalls, in percent of its rated force, and
+        read it back: the hardware backstop when software limits are not running."""
+        if isinstance(percent, bool) or not isinstance(percent, int) or not 1 <= percent <= 100:
+            raise PumpLimitError(f"force limit must be a whole 1-100 %, got {percent!r}")
+        self._command(f"force {percent}")
+        got = self.force_limit_pct()
+        if got != percent:
+            raise PumpError(
+                f"the pump reports a force limit of {got} % after being set to {percent} %"
             )
-        return self._limits
+
+    def force_limit_pct(self) -> int:
+        """The pump's force limit in percent of its rated force (``force``)."""
+        return parse_force_pct(self._query("force").text)
+
+    def force_limit_kpa(self, rated_force_n: float) -> float:
+        """The force limit read from the pump as the load pressure it stalls at, on the
+        syringe it is set up for (``rated_force_n``: its force at 100 %)."""
+        return force_limit_pressure_kpa(
+            self.force_limit_pct(), rated_force_n, self.read_syringe().diameter_mm
+        )
 
     # ---- rates, target, volumes ----------------------------------------------------
 
     def set_infuse_rate(self, rate_ml_min: float) -> None:
-        self._set_rate("irate", "infuse", rate_ml_min, self.rate_limits().infuse_ml_min)
+        self._set_rate("irate", "infuse", rate_ml_min, self._rate_limits("irate"))
 
     def set_withdraw_rate(self, rate_ml_min: float) -> None:
-        self._set_rate("wrate", "withdraw", rate_ml_min, self.rate_limits().withdraw_ml_min)
+        self._refuse_withdraw("set a withdraw rate")
+        self._set_rate("wrate", "withdraw", rate_ml_min, self._rate_limits("wrate"))
+
+    def _refuse_withdraw(self, doing: str) -> None:
+        if not self.can_withdraw:
+            raise PumpUnknownCommand(
+                "wrate/wrun",
+                f"cannot {doing}: the pump on {self.port_name} is infuse-only "
+                "(it refused 'wvolume' at connect); nothing was sent",
+            )
 
     def _set_rate(self, command: str, name: str, rate_ml_min: float, limits) -> None:
         low, high = limits
@@ -289,11 +431,11 @@ class PhdUltra:
         self._command("ctvolume")
 
     def volumes_ml(self) -> tuple[float, float]:
-        """(infused, withdrawn) since the last clear."""
-        return (
-            parse_volume_ml(self._query("ivolume").text),
-            parse_volume_ml(self._query("wvolume").text),
-        )
+        """(infused, withdrawn) since the last clear; withdrawn is 0 on an infuse-only pump."""
+        return parse_volume_ml(self._query("ivolume").text), self._withdrawn_ml()
+
+    def _withdrawn_ml(self) -> float:
+        return parse_volume_ml(self._query("wvolume").text) if self.can_withdraw else 0.0
 
     def _verify(self, what: str, got: float | None, wanted: float, unit: str) -> None:
         if got is None or not math.isclose(got, wanted, rel_tol=READBACK_REL_TOL):
@@ -307,6 +449,7 @@ class PhdUltra:
 
     def withdraw(self) -> None:
         """Start withdrawing at the set withdraw rate (until the target, if one is set)."""
+        self._refuse_withdraw("withdraw")
         self._run("wrun", PumpState.WITHDRAWING)
 
     def _run(self, command: str, running: PumpState) -> None:
@@ -353,7 +496,7 @@ class PhdUltra:
         t0_s = self.clock.now()
         infused_ml = parse_volume_ml(self._query("ivolume").text)
         t1_s = self.clock.now()
-        withdrawn_ml = parse_volume_ml(self._query("wvolume").text)
+        withdrawn_ml = self._withdrawn_ml()
         t2_s = self.clock.now()
         moving_query = (t1_s, t2_s) if state is PumpState.WITHDRAWING else (t0_s, t1_s)
         return PumpStatus(
@@ -393,10 +536,12 @@ class PhdUltra:
     def _command(self, command: str) -> Reply:
         return self._exchange(command, expect_payload=False)
 
-    def _exchange(self, command: str, *, expect_payload: bool) -> Reply:
+    def _exchange(self, command: str, *, expect_payload: bool, stop_on_fault: bool = True) -> Reply:
         self._no_stop_pending.wait()
         with self._io_lock:
-            return self._exchange_locked(command, expect_payload=expect_payload, stop_on_fault=True)
+            return self._exchange_locked(
+                command, expect_payload=expect_payload, stop_on_fault=stop_on_fault
+            )
 
     def _exchange_locked(self, command: str, *, expect_payload: bool, stop_on_fault: bool) -> Reply:
         try:

@@ -7,8 +7,10 @@ the lock and the timeouts live in ``phd_ultra.py``. The framing is the tolerant 
 of hardware.md 1.1–1.2, because it varies between firmware versions:
 
 - a reply is ``LF payload CR`` lines, then ``LF prompt`` (no CR after the prompt);
-- the prompt is ``T?[:<>*]`` with an optional 1–2 digit address in front (bare at
-  address 0 on a PHD ULTRA, ``01:`` elsewhere);
+- the prompt is ``[:<>*]`` or a target prompt ``T*``, ``T:`` or ``:T*``, with an
+  optional 1–2 digit address in front (bare at address 0 on a PHD ULTRA, ``01:``
+  elsewhere);
+- a pump in ``poll on`` ends each prompt with XON (0x11): every XON is dropped;
 - some firmware repeats the prompt with its address at the start of each payload line
   (``00:15.3 ml/min``), and a stray ``T*`` can leak into a line: both are dropped;
 - older firmware sends the ``status`` line after the prompt instead of before it;
@@ -17,6 +19,7 @@ of hardware.md 1.1–1.2, because it varies between firmware versions:
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 
@@ -34,11 +37,17 @@ from .phd_ultra_errors import (
 # lines (a command and an empty one) by firmware that ends a line at either byte.
 TERMINATOR = b"\r"
 
-ADDRESS_FORMS = ("digits", "colon", "none")
+# A pump in `poll on` sends XON each time it is ready for the next command.
+XON = b"\x11"
 
-_PROMPT = re.compile(r"^(?P<address>\d{1,2})?(?P<prompt>T?[:<>*])$")
+ADDRESS_FORMS = ("digits", "colon", "none")
+# "auto": try the forms of ``candidate_address_forms`` in turn and keep the one answered.
+AUTO_ADDRESS_FORM = "auto"
+
+_PROMPT = re.compile(r"^(?P<address>\d{1,2})?(?P<prompt>:?T[:*]|[:<>*])$")
 # A target prompt leaked into the start of a payload line (flowchem's observation).
-_LEAKED_TARGET = re.compile(r"^\d{0,2}T[:*]")
+_LEAKED_TARGET = re.compile(r"^\d{0,2}:?T[:*]")
+_FORCE = re.compile(r"^\s*(?P<pct>\d{1,3})\s*%\s*$")
 _PROMPT_STATES = {
     ":": PumpState.IDLE,
     ">": PumpState.INFUSING,
@@ -82,6 +91,16 @@ def rate_limits_ml_min(diameter_mm: float) -> tuple[float, float]:
     return low * scale, high * scale
 
 
+def candidate_address_forms(address: int) -> tuple[str, ...]:
+    """The address forms to try, most likely first. The manual sends an address only
+    when it is not 0, as ``N:cmd`` (a real PHD ULTRA 3.0.5 is driven with none); the
+    ``00cmd`` of Pico Plus code comes second. At a non-zero address no form without
+    the address is tried: that would command pump 0 of the chain."""
+    if address == 0:
+        return ("none", "digits")
+    return ("colon", "digits")
+
+
 def frame_command(command: str, *, address: int, address_form: str = "digits") -> bytes:
     """The bytes that send ``command`` to the pump at ``address``.
 
@@ -105,7 +124,7 @@ class Reply:
 
     @property
     def state(self) -> PumpState:
-        if self.prompt.startswith("T"):
+        if "T" in self.prompt:
             return PumpState.TARGET_REACHED
         return _PROMPT_STATES[self.prompt]
 
@@ -118,7 +137,7 @@ class Reply:
 def prompts_in(raw: bytes) -> list[str]:
     """Every prompt in bytes that arrived with no command pending (unsolicited events,
     such as the target-reached prompt), in order."""
-    text = raw.decode("ascii", errors="replace")
+    text = raw.replace(XON, b"").decode("ascii", errors="replace")
     return [m["prompt"] for part in text.split("\n") if (m := _PROMPT.match(part))]
 
 
@@ -128,10 +147,11 @@ def parse_reply(raw: bytes, *, expect_payload: bool, command: str = "") -> Reply
     Complete means: a prompt as the last thing received, or (older firmware) a prompt
     followed by the payload line; and at least one payload line if ``expect_payload``.
     A prompt that arrived earlier than the last one (an unsolicited target prompt just
-    before the reply) is superseded by the last. Raises PumpProtocolError when the
-    complete reply holds bytes that are not printable ASCII.
+    before the reply) is superseded by the last. XON bytes (``poll on``) are dropped
+    wherever they are. Raises PumpProtocolError when the complete reply holds bytes
+    that are not printable ASCII.
     """
-    text = raw.decode("ascii", errors="replace")
+    text = raw.replace(XON, b"").decode("ascii", errors="replace")
     elements = text.split("\n")[1:]  # what precedes the first LF is not part of a reply
     if not elements:
         return None
@@ -219,6 +239,22 @@ def parse_rate_limits(text: str) -> tuple[float, float]:
     if not 0 < limits[0] <= limits[1]:
         raise PumpProtocolError(f"rate limits out of order: {text!r}")
     return limits
+
+
+def parse_force_pct(text: str) -> int:
+    """``'100%'`` -> 100 (the ``force`` query: percent of the pump's rated force)."""
+    match = _FORCE.match(text)
+    if match is None or not 1 <= int(match["pct"]) <= 100:
+        raise PumpProtocolError(f"expected a force limit '1%' to '100%', got {text!r}")
+    return int(match["pct"])
+
+
+def force_limit_pressure_kpa(force_pct: float, rated_force_n: float, diameter_mm: float) -> float:
+    """The load pressure at which the pump stalls: ``force_pct`` of its rated linear
+    force over the plunger area. An upper bound: the plunger's friction and the
+    tubing's resistance take their share of the force before the specimen does."""
+    area_m2 = math.pi / 4 * (diameter_mm * 1e-3) ** 2
+    return force_pct / 100 * rated_force_n / area_m2 / 1e3
 
 
 def parse_target_ml(text: str) -> float | None:

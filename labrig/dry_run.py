@@ -8,9 +8,10 @@ model, the peak pressure the specimen will reach against the pressure limit.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
-from labrig.drivers.phd_ultra_protocol import rate_limits_ml_min
+from labrig.drivers.phd_ultra_protocol import force_limit_pressure_kpa, rate_limits_ml_min
 from labrig.protocol import InfuseStep, Protocol, WithdrawStep, iter_plan, plan
 from labrig.rig import RigConfig
 
@@ -46,10 +47,20 @@ def dry_run_report(protocol: Protocol, rig: RigConfig) -> DryRunReport:
         f"withdrawn, at most {summary.max_volume_ml:g} mL in the specimen "
         f"(limit {protocol.limits.max_volume_ml:g} mL)",
     ]
+    report.lines.append(
+        "  pump        infuse only (pump.infuse_only)"
+        if rig.pump.infuse_only
+        else "  pump        infuses and withdraws"
+    )
+    _backstop(protocol, rig, report)
     low, high = rate_limits_ml_min(syringe.diameter_mm)
     for location, step, _ in iter_plan(protocol.steps):
         if isinstance(step, InfuseStep | WithdrawStep):
             kind = "infuse" if isinstance(step, InfuseStep) else "withdraw"
+            if kind == "withdraw" and rig.pump.infuse_only:
+                report.problems.append(
+                    f"{location}.withdraw: the rig's pump is infuse-only (pump.infuse_only)"
+                )
             rate = step.infuse.rate_ml_min if kind == "infuse" else step.withdraw.rate_ml_min
             if not low <= rate <= high:
                 report.problems.append(
@@ -63,6 +74,36 @@ def dry_run_report(protocol: Protocol, rig: RigConfig) -> DryRunReport:
         )
     _predict_pressure(protocol, summary.max_volume_ml, report)
     return report
+
+
+# A backstop above this many times the pressure limit protects nothing the specimen
+# would notice; below about 1.5 times it, the plunger's friction and the tubing's
+# resistance could stall a healthy run.
+BACKSTOP_WARN_FACTOR = 2.0
+BACKSTOP_SUGGEST_FACTOR = 1.5
+
+
+def _backstop(protocol: Protocol, rig: RigConfig, report: DryRunReport) -> None:
+    """The pump's force limit as the pressure it stalls at: what holds the pressure if
+    labrig itself has crashed and the pump runs on to its step target."""
+    pump = rig.pump
+    diameter_mm = pump.syringe.diameter_mm
+    area_mm2 = math.pi / 4 * diameter_mm**2
+    stall_kpa = force_limit_pressure_kpa(pump.force_limit_pct, pump.rated_force_n, diameter_mm)
+    limit_kpa = protocol.limits.max_pressure_kpa
+    report.lines.append(
+        f"  backstop    force limit {pump.force_limit_pct} % of {pump.rated_force_n:.1f} N on "
+        f"the {diameter_mm:g} mm syringe ({area_mm2:.1f} mm²): the pump stalls above "
+        f"{stall_kpa:.1f} kPa (pressure limit {limit_kpa:g} kPa)"
+    )
+    if rig.sim is None and stall_kpa > BACKSTOP_WARN_FACTOR * limit_kpa:
+        at_100_kpa = force_limit_pressure_kpa(100, pump.rated_force_n, diameter_mm)
+        suggested = min(100, math.ceil(100 * BACKSTOP_SUGGEST_FACTOR * limit_kpa / at_100_kpa))
+        report.warnings.append(
+            f"after a crash the pump pushes to {stall_kpa:.0f} kPa, "
+            f"{stall_kpa / limit_kpa:.1f}x the pressure limit: pump.force_limit_pct: "
+            f"{suggested} stalls it at {suggested / 100 * at_100_kpa:.0f} kPa"
+        )
 
 
 def _predict_pressure(protocol: Protocol, volume_ml: float, report: DryRunReport) -> None:

@@ -20,14 +20,16 @@ import yaml
 from pydantic import Field, model_validator
 
 from labrig.clock import RealClock
-from labrig.errors import InputError
-from labrig.protocol import LoadedProtocol, Protocol
+from labrig.errors import DeviceError, InputError
+from labrig.protocol import LoadedProtocol, Protocol, plan
 from labrig.runner import Rig
 from labrig.yamlmodel import Strict, parse_yaml_model
 
 # A 50 mL Hamilton 1000-series gastight syringe (the paper's), inner diameter in mm.
 DEFAULT_SYRINGE_DIAMETER_MM = 27.6
 DEFAULT_SYRINGE_VOLUME_ML = 50.0
+# The PHD ULTRA's rated linear force at 100 % force: 75 lbf (catalogue, unverified).
+PHD_ULTRA_RATED_FORCE_N = 75 * 4.4482216
 # The simulated pump's reply deadline in host seconds. The emulator answers at once in
 # virtual time; this only bounds how long a starved host thread may take to do it.
 SIM_REPLY_TIMEOUT_S = 10.0
@@ -40,10 +42,29 @@ class SyringeConfig(Strict):
 
 
 class PumpConfig(Strict):
-    port: str = Field(description="Serial device (/dev/ttyUSB0, COM3) or pyserial URL")
+    port: str = Field(description="Serial device (/dev/ttyACM0, COM3) or pyserial URL")
     address: int = Field(0, ge=0, le=99)
     baud: Literal[9600, 19200, 38400, 57600, 115200] = 115200
     syringe: SyringeConfig = SyringeConfig()
+    address_form: Literal["auto", "none", "colon", "digits"] = Field(
+        "auto",
+        description="How the address precedes a command: none (cmd), colon (N:cmd), digits "
+        "(0Ncmd); auto tries the manual's form first and keeps the one answered",
+    )
+    reply_timeout_s: float = Field(
+        2.0, gt=0, le=30, description="How long the pump may take to answer one command"
+    )
+    force_limit_pct: int = Field(
+        100,
+        ge=1,
+        le=100,
+        description="The pump's force limit, % of its rated force: it stalls above "
+        "this share of rated_force_n over the plunger area (the hardware pressure backstop)",
+    )
+    rated_force_n: float = Field(
+        PHD_ULTRA_RATED_FORCE_N, gt=0, description="The pump's linear force at 100 %"
+    )
+    infuse_only: bool = Field(False, description="An infuse-only pump model (no withdraw)")
 
 
 class PressureConfig(Strict):
@@ -182,10 +203,15 @@ def _build_real_rig(protocol: Protocol, config: RigConfig) -> Rig:
     clock = RealClock()
     with ExitStack() as stack:
         pump = PhdUltra.open(
-            config.pump.port, baudrate=config.pump.baud, address=config.pump.address, clock=clock
+            config.pump.port,
+            baudrate=config.pump.baud,
+            address=config.pump.address,
+            address_form=config.pump.address_form,
+            clock=clock,
+            timeout_s=config.pump.reply_timeout_s,
         )
         stack.callback(pump.close)
-        pump.configure_syringe(config.pump.syringe.diameter_mm, config.pump.syringe.volume_ml)
+        set_up_pump(pump, config.pump, protocol)
         pressure = _pressure_driver(NiDaqPressure, clock, config, protocol, None)
         length = None
         if protocol.acquisition.camera_fps > 0:
@@ -204,6 +230,18 @@ def _build_real_rig(protocol: Protocol, config: RigConfig) -> Rig:
             )
         closer = stack.pop_all()
     return Rig(clock, pump, pressure, length, rig_config_text(config), closer.close)
+
+
+def set_up_pump(pump, config: PumpConfig, protocol: Protocol) -> None:
+    """What a connected pump needs before a run: it can do what the protocol asks, the
+    syringe, and the force limit (the hardware backstop, read back)."""
+    if not pump.can_withdraw and plan(protocol).withdrawn_ml > 0:
+        raise DeviceError(
+            f"the pump on {config.port} is infuse-only (it refused 'wvolume') but the "
+            "protocol withdraws: use a pump that withdraws, or a protocol without withdraw steps"
+        )
+    pump.configure_syringe(config.syringe.diameter_mm, config.syringe.volume_ml)
+    pump.set_force_limit(config.force_limit_pct)
 
 
 def _pressure_driver(driver_class, clock, config: RigConfig, protocol: Protocol, factories):
@@ -265,7 +303,7 @@ def _build_sim_rig(protocol: Protocol, config: RigConfig) -> Rig:
             timeout_s=SIM_REPLY_TIMEOUT_S,
         )
         stack.callback(pump.close)
-        pump.configure_syringe(syringe.diameter_mm, syringe.volume_ml)
+        set_up_pump(pump, config.pump, protocol)
         p = config.pressure
         daq_tasks: list[SimDaqTask] = []
 

@@ -106,6 +106,7 @@ def check_pump(
             port,
             baudrate=config.baud,
             address=config.address,
+            address_form=config.address_form,
             clock=clock,
             timeout_s=timeout_s,
         )
@@ -151,6 +152,8 @@ def check_pump(
 
 
 def _pump_found(pump, config: PumpConfig, port: str, expected: str) -> DeviceCheck:
+    from labrig.drivers.phd_ultra_protocol import force_limit_pressure_kpa
+
     serial_number = next(
         (
             line.split(":", 1)[1].strip()
@@ -162,12 +165,23 @@ def _pump_found(pump, config: PumpConfig, port: str, expected: str) -> DeviceChe
     syringe = pump.syringe
     limits = pump.rate_limits()
     state = pump.status().state.value
-    (i_lo, i_hi), (w_lo, w_hi) = limits.infuse_ml_min, limits.withdraw_ml_min
+    i_lo, i_hi = limits.infuse_ml_min
+    if limits.withdraw_ml_min is None:
+        withdraw = "no withdraw (infuse-only pump)"
+    else:
+        w_lo, w_hi = limits.withdraw_ml_min
+        withdraw = f"withdraw {w_lo:.3g}-{w_hi:.4g} mL/min"
+    force_pct = pump.force_limit_pct()
+    backstop_kpa = force_limit_pressure_kpa(force_pct, config.rated_force_n, syringe.diameter_mm)
     found = (
-        f"{pump.firmware} (serial {serial_number}) at address {config.address} on {port}; "
-        f"syringe {syringe.diameter_mm:.2f} mm, {syringe.volume_ml:g} mL; infuse "
-        f"{i_lo:.3g}-{i_hi:.4g} mL/min, withdraw {w_lo:.3g}-{w_hi:.4g} mL/min; {state}"
+        f"{pump.firmware} (serial {serial_number}) at address {config.address} "
+        f"({pump.address_form} form) on {port}; syringe {syringe.diameter_mm:.2f} mm, "
+        f"{syringe.volume_ml:g} mL; infuse {i_lo:.3g}-{i_hi:.4g} mL/min, {withdraw}; "
+        f"force limit {force_pct} % (stalls above {backstop_kpa:.0f} kPa; a run sets "
+        f"{config.force_limit_pct} %); {state}"
     )
+    for warning in pump.connect_warnings:
+        found += f"; {warning}"
     wanted = config.syringe
     if not (
         math.isclose(syringe.diameter_mm, wanted.diameter_mm, rel_tol=1e-3)
@@ -249,11 +263,15 @@ def check_pressure(
             reader_factory=reader_factory,
         )
 
-    where = f"{config.channel} ({config.terminal}, {config.min_v:g} to {config.max_v:g} V)"
     tolerance = mpx5100.ACCURACY_KPA
     try:
-        block = _reading(
-            driver(config.channel, config.supply_channel, config.supply_v), clock, seconds
+        sensor = driver(config.channel, config.supply_channel, config.supply_v)
+        block = _reading(sensor, clock, seconds)
+        # what DAQmx set up, which may differ from what the rig file asks for
+        (low_v, high_v), bits = sensor.adc_ranges_v[0], sensor.adc_bits[0]
+        where = (
+            f"{config.channel} ({config.terminal}, {low_v:g} to {high_v:g} V at {bits} bits, "
+            f"{sensor.sample_clock_hz:g} S/s)"
         )
         good = ~np.asarray(block.out_of_range, dtype=bool)
         n, flagged = len(block), int(np.count_nonzero(~good))

@@ -2,7 +2,9 @@
 
 ``SimDaqTask`` implements the part of ``nidaqmx.Task`` that ``labrig.drivers.ni_daq``
 uses (``ai_channels.add_ai_voltage_chan``, ``timing.cfg_samp_clk_timing``, ``in_stream``,
-``start``/``stop``/``close``, the context manager) with the real signatures, enums and
+``start``/``stop``/``close``/``control``, the context manager, the channel's coerced
+range and resolution, the coerced sample clock rate, the acquired-sample count) with
+the real signatures, enums and
 exceptions (``nidaqmx.errors.DaqError``/``DaqReadError`` with the real error codes), so
 the driver's own code runs unchanged against it. ``SimAnalogMultiChannelReader`` stands
 in for ``nidaqmx.stream_readers.AnalogMultiChannelReader``, whose real implementation
@@ -11,11 +13,20 @@ talks to the DAQmx C library through private handles a simulator should not imit
 Behaviour copied from the device rather than replayed:
 - validation like the USB-6009: ai0-ai7 in RSE (±10 V only), ai0-ai3 in DIFF (±20 to
   ±1 V), the default terminal configuration is DIFF, 48 kS/s in total over all channels;
+- the range DAQmx really uses: the smallest hardware range holding the requested one
+  (``ai_rng_low``/``ai_rng_high``; always ±10 V in RSE), and the sample clock rate it
+  really uses: the timebase divided by a whole number (``timing.samp_clk_rate`` reads
+  the coerced rate, not the requested one);
+- a sample clock that may be off by ``clock_error_ppm`` against the host clock (a
+  crystal's error), so a driver that never re-anchors drifts as on the bench;
 - hardware timing on the shared clock: sample k is taken at t_start + k/rate however late
   it is read, so nothing is lost while the buffer has room, and like DAQmx the buffer
   overflows (error -200279) when it is not read in time;
-- the MPX5100's output (ratiometric, with an offset error and noise) and the 14-bit
-  quantisation of the selected input range, saturating at the range's ends.
+- a read of samples already acquired returns at once whatever its timeout, and a read of
+  ``READ_ALL_AVAILABLE`` never waits; DAQmx's own error codes for everything else;
+- the MPX5100's output (ratiometric, with an offset error and noise) and the
+  quantisation of the hardware range, 13 bits in RSE and 14 differential (the usual
+  datasheet split, unverified against NI), saturating at the range's ends.
 
 This module imports nidaqmx (constants and exceptions only; no driver needed): it is
 loaded only when a simulated rig is built.
@@ -32,6 +43,8 @@ from nidaqmx.constants import (
     READ_ALL_AVAILABLE,
     AcquisitionType,
     Edge,
+    ResolutionType,
+    TaskMode,
     TerminalConfiguration,
     VoltageUnits,
 )
@@ -41,7 +54,11 @@ from nidaqmx.errors import DaqError, DaqReadError
 from labrig.clock import Clock
 from labrig.drivers import mpx5100
 
-ADC_BITS = 14
+ADC_BITS = 14  # differential
+RSE_ADC_BITS = 13
+# The AI sample clock timebase the rate is divided from (a model: NI does not state
+# the USB-6009's in the documents found; the coercion, not the number, is the point).
+TIMEBASE_HZ = 12e6
 N_AI_RSE = 8  # ai0-ai7 single-ended
 N_AI_DIFF = 4  # ai0/ai4 ... ai3/ai7
 RSE_RANGES_V = (10.0,)
@@ -70,6 +87,42 @@ class _Channel:
 
     physical: str
     range_v: float  # the hardware range is ±range_v
+    bits: int
+    terminal: TerminalConfiguration
+
+
+class SimAIChannel:
+    """What ``add_ai_voltage_chan`` returns (``nidaqmx.task.channels.AIChannel``): the
+    properties DAQmx coerces, read back as the device really uses them."""
+
+    def __init__(self, task: SimDaqTask, channels: list[_Channel]) -> None:
+        self._task = task
+        self._channels = channels
+        self.name = ",".join(c.physical for c in channels)
+
+    def _one(self) -> _Channel:
+        self._task._check_open()
+        return self._channels[0]
+
+    @property
+    def ai_rng_high(self) -> float:
+        return self._one().range_v
+
+    @property
+    def ai_rng_low(self) -> float:
+        return -self._one().range_v
+
+    @property
+    def ai_resolution(self) -> float:
+        return float(self._one().bits)
+
+    @property
+    def ai_resolution_units(self) -> ResolutionType:
+        return ResolutionType.BITS
+
+    @property
+    def ai_term_cfg(self) -> TerminalConfiguration:
+        return self._one().terminal
 
 
 class SimAIChannelCollection:
@@ -134,8 +187,10 @@ class SimAIChannelCollection:
             )
         if units != VoltageUnits.VOLTS or custom_scale_name:
             raise ValueError("SimDaqTask simulates voltage channels in volts only")
-        for i in indices:
-            self._channels.append(_Channel(f"{task.device}/ai{i}", min(fitting)))
+        bits = RSE_ADC_BITS if terminal == TerminalConfiguration.RSE else ADC_BITS
+        added = [_Channel(f"{task.device}/ai{i}", min(fitting), bits, terminal) for i in indices]
+        self._channels.extend(added)
+        return SimAIChannel(task, added)
 
     def _parse(self, physical_channel: str) -> list[int]:
         task = self._task
@@ -188,7 +243,7 @@ class SimTiming:
             raise ValueError(
                 "SimDaqTask simulates continuous acquisition on the internal sample clock only"
             )
-        self.samp_clk_rate = float(rate)
+        self.samp_clk_rate = coerced_rate_hz(float(rate))
         self.samp_quant_samp_per_chan = int(samps_per_chan)
 
 
@@ -209,6 +264,12 @@ class SimInStream:
         if not task._running:
             return 0
         return min(task._acquired() - task._read_pos, task._buffer_size)
+
+    @property
+    def total_samp_per_chan_acquired(self) -> int:
+        task = self._task
+        task._check_open()
+        return task._acquired() if task._running else 0
 
 
 class SimAnalogMultiChannelReader:
@@ -248,6 +309,7 @@ class SimDaqTask:
         output_channel: str = "Dev1/ai0",
         supply_channel: str | None = "Dev1/ai1",
         new_task_name: str = "",
+        clock_error_ppm: float = 0.0,
     ) -> None:
         self.clock = clock
         self.pressure_kpa_at = pressure_kpa_at
@@ -257,6 +319,7 @@ class SimDaqTask:
         self.device = device
         self.output_channel = output_channel.strip("/").lower()
         self.supply_channel = supply_channel.strip("/").lower() if supply_channel else None
+        self.clock_error_ppm = float(clock_error_ppm)
         self._name = new_task_name or "_unnamedTask<0>"
         self._rng = np.random.default_rng(seed)
         self.ai_channels = SimAIChannelCollection(self)
@@ -268,7 +331,9 @@ class SimDaqTask:
         self._read_pos = 0
         self._buffer_size = 0
         self._overflowed = False
+        self._overflow_code = DAQmxErrors.SAMPLES_NO_LONGER_AVAILABLE
         self._timeout_pending = False
+        self._timeout_delivers = 0
 
     # -- the nidaqmx.Task surface -------------------------------------------------------
 
@@ -280,10 +345,30 @@ class SimDaqTask:
     def channel_names(self) -> list[str]:
         return [c.physical for c in self.ai_channels._channels]
 
+    def control(self, action: TaskMode) -> None:
+        """``Task.control``: verify/commit/reserve check the configuration as start does
+        (DAQmx's errors), start/stop/abort run or stop the task."""
+        self._check_open()
+        if action == TaskMode.TASK_START:
+            self.start()
+        elif action in (TaskMode.TASK_STOP, TaskMode.TASK_ABORT):
+            self._running = False
+        elif action in (TaskMode.TASK_VERIFY, TaskMode.TASK_COMMIT, TaskMode.TASK_RESERVE):
+            self._verify()
+
     def start(self) -> None:
         self._check_open()
         if self._running:
             return
+        self._verify()
+        rate = self.timing.samp_clk_rate
+        self._buffer_size = max(self.timing.samp_quant_samp_per_chan, default_buffer_size(rate))
+        self._read_pos = 0
+        self._overflowed = False
+        self._running = True
+        self._t_start_s = self.clock.now()
+
+    def _verify(self) -> None:
         n_chans = len(self.ai_channels)
         if n_chans == 0:
             raise self._error(
@@ -305,11 +390,6 @@ class SimDaqTask:
                 f"Maximum Aggregate Rate: {MAX_AGGREGATE_RATE_HZ:g}",
                 DAQmxErrors.SAMPLE_RATE_NUM_CHANS_CONVERT_PERIOD_COMBO,
             )
-        self._buffer_size = max(self.timing.samp_quant_samp_per_chan, default_buffer_size(rate))
-        self._read_pos = 0
-        self._overflowed = False
-        self._running = True
-        self._t_start_s = self.clock.now()
 
     def stop(self) -> None:
         self._check_open()
@@ -327,27 +407,38 @@ class SimDaqTask:
 
     # -- fault injection ---------------------------------------------------------------
 
-    def inject_overflow(self) -> None:
-        """The next read fails as if the buffer had overflowed (DAQmx -200279)."""
+    def inject_overflow(self, code: DAQmxErrors = DAQmxErrors.SAMPLES_NO_LONGER_AVAILABLE) -> None:
+        """The next read fails as if samples were lost: the host buffer overwritten
+        (-200279, the default) or, with ``INPUT_FIFO_OVERFLOW_2`` (-200361), the
+        device's FIFO overflowed because USB did not take its data in time."""
         self._overflowed = True
+        self._overflow_code = code
 
-    def inject_read_timeout(self) -> None:
-        """The next read gets no samples: it waits its timeout, then fails (-200284)."""
+    def inject_read_timeout(self, n_delivered: int = 0) -> None:
+        """The next read that asks for samples gets at most ``n_delivered`` of them (of
+        those acquired): it waits its timeout, then fails (-200284) saying how many it
+        returned, as DAQmx does."""
         self._timeout_pending = True
+        self._timeout_delivers = int(n_delivered)
 
     # -- the simulation -----------------------------------------------------------------
+
+    def _device_rate_hz(self) -> float:
+        """The rate the sample clock really runs at, measured on the host clock."""
+        return self.timing.samp_clk_rate * (1.0 + 1e-6 * self.clock_error_ppm)
 
     def _acquired(self) -> int:
         """Samples taken since start: sample k is taken at t_start + k/rate."""
         elapsed_s = self.clock.now() - self._t_start_s
-        return int(np.floor(elapsed_s * self.timing.samp_clk_rate)) + 1
+        return int(np.floor(elapsed_s * self._device_rate_hz())) + 1
 
     def _read_into(self, data, n_requested, timeout, reader) -> int:
         self._check_open()
         if not self._running:
             self.start()  # DAQmx Read starts a task that was not started
         n_chans = len(self.ai_channels)
-        if n_requested == READ_ALL_AVAILABLE:
+        read_available = n_requested == READ_ALL_AVAILABLE
+        if read_available:
             n_requested = self.in_stream.avail_samp_per_chan
         if reader.verify_array_shape and data.shape != (n_chans, n_requested):
             raise self._error(
@@ -357,13 +448,15 @@ class SimDaqTask:
                 f"Shape of NumPy Array required: {(n_chans, n_requested)}",
                 DAQmxErrors.UNKNOWN,
             )
-        if self._timeout_pending:
+        if self._timeout_pending and not read_available:
             self._timeout_pending = False
+            n_got = min(self._timeout_delivers, n_requested, self._acquired() - self._read_pos)
+            self._generate(data[:, :n_got], n_got)
             self.clock.sleep(timeout)
-            raise self._read_timeout(timeout, 0)
+            raise self._read_timeout(timeout, n_got)
         self._check_overflow()
         deadline_s = self.clock.now() + timeout
-        rate = self.timing.samp_clk_rate
+        rate = self._device_rate_hz()
         while self._acquired() - self._read_pos < n_requested:
             wait_s = (self._read_pos + n_requested) / rate - (self.clock.now() - self._t_start_s)
             remaining_s = deadline_s - self.clock.now()
@@ -379,16 +472,29 @@ class SimDaqTask:
     def _check_overflow(self) -> None:
         if self._overflowed or self._acquired() - self._read_pos > self._buffer_size:
             self._overflowed = True  # like DAQmx, the task stays in error until restarted
-            raise DaqReadError(
-                "Attempted to read samples that are no longer available. The requested "
-                "sample was previously available, but has since been overwritten.\n"
-                "Increasing the buffer size, reading the data more frequently, or "
-                "specifying a fixed number of samples to read instead of reading all "
-                "available samples might correct the problem.",
-                DAQmxErrors.SAMPLES_NO_LONGER_AVAILABLE,
-                0,
-                task_name=self._name,
-            )
+            code = self._overflow_code
+            if code == DAQmxErrors.SAMPLES_NO_LONGER_AVAILABLE:
+                message = (
+                    "Attempted to read samples that are no longer available. The requested "
+                    "sample was previously available, but has since been overwritten.\n"
+                    "Increasing the buffer size, reading the data more frequently, or "
+                    "specifying a fixed number of samples to read instead of reading all "
+                    "available samples might correct the problem."
+                )
+            elif code == DAQmxErrors.ACQ_STOPPED_DRIVER_CANT_XFER_DATA_FAST_ENOUGH:
+                message = (
+                    "Acquisition has stopped because the driver could not transfer the data "
+                    "from the device to the computer memory fast enough."
+                )
+            else:
+                message = (
+                    "Onboard device memory overflow. Because of system and/or bus-bandwidth "
+                    "limitations, the driver could not read data from the device fast "
+                    "enough to keep up with the device throughput.\n"
+                    "Reduce your sample rate. If your data transfer method is interrupts, "
+                    "try using DMA or USB Bulk."
+                )
+            raise DaqReadError(message, code.value, 0, task_name=self._name)
 
     def _read_timeout(self, timeout: float, n_read: int) -> DaqReadError:
         return DaqReadError(
@@ -405,7 +511,7 @@ class SimDaqTask:
         if n == 0:
             return
         k = np.arange(self._read_pos, self._read_pos + n)
-        t_s = self._t_start_s + k / self.timing.samp_clk_rate
+        t_s = self._t_start_s + k / self._device_rate_hz()
         p_kpa = np.asarray(self.pressure_kpa_at(t_s), dtype=float) + self.offset_error_kpa
         noise_v = self.noise_kpa * mpx5100.SENSITIVITY_PER_KPA * self.supply_v
         for row, channel in enumerate(self.ai_channels._channels):
@@ -417,7 +523,7 @@ class SimDaqTask:
             else:
                 v = np.zeros(n)
             v = v + self._rng.normal(0.0, noise_v, n) if noise_v > 0 else v
-            out[row, :n] = quantise(v, channel.range_v)
+            out[row, :n] = quantise(v, channel.range_v, channel.bits)
         self._read_pos += n
 
     # -- helpers ------------------------------------------------------------------------
@@ -430,6 +536,16 @@ class SimDaqTask:
 
     def _error(self, message: str, code: DAQmxErrors) -> DaqError:
         return DaqError(message, code.value, task_name=self._name)
+
+
+def coerced_rate_hz(rate_hz: float) -> float:
+    """The sample clock rate DAQmx uses for a requested one: the timebase divided by
+    the whole number that gives the nearest rate at or above it (DAQmx "coerces the
+    Sample Clock rate to one that is valid"); rates it cannot coerce are left for
+    ``start`` to refuse."""
+    if not rate_hz > 0 or rate_hz > TIMEBASE_HZ:
+        return rate_hz
+    return TIMEBASE_HZ / max(1, int(TIMEBASE_HZ // rate_hz))
 
 
 def quantise(v: np.ndarray, range_v: float, bits: int = ADC_BITS) -> np.ndarray:

@@ -8,7 +8,11 @@ unsolicited prompt when the target is reached, nothing when it stalls.
 
 Firmware variants are options, so the driver's tolerance is tested against each: the
 reply style (plain lines, or each line prefixed with the prompt as on the Elite), the
-target prompt (``T*`` or ``T:``), and the status line after the prompt (older pumps).
+target prompt (``T*``, ``T:`` or ``:T*``), and the status line after the prompt (older
+pumps); the firmware's own options (poll mode, strict addressing, infuse-only, memory
+command) pass through to ``PumpFirmware``. In ``poll on`` each prompt is followed by XON
+and no event prompt is sent; in ``poll remote`` no prompt at all. A reply is framed in
+the mode in force when its command arrived.
 Faults are injected on demand: garbage, dropped or slow replies, a disconnect, a stall.
 One thread serves the port with ``select`` and a timeout, so it never blocks for long.
 
@@ -70,14 +74,18 @@ class PumpEmulator:
         reply_chunk_bytes: int | None = None,
         chunk_gap_s: float = 0.001,
         seed: int = 0,
+        poll_mode: str = "off",
+        strict_address_form: str | None = None,
+        infuse_only: bool = False,
+        memory_command: str | None = "nvram",
     ) -> None:
         """The syringe, load and force options are the firmware's (``PumpFirmware``).
         Replies are written ``reply_chunk_bytes`` at a time, ``chunk_gap_s`` apart, to
         exercise the driver on partial lines; ``seed`` makes injected garbage repeatable."""
         if reply_style not in ("plain", "prefixed"):
             raise ValueError(f"reply_style must be 'plain' or 'prefixed', got {reply_style!r}")
-        if target_prompt not in ("T*", "T:"):
-            raise ValueError(f"target_prompt must be 'T*' or 'T:', got {target_prompt!r}")
+        if target_prompt not in ("T*", "T:", ":T*"):
+            raise ValueError(f"target_prompt must be 'T*', 'T:' or ':T*', got {target_prompt!r}")
         self.clock = clock
         self.firmware = PumpFirmware(
             clock,
@@ -88,6 +96,10 @@ class PumpEmulator:
             stall_pressure_kpa=stall_pressure_kpa,
             max_force_n=max_force_n,
             on_target_reached=self._announce_target,
+            poll_mode=poll_mode,
+            strict_address_form=strict_address_form,
+            infuse_only=infuse_only,
+            memory_command=memory_command,
         )
         self.reply_style = reply_style
         self.target_prompt = target_prompt
@@ -256,15 +268,14 @@ class PumpEmulator:
 
     def _execute(self, line: str) -> None:
         self.received.append(line)
+        poll_mode = self.firmware.poll_mode
         answer = self.firmware.execute(line)
         if answer is None:
             return  # for another pump on the chain
         self._schedule_motion()  # before the reply: the driver moves time on after it
-        prompt = self._prompt(answer.state)
-        prefix = prompt if self.reply_style == "prefixed" else ""
-        body = "".join(f"\n{prefix}{text}\r" for text in answer.lines)
-        prompt_first = answer.command == "status" and self.status_prompt_first
-        data = (f"\n{prompt}{body}\n" if prompt_first else f"{body}\n{prompt}").encode("ascii")
+        data = self._frame(answer, poll_mode)
+        if not data:
+            return  # poll remote: a command without payload gets nothing back
         with self._lock:
             if self._drop:
                 self._drop -= 1
@@ -273,6 +284,16 @@ class PumpEmulator:
                 data = b"\n" + self._garbage(self._garble) + b"\r" + data
                 self._garble = 0
             self._queue(data, self._delay_s)
+
+    def _frame(self, answer, poll_mode: str) -> bytes:
+        prompt = self._prompt(answer.state)
+        prefix = prompt if self.reply_style == "prefixed" else ""
+        body = "".join(f"\n{prefix}{text}\r" for text in answer.lines)
+        if poll_mode == "remote":
+            return body.encode("ascii")
+        prompt_first = answer.command == "status" and self.status_prompt_first
+        data = f"\n{prompt}{body}\n" if prompt_first else f"{body}\n{prompt}"
+        return (data + ("\x11" if poll_mode == "on" else "")).encode("ascii")
 
     def _schedule_motion(self) -> None:
         """Set the timer of the plunger's next event: its target stop, or the next load
@@ -299,6 +320,8 @@ class PumpEmulator:
 
     def _announce_target(self) -> None:
         """The real pump sends its target prompt unsolicited (with poll mode off)."""
+        if self.firmware.poll_mode != "off":
+            return
         with self._lock:
             self._queue(f"\n{self._prompt(PumpState.TARGET_REACHED)}".encode("ascii"))
 

@@ -10,6 +10,14 @@ The load is whatever is attached: ``load_pressure_kpa(t)`` is called with
 non-decreasing clock times, never under this object's lock, so a plant may call
 ``net_volume_ml`` from it.
 
+Models of the real pumps the driver must meet (issue 16) are options: the poll mode
+it was left in (``poll on``: XON after each prompt; ``poll remote``: no prompts),
+strict addressing (one address form is answered, any other ignored, as by a pump that
+reads it as meant for another: the manual's form is none at address 0 and ``N:cmd``
+elsewhere, ``manual_address_form``),
+an infuse-only model (every withdraw command refused as unknown), and the memory
+command the firmware knows (``nvram``, ``rsave`` or neither).
+
 Units, parsing and formatting are written here independently of the driver's protocol
 module on purpose: a shared unit table would hide a unit error from every test.
 """
@@ -25,7 +33,7 @@ from dataclasses import dataclass
 
 from labrig.clock import Clock
 from labrig.devices import PumpState
-from labrig.drivers.phd_ultra_protocol import rate_limits_ml_min
+from labrig.drivers.phd_ultra_protocol import ADDRESS_FORMS, rate_limits_ml_min
 
 from .syringe_drive import INFUSE, WITHDRAW, SyringeDrive
 
@@ -45,7 +53,16 @@ _VOLUME_ML = {"ml": 1.0, "ul": 1e-3, "nl": 1e-6, "pl": 1e-9}
 _TIME_MIN = {"min": 1.0, "hr": 60.0}
 _RATE_SCALE = (("ml/min", 1.0), ("ul/min", 1e-3), ("nl/min", 1e-6), ("pl/min", 1e-9))
 _VOLUME_SCALE = (("ml", 1.0), ("ul", 1e-3), ("nl", 1e-6), ("pl", 1e-9))
-_COMMAND = re.compile(r"^(?:(?P<address>\d{1,2}):?)?@?(?P<word>[A-Za-z]*)\s*(?P<arg>.*)$")
+_COMMAND = re.compile(
+    r"^(?:(?P<address>\d{1,2})(?P<colon>:)?)?@?(?P<word>[A-Za-z]*)\s*(?P<arg>.*)$"
+)
+POLL_MODES = ("off", "on", "remote")
+MEMORY_COMMANDS = ("nvram", "rsave", None)
+# What an infuse-only PHD ULTRA does not know (flowchem: "Unknown command" for a
+# withdraw command sent to an infuse-only pump).
+WITHDRAW_COMMANDS = frozenset(
+    {"wrate", "wrun", "rrun", "wvolume", "cwvolume", "wtime", "cwtime", "wramp"}
+)
 
 
 class _Refused(Exception):
@@ -54,6 +71,11 @@ class _Refused(Exception):
     def __init__(self, *lines: str) -> None:
         super().__init__(lines[0])
         self.lines = list(lines)
+
+
+def manual_address_form(address: int) -> str:
+    """The form the PHD ULTRA manual uses: an address only when it is not 0, as ``N:``."""
+    return "none" if address == 0 else "colon"
 
 
 def _argument_error(arg: str, detail: str = "Unknown argument") -> _Refused:
@@ -109,12 +131,29 @@ class PumpFirmware:
         stall_pressure_kpa: float | None = None,
         max_force_n: float = MAX_FORCE_N,
         on_target_reached: Callable[[], None] = lambda: None,
+        poll_mode: str = "off",
+        strict_address_form: str | None = None,
+        infuse_only: bool = False,
+        memory_command: str | None = "nvram",
     ) -> None:
         """``stall_pressure_kpa`` fixes the stall limit; by default it follows from the
         force setting and the plunger area (``max_force_n`` at 100 %).
-        ``on_target_reached`` is called (under the lock) when a run reaches its target."""
+        ``on_target_reached`` is called (under the lock) when a run reaches its target.
+        ``poll_mode`` is the mode the pump was left in; ``strict_address_form`` (one of
+        ``ADDRESS_FORMS``) is the only address form answered, None answers any;
+        ``infuse_only`` refuses withdraw commands;
+        ``memory_command`` is the command that switches memory writes (or None)."""
         if not 0 <= address <= 99:
             raise ValueError(f"address must be 0-99, got {address}")
+        if poll_mode not in POLL_MODES:
+            raise ValueError(f"poll_mode must be one of {POLL_MODES}, got {poll_mode!r}")
+        if memory_command not in MEMORY_COMMANDS:
+            raise ValueError(f"memory_command must be one of {MEMORY_COMMANDS}")
+        if strict_address_form not in (*ADDRESS_FORMS, None):
+            raise ValueError(f"strict_address_form must be one of {ADDRESS_FORMS} or None")
+        self.poll_mode = poll_mode
+        self.strict_address_form = strict_address_form
+        self.infuse_only = infuse_only
         self.clock = clock
         self.address = address
         self.max_force_n = max_force_n
@@ -137,7 +176,7 @@ class PumpFirmware:
             "": lambda arg, now: [],
             "ver": self._ver,
             "version": self._version,
-            "nvram": self._nvram_command,
+            "poll": lambda arg, now: self._choice(arg, "poll_mode", POLL_MODES),
             "force": self._force,
             "diameter": self._diameter,
             "svolume": self._svolume,
@@ -160,6 +199,9 @@ class PumpFirmware:
             "stp": self._stop,
             "status": self._status,
         }
+        if memory_command is not None:
+            words = ("on", "off", "none") if memory_command == "nvram" else ("on", "off")
+            self._commands[memory_command] = lambda arg, now: self._choice(arg, "_nvram", words)
         # The manual: any command can be shortened to its first 4 letters.
         self._aliases = {name[:4]: name for name in self._commands if len(name) > 4}
 
@@ -225,7 +267,7 @@ class PumpFirmware:
         self.tick(now)
         with self._lock:
             match = _COMMAND.match(line.strip())
-            if match["address"] is not None and int(match["address"]) != self.address:
+            if not self._addressed_to_me(match):
                 return None
             word = match["word"].lower()
             name = self._aliases.get(word, word)
@@ -234,8 +276,20 @@ class PumpFirmware:
             self._advance(now)
             return Answer(name, lines, self._state())
 
+    def _addressed_to_me(self, match: re.Match[str]) -> bool:
+        """Tolerant: any form with this address, or none. Strict: that form only."""
+        if match["address"] is None:
+            form = "none"
+        elif int(match["address"]) != self.address:
+            return False
+        else:
+            form = "colon" if match["colon"] else "digits"
+        return self.strict_address_form in (None, form)
+
     def _dispatch(self, name: str, arg: str, now: float) -> list[str]:
         handler = self._commands.get(name)
+        if self.infuse_only and name in WITHDRAW_COMMANDS:
+            handler = None
         if handler is None or (not name and arg):
             return [f"Command error: [{name or arg}]", "   Unknown command"]
         try:
@@ -302,12 +356,13 @@ class PumpFirmware:
             f"Serial number: {SERIAL_NUMBER}",
         ]
 
-    def _nvram_command(self, arg: str, now: float) -> list[str]:
+    def _choice(self, arg: str, attribute: str, allowed: tuple[str, ...]) -> list[str]:
+        """A command that shows or sets one of a few words (``poll``, ``nvram``, ``rsave``)."""
         if not arg:
-            return [self._nvram]
-        if arg.lower() not in ("on", "off", "none"):
+            return [getattr(self, attribute)]
+        if arg.lower() not in allowed:
             raise _argument_error(arg)
-        self._nvram = arg.lower()
+        setattr(self, attribute, arg.lower())
         return []
 
     def _force(self, arg: str, now: float) -> list[str]:

@@ -27,15 +27,36 @@ POLL_S = 1.0  # how often --wait asks the pump (hardware.md 1.6: about once per 
 @click.option("--baud", type=click.Choice(BAUD_RATES), default="115200", show_default=True)
 @click.option(
     "--address-form",
-    type=click.Choice(["digits", "colon", "none"]),
-    default="digits",
+    type=click.Choice(["auto", "digits", "colon", "none"]),
+    default="auto",
     show_default=True,
-    help="How the address goes before each command: 00irate, 0:irate, or not at all.",
+    help="How the address goes before each command: 00irate, 0:irate, or not at all; "
+    "auto: none at address 0 or N:irate elsewhere, then 0Nirate; the answered one is kept.",
+)
+@click.option(
+    "--reply-timeout",
+    type=click.FloatRange(min=0, min_open=True),
+    default=2.0,
+    show_default=True,
+    help="Seconds the pump may take to answer one command.",
 )
 @click.pass_context
-def pump(ctx: click.Context, port: str | None, address: int, baud: str, address_form: str) -> None:
+def pump(
+    ctx: click.Context,
+    port: str | None,
+    address: int,
+    baud: str,
+    address_form: str,
+    reply_timeout: float,
+) -> None:
     """Drive the PHD ULTRA syringe pump by hand, or emulate one."""
-    ctx.obj = {"port": port, "address": address, "baud": int(baud), "address_form": address_form}
+    ctx.obj = {
+        "port": port,
+        "address": address,
+        "baud": int(baud),
+        "address_form": address_form,
+        "timeout_s": reply_timeout,
+    }
 
 
 def _open(ctx: click.Context):
@@ -52,6 +73,7 @@ def _open(ctx: click.Context):
         baudrate=settings["baud"],
         address=settings["address"],
         address_form=settings["address_form"],
+        timeout_s=settings["timeout_s"],
     )
 
 
@@ -67,7 +89,13 @@ def status(ctx: click.Context) -> None:
             ("infused", f"{now.infused_ml:.4f} mL"),
             ("withdrawn", f"{now.withdrawn_ml:.4f} mL"),
             ("infuse rate", f"{driver.infuse_rate_ml_min():.6g} mL/min"),
-            ("withdraw rate", f"{driver.withdraw_rate_ml_min():.6g} mL/min"),
+            (
+                "withdraw rate",
+                f"{driver.withdraw_rate_ml_min():.6g} mL/min"
+                if driver.can_withdraw
+                else "none (infuse-only pump)",
+            ),
+            ("force limit", f"{driver.force_limit_pct()} %"),
             ("target", "not set" if target_ml is None else f"{target_ml:.4f} mL"),
             ("diameter", f"{driver.syringe.diameter_mm:.4f} mm"),
             ("syringe", f"{driver.syringe.volume_ml:g} mL"),
@@ -202,21 +230,48 @@ def _follow(driver) -> None:
     show_default=True,
     help="plain: PHD ULTRA lines; prefixed: each line starts with the prompt.",
 )
+@click.option(
+    "--poll",
+    type=click.Choice(["off", "on", "remote"]),
+    default="off",
+    show_default=True,
+    help="The poll mode the pump was left in (on: XON after prompts; remote: no prompts).",
+)
+@click.option(
+    "--strict-address",
+    is_flag=True,
+    help="Answer only the manual's address form (none at 0, N:cmd otherwise).",
+)
+@click.option("--infuse-only", is_flag=True, help="An infuse-only model: refuse withdraw commands.")
 @click.pass_context
 def emulate(
-    ctx: click.Context, speed: float, emulated_address: int | None, reply_style: str
+    ctx: click.Context,
+    speed: float,
+    emulated_address: int | None,
+    reply_style: str,
+    poll: str,
+    strict_address: bool,
+    infuse_only: bool,
 ) -> None:
     """Serve an emulated PHD ULTRA on a pseudo-terminal.
 
     Prints the device path to connect to, then serves until Ctrl-C."""
     from labrig.clock import RealClock, ScaledClock
     from labrig.sim.pump import PumpEmulator
+    from labrig.sim.pump_firmware import manual_address_form
 
     address = ctx.obj["address"] if emulated_address is None else emulated_address
     clock = RealClock() if speed == 1 else ScaledClock(speed)
     done = threading.Event()
     signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
-    with PumpEmulator(clock, address=address, reply_style=reply_style) as emulator:
+    with PumpEmulator(
+        clock,
+        address=address,
+        reply_style=reply_style,
+        poll_mode=poll,
+        strict_address_form=manual_address_form(address) if strict_address else None,
+        infuse_only=infuse_only,
+    ) as emulator:
         click.echo(emulator.port)
         click.echo(
             f"PHD ULTRA emulator at address {address}, clock x{speed:g}; Ctrl-C stops it", err=True

@@ -3,10 +3,10 @@
 Run: python tests/bench/bench_pressure.py   (prints a table; numbers kept in the README)
 
 NiDaqPressure zeroes for 1 s at atmospheric pressure, then acquires 120 s of simulated
-time at 1 kS/s (RSE, ±10 V, 14 bits) while the truth ramps 0 -> 80 kPa, holds and
+time at 1 kS/s (RSE, ±10 V, 13 bits) while the truth ramps 0 -> 80 kPa, holds and
 falls. Errors are the readings minus the truth at each sample's timestamp, for the
 sensor's noise on and off, and for a 5.1 V supply assumed to be 5.0 V or measured on ai1.
-The quantisation step on ±10 V is 20 V / 2^14 = 1.22 mV = 0.027 kPa at Vs = 5 V.
+The quantisation step on ±10 V is 20 V / 2^13 = 2.44 mV = 0.054 kPa at Vs = 5 V.
 """
 
 from __future__ import annotations
@@ -71,7 +71,7 @@ def run(noise_kpa: float, supply_v: float, supply_channel: str | None) -> dict:
 
 
 def main() -> None:
-    step_kpa = 20.0 / 2**14 / (0.009 * 5.0)
+    step_kpa = 20.0 / 2**13 / (0.009 * 5.0)  # RSE on a USB-6009: 13 bits
     cases = [
         ("noise 0.05 kPa, Vs 5.0", 0.05, 5.0, None),
         ("noise off, Vs 5.0", 0.0, 5.0, None),

@@ -143,16 +143,23 @@ def test_bad_input_and_missing_devices_are_one_line_errors(emulator, capsys):
     )
     assert (code, err.count("\n")) == (2, 1)
     assert "outside this syringe's limits" in err
-    assert not any(line.startswith("00irate 5") for line in emulator.received)
+    assert not any(line.startswith("irate 5") for line in emulator.received)
     code, _, err = run_main(["pump", "--port", "/dev/no-such-pump", "status"], capsys)
     assert (code, err.count("\n")) == (3, 1)
     assert err.startswith("error: cannot open /dev/no-such-pump")
     assert "Traceback" not in err
 
 
+EMULATE_LEFT_BY_OTHER_SOFTWARE = [
+    *(sys.executable, "-m", "labrig", "pump", "emulate", "--speed", "50"),
+    *("--poll", "on", "--strict-address"),
+]
+
+
 def test_emulate_serves_the_driver_and_another_cli_process():
     emulate = subprocess.Popen(
-        [sys.executable, "-m", "labrig", "pump", "emulate", "--speed", "50"],
+        # as a pump left by other software: poll on, only the manual's address form
+        EMULATE_LEFT_BY_OTHER_SOFTWARE,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -177,6 +184,7 @@ def test_emulate_serves_the_driver_and_another_cli_process():
         rows = table(status.stdout)
         assert rows["state"] == "target reached"
         assert rows["infused"] == "1.0000 mL"
+        assert rows["force limit"] == "100 %"
         emulate.terminate()
         _, err = emulate.communicate(timeout=10)
         assert emulate.returncode == 0

@@ -9,8 +9,11 @@ import nidaqmx.errors
 import nidaqmx.stream_readers
 import numpy as np
 import pytest
+from nidaqmx.constants import TaskMode
+from nidaqmx.error_codes import DAQmxErrors
 
 from labrig.devices import PressureSource
+from labrig.drivers import mpx5100
 from labrig.drivers.ni_daq import (
     DaqConfigError,
     DaqNotInstalledError,
@@ -22,7 +25,8 @@ from labrig.errors import DeviceError, InputError
 from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask, quantise
 from labrig.virtual_clock import VirtualClock
 
-QUANTUM_KPA = 20.0 / 2**14 / (0.009 * 5.0)  # one ADC step on ±10 V, in kPa at Vs = 5 V
+# One ADC step of the USB-6009 in RSE (±10 V, 13 bits), in kPa at Vs = 5 V.
+QUANTUM_KPA = 20.0 / 2**13 / (0.009 * 5.0)
 
 
 def ramp_after(t_on_s, kpa_per_s):
@@ -99,7 +103,7 @@ def test_long_run_loses_no_sample_and_timestamps_follow_the_ramp():
     assert 1000.0 * (before_s - t[0]) - 5 <= t.size <= 1000.0 * (after_s - t[0]) + 5
     np.testing.assert_allclose(np.diff(t), 1e-3, rtol=1e-6)
     # The ramp moves 0.1 kPa per s: the readings would show any timestamp error beyond
-    # about one quantisation step's worth of time (~0.3 s) — and the start latency is far less.
+    # about one quantisation step's worth of time (~0.5 s) — and the start latency is far less.
     assert np.max(np.abs(p - rig.truth(t))) <= QUANTUM_KPA
 
 
@@ -271,3 +275,158 @@ def test_the_factories_are_what_differ(monkeypatch):
     daq.start()
     daq.stop()
     assert len(made) == 1 and seen == [made[0].in_stream]
+
+
+# ---- what the USB-6009 really does (issue 16) ----------------------------------------
+
+
+class TimeRecorder:
+    """A truth that keeps the true time of every sample the simulator took."""
+
+    def __init__(self, p_kpa_at=None):
+        self.p_kpa_at = p_kpa_at or ramp_after(0, 0)
+        self.times = []
+
+    def __call__(self, t_s):
+        self.times.append(np.array(t_s))
+        return self.p_kpa_at(t_s)
+
+    @property
+    def t_s(self):
+        return np.concatenate(self.times)
+
+
+def test_zero_under_the_recommended_wiring_judges_the_range_daqmx_uses():
+    # RSE 0-5 V with the sensor's 5.0 V supply on ai1: DAQmx uses ±10 V (the only RSE
+    # range), so 5.0 V is far from saturation. Judged against 0-5 V, it was flagged.
+    rig = Rig(
+        ramp_after(0, 0),
+        min_v=0.0,
+        max_v=5.0,
+        supply_channel="Dev1/ai1",
+        sim={"supply_v": 5.0, "noise_kpa": 0.05},
+    )
+    rig.daq.zero(0.2)
+    assert rig.daq.adc_ranges_v == [(-10.0, 10.0), (-10.0, 10.0)]
+    assert rig.daq.adc_bits == [13, 13]
+    rig.daq.start(1000.0)
+    _, _, _, flags = rig.collect(0.2, every_s=0.05)
+    rig.daq.stop()
+    assert not flags.any()
+    # The same supply samples against the requested range: most would be flagged.
+    task = SimDaqTask(VirtualClock(), ramp_after(0, 0), supply_v=5.0, seed=3)
+    task.ai_channels.add_ai_voltage_chan(
+        "Dev1/ai1",
+        terminal_config=nidaqmx.constants.TerminalConfiguration.RSE,
+        min_val=0.0,
+        max_val=5.0,
+    )
+    task.timing.cfg_samp_clk_timing(
+        1000.0, sample_mode=nidaqmx.constants.AcquisitionType.CONTINUOUS
+    )
+    task.start()
+    supply = np.empty((1, 200))
+    SimAnalogMultiChannelReader(task.in_stream).read_many_sample(supply, 200, timeout=10.0)
+    assert np.count_nonzero(mpx5100.beyond_adc_range(supply[0], 0.0, 5.0, 13)) > 50
+
+
+@pytest.mark.parametrize(
+    "code",
+    [
+        DAQmxErrors.SAMPLES_NO_LONGER_AVAILABLE,
+        DAQmxErrors.INPUT_FIFO_OVERFLOW_2,
+        DAQmxErrors.ACQ_STOPPED_DRIVER_CANT_XFER_DATA_FAST_ENOUGH,
+    ],
+)
+def test_every_input_overflow_code_is_an_overflow(code):
+    assert code.value in (-200279, -200361, -200714)
+    rig = Rig(ramp_after(0, 0))
+    rig.daq.start(1000.0)
+    rig.tasks[-1].inject_overflow(code)
+    with pytest.raises(DaqOverflowError, match=rf"DAQmx error {code.value} .*samples were lost"):
+        rig.daq.read()
+    rig.daq.stop()
+
+
+def test_the_task_is_committed_before_the_start_time_is_taken():
+    calls = []
+
+    class Logged(SimDaqTask):
+        def control(self, action):
+            calls.append(action)
+            super().control(action)
+
+        def start(self):
+            calls.append("start")
+            super().start()
+
+    clock = VirtualClock()
+    daq = NiDaqPressure(
+        clock,
+        task_factory=lambda: Logged(clock, ramp_after(0, 0)),
+        reader_factory=SimAnalogMultiChannelReader,
+    )
+    daq.start(1000.0)
+    daq.stop()
+    assert calls == [TaskMode.TASK_COMMIT, "start"]
+
+
+def test_samples_are_stamped_at_the_rate_daqmx_coerced():
+    truth = TimeRecorder()
+    rig = Rig(truth)
+    rig.daq.start(700.0)
+    assert rig.daq.sample_clock_hz == 12e6 / 17_142  # 700.035 S/s, not 700
+    _, t, _, _ = rig.collect(20.0, every_s=0.5)
+    rig.daq.stop()
+    np.testing.assert_allclose(np.diff(t), 17_142 / 12e6, rtol=1e-9)
+    # At the requested rate the last stamp would be 1 ms late after 20 s; it is not.
+    true_t = truth.t_s[: t.size]
+    assert abs((t[-1] - t[0]) - (true_t[-1] - true_t[0])) < 1e-6
+    assert (t.size - 1) / 700.0 - (true_t[-1] - true_t[0]) > 9e-4
+
+
+def test_long_runs_are_re_anchored_on_the_host_clock():
+    # A sample clock 1000 ppm fast: stamped at the nominal rate, 300 s of samples would
+    # end 0.3 s late. Re-anchoring every 10 s keeps them within the observation error.
+    truth = TimeRecorder()
+    rig = Rig(truth, sim={"clock_error_ppm": 1000.0}, buffer_s=400.0)
+    rig.daq.start(100.0)
+    _, t, _, _ = rig.collect(300.0, every_s=1.0)
+    rig.daq.stop()
+    true_t = truth.t_s[: t.size]
+    naive_t = t[0] + np.arange(t.size) / rig.daq.sample_clock_hz
+    assert np.max(np.abs(naive_t - true_t)) > 0.25  # what it was without re-anchoring
+    assert np.all(np.diff(t) > 0)  # continuous and increasing across every re-anchor
+    settled = true_t - true_t[0] > 60.0
+    assert np.max(np.abs(t - true_t)[settled]) < 0.03
+
+
+def test_a_read_that_times_out_part_way_keeps_what_it_returned():
+    truth = TimeRecorder()
+    rig = Rig(truth, read_timeout_s=0.2)
+    rig.daq.start(1000.0)
+    rig.clock.sleep(0.5)
+    first = rig.daq.read()
+    rig.clock.sleep(0.5)
+    rig.tasks[-1].inject_read_timeout(n_delivered=120)
+    with pytest.raises(DaqTimeoutError):
+        rig.daq.read()
+    rig.clock.sleep(0.3)
+    after = rig.daq.read()
+    rig.daq.stop()
+    t = np.concatenate([first.t_s, after.t_s])
+    # The 120 samples that came with the timeout are in the record, stamped in place.
+    np.testing.assert_allclose(np.diff(t), 1e-3, rtol=1e-6)
+    assert t.size == truth.t_s.size
+    np.testing.assert_allclose(t - truth.t_s, t[0] - truth.t_s[0], atol=1e-9)
+
+
+def test_a_disagreement_no_crystal_has_is_not_believed(caplog):
+    # 1 % is not a drifting crystal (~1e-4): the stamps keep the nominal period.
+    rig = Rig(TimeRecorder(), sim={"clock_error_ppm": 10_000.0}, buffer_s=100.0)
+    rig.daq.start(100.0)
+    with caplog.at_level("WARNING", logger="labrig.drivers.ni_daq"):
+        _, t, _, _ = rig.collect(30.0, every_s=1.0)
+    rig.daq.stop()
+    assert "ppm off the host clock: not believed" in caplog.text
+    np.testing.assert_allclose(np.diff(t), 0.01, rtol=1e-9)

@@ -14,6 +14,7 @@ import threading
 import time
 
 import pytest
+import serial
 
 from labrig.devices import Pump, PumpState
 from labrig.drivers.phd_ultra import PhdUltra
@@ -26,7 +27,8 @@ from labrig.drivers.phd_ultra_errors import (
     PumpStalled,
     PumpTimeout,
 )
-from labrig.sim.pump import PumpEmulator
+from labrig.sim.pump import LOAD_CHECK_S, PumpEmulator
+from labrig.sim.pump_firmware import manual_address_form
 from labrig.virtual_clock import VirtualClock
 
 TIMEOUT_S = 0.2
@@ -274,12 +276,12 @@ def test_stop_goes_before_the_rest_of_a_status_poll(pump, emulator):
     emulator.slow_replies(0.15)  # status() is three exchanges: 0.45 s
     poller = threading.Thread(target=pump.status)
     poller.start()
-    while "00status" not in emulator.received:
+    while "status" not in emulator.received:
         time.sleep(0.001)
     pump.stop()
     poller.join(timeout=5)
     sent = list(emulator.received)
-    assert sent[sent.index("00status") :] == ["00status", "00stop", "00ivolume", "00wvolume"]
+    assert sent[sent.index("status") :] == ["status", "stop", "ivolume", "wvolume"]
 
 
 # ---- firmware variants, end to end ---------------------------------------------------
@@ -314,3 +316,159 @@ def test_firmware_variants(clock, address, address_form, emulator_options):
         assert final.infused_ml == pytest.approx(0.5, abs=DISPLAY_ML)
         assert math.isclose(pump.infuse_rate_ml_min(), 30.0)
         assert pump.version_details()[1].split()[-1] == str(address)
+
+
+# ---- what a pump left on a real bench does (issue 16) ---------------------------------
+
+REAL_TIMEOUT_S = 0.5  # the forms not answered cost a few of these; a busy host must not
+
+
+def serial_port(path, exclusive=True):
+    return serial.Serial(path, 115200, timeout=REAL_TIMEOUT_S, exclusive=exclusive)
+
+
+def real_pump(clock, address=0, **options):
+    """An emulator that behaves as a PHD ULTRA left by other software: poll on, only
+    the manual's address form answered."""
+    options = {"poll_mode": "on", "strict_address_form": manual_address_form(address), **options}
+    return PumpEmulator(clock, address=address, **options)
+
+
+def target_run(pump, clock, target_ml=0.5):
+    start_run(pump, clock, rate_ml_min=30.0, target_ml=target_ml)
+    final = pump.wait_until_stopped(poll_s=0.25, timeout_s=60.0)
+    assert final.state is PumpState.TARGET_REACHED
+    assert final.infused_ml == pytest.approx(target_ml, abs=DISPLAY_ML)
+
+
+@pytest.mark.parametrize("address", [0, 12])
+def test_a_pump_left_in_poll_on_with_strict_addressing(clock, address):
+    with (
+        real_pump(clock, address) as emulator,
+        PhdUltra.open(
+            emulator.port, address=address, clock=clock, timeout_s=REAL_TIMEOUT_S
+        ) as pump,
+    ):
+        first = "poll off" if address == 0 else f"{address}:poll off"
+        assert list(emulator.received)[:2] == [first, first.replace("poll off", "ver")]
+        assert emulator.firmware.poll_mode == "off"
+        assert pump.address_form == manual_address_form(address)
+        target_run(pump, clock)
+
+
+def test_xon_ends_every_prompt_while_poll_is_on(clock):
+    # The driver's tolerance, without the 'poll off' it sends: XON after every prompt.
+    with real_pump(clock) as emulator:
+        with serial_port(emulator.port) as port:
+            port.write(b"ver\r")
+            assert port.read_until(b"\x11") == b"\nPHD ULTRA 3.0.5\r\n:\x11"
+        transport = serial_port(emulator.port)
+        driver = PhdUltra(transport, clock=clock, timeout_s=REAL_TIMEOUT_S)
+        with driver:
+            assert driver.identify() == "PHD ULTRA 3.0.5"
+            driver.stop()  # no payload: complete on ':' + XON
+        assert emulator.firmware.poll_mode == "on"
+
+
+def test_a_pump_in_poll_remote_sends_no_prompt_until_poll_off(clock):
+    with (
+        real_pump(clock, poll_mode="remote") as emulator,
+        PhdUltra.open(emulator.port, clock=clock, timeout_s=REAL_TIMEOUT_S) as pump,
+    ):
+        assert emulator.firmware.poll_mode == "off"
+        target_run(pump, clock)
+
+
+def test_the_address_form_is_found_and_kept(clock):
+    # A pump at 5 that answers only '05cmd' (Pico Plus style): '5:' is tried first.
+    with (
+        PumpEmulator(clock, address=5, strict_address_form="digits") as emulator,
+        PhdUltra.open(emulator.port, address=5, clock=clock, timeout_s=REAL_TIMEOUT_S) as pump,
+    ):
+        assert pump.address_form == "digits"
+        sent = list(emulator.received)
+        assert sent[:4] == ["5:poll off", "5:ver", "05poll off", "05ver"]
+        target_run(pump, clock)
+        assert all(line.startswith("05") for line in list(emulator.received)[2:])
+
+
+def test_a_wrong_fixed_address_form_names_what_was_tried(clock):
+    with real_pump(clock) as emulator, pytest.raises(PumpTimeout, match=r"b'00ver\\r'"):
+        PhdUltra.open(emulator.port, address_form="digits", clock=clock, timeout_s=REAL_TIMEOUT_S)
+
+
+@pytest.mark.parametrize(
+    ("memory_command", "accepted"), [("nvram", "nvram off"), ("rsave", "rsave off"), (None, None)]
+)
+def test_nvram_writes_off_by_whatever_form_the_firmware_knows(clock, memory_command, accepted):
+    with (
+        real_pump(clock, memory_command=memory_command) as emulator,
+        PhdUltra.open(emulator.port, clock=clock, timeout_s=REAL_TIMEOUT_S) as pump,
+    ):
+        assert pump.nvram_off_command == accepted
+        assert bool(pump.connect_warnings) == (accepted is None)
+        if accepted is not None:
+            assert emulator.firmware._nvram == "off"
+        target_run(pump, clock)  # a pump that keeps writing its memory still runs
+
+
+def test_an_infuse_only_pump_runs_and_is_never_asked_to_withdraw(clock):
+    with (
+        real_pump(clock, infuse_only=True) as emulator,
+        PhdUltra.open(emulator.port, clock=clock, timeout_s=REAL_TIMEOUT_S) as pump,
+    ):
+        assert not pump.can_withdraw
+        target_run(pump, clock)
+        asked = [line for line in emulator.received if line.startswith("w")]
+        assert asked == ["wvolume"]  # the one probe at connect
+        assert pump.rate_limits().withdraw_ml_min is None
+        with pytest.raises(PumpCommandError, match="infuse-only"):
+            pump.set_withdraw_rate(1.0)
+        # The emulator does refuse it: the driver's caution is not what stops it.
+        with serial_port(emulator.port, exclusive=False) as port:
+            port.write(b"wrate lim\r")
+            assert b"Unknown command" in port.read_until(b"\x11")
+
+
+def test_a_target_prompt_with_a_leading_colon(clock):
+    with (
+        real_pump(clock, poll_mode="off", target_prompt=":T*") as emulator,
+        PhdUltra.open(emulator.port, clock=clock, timeout_s=REAL_TIMEOUT_S) as pump,
+    ):
+        target_run(pump, clock)
+        assert pump.status().state is PumpState.TARGET_REACHED
+
+
+def test_the_pump_stalls_at_the_force_limit_it_was_given(clock):
+    # The load rises 50 kPa per mL in the syringe; 20 % of 75 lbf over the 26.7 mm
+    # plunger (by hand: 66.72 N / 559.9 mm^2 = 119.2 kPa) is reached at 2.38 mL, and
+    # 100 % (595.8 kPa) only at 11.9 mL: past the 10 mL target, which a pump without
+    # the limit reaches instead of stalling.
+    kpa_per_ml = 50.0
+    limit_kpa = 0.20 * 75 * 4.4482216 / (math.pi / 4 * 26.7**2) * 1e3
+    box = []
+    with PumpEmulator(
+        clock, load_pressure_kpa=lambda t: kpa_per_ml * box[0].net_volume_ml(t)
+    ) as emu:
+        box.append(emu)
+        with PhdUltra.open(emu.port, clock=clock, timeout_s=REAL_TIMEOUT_S) as pump:
+            assert pump.force_limit_pct() == 100
+            pump.set_force_limit(20)
+            assert pump.force_limit_pct() == 20
+            assert emu.stall_pressure_kpa == pytest.approx(limit_kpa, rel=1e-6)
+            assert pump.force_limit_kpa(75 * 4.4482216) == pytest.approx(limit_kpa, rel=1e-6)
+            start_run(pump, clock, rate_ml_min=6.0, target_ml=10.0)
+            with pytest.raises(PumpStalled):
+                pump.wait_until_stopped(poll_s=0.1, timeout_s=600.0)
+            stalled_ml = emu.net_volume_ml(clock.now())
+    # Stalled once the load passed the limit, at the first load check after it (every
+    # LOAD_CHECK_S of clock time, at 0.1 mL/s).
+    crossing_ml = limit_kpa / kpa_per_ml
+    assert crossing_ml <= stalled_ml <= crossing_ml + 0.1 * LOAD_CHECK_S + 1e-9
+
+
+def test_replies_slower_than_the_old_half_second_pass_by_default(clock, emulator):
+    with PhdUltra.open(emulator.port, clock=clock) as pump:
+        assert pump.timeout_s == 2.0
+        emulator.slow_replies(0.6)
+        assert pump.identify() == "PHD ULTRA 3.0.5"

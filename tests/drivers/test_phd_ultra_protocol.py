@@ -25,11 +25,14 @@ from labrig.drivers.phd_ultra_errors import (
     PumpUnknownCommand,
 )
 from labrig.drivers.phd_ultra_protocol import (
+    candidate_address_forms,
     check_refusal,
+    force_limit_pressure_kpa,
     format_rate,
     format_volume,
     frame_command,
     parse_diameter_mm,
+    parse_force_pct,
     parse_rate_limits,
     parse_rate_ml_min,
     parse_reply,
@@ -87,7 +90,8 @@ class ScriptedPort:
 def expected_protocol(pairs, *, chunk=None, **driver_options):
     """A driver on a ScriptedPort; on exit every pair must have been exchanged."""
     port = ScriptedPort(pairs, chunk=chunk)
-    yield PhdUltra(port, **{"timeout_s": 0.05, **driver_options})
+    # These tables are in the two-digit form; finding the form is tested on its own.
+    yield PhdUltra(port, **{"timeout_s": 0.05, "address_form": "digits", **driver_options})
     assert port.pairs == [], f"never exchanged: {port.pairs}"
     assert not port.pending, f"never read: {bytes(port.pending)!r}"
 
@@ -194,10 +198,81 @@ def test_a_reply_with_garbage_bytes_is_a_protocol_error():
         (b"*", PumpState.STALLED),
         (b"T*", PumpState.TARGET_REACHED),
         (b"T:", PumpState.TARGET_REACHED),
+        (b":T*", PumpState.TARGET_REACHED),
+        (b"04:T*", PumpState.TARGET_REACHED),
     ],
 )
 def test_prompt_states(prompt, state):
     assert parse_reply(b"\n" + prompt, expect_payload=False).state is state
+
+
+@pytest.mark.parametrize(
+    ("raw", "expect_payload", "lines"),
+    [
+        (b"\n:\x11", False, ()),  # poll on: the reply that once never completed
+        (b"\n15.3477 ml/min\r\n:\x11", True, ("15.3477 ml/min",)),
+        (b"\x11\n100%\r\n>\x11", True, ("100%",)),  # an XON left from the last reply
+        (b"\n5.0000 ml\r\n:T*\x11", True, ("5.0000 ml",)),
+    ],
+)
+def test_xon_after_a_prompt_is_dropped(raw, expect_payload, lines):
+    reply = parse_reply(raw, expect_payload=expect_payload)
+    assert reply is not None and reply.lines == lines
+
+
+@given(
+    lines=st.lists(
+        st.text(alphabet=st.characters(min_codepoint=0x20, max_codepoint=0x7E), max_size=20)
+        .map(str.strip)
+        # a payload line never starts like a prompt (the parser drops prompt prefixes)
+        .filter(lambda line: line and line[0] not in "0123456789:<>*" and "T" not in line[:3]),
+        max_size=3,
+    ),
+    prompt=st.sampled_from([":", ">", "<", "*", "T*", "T:", ":T*", "07:", "12:T*"]),
+    xon_at=st.lists(st.integers(min_value=0, max_value=200), max_size=4),
+)
+def test_xon_anywhere_in_a_reply_changes_nothing(lines, prompt, xon_at):
+    # poll on puts XON after the prompt; a byte left from the last reply can come first.
+    raw = b"".join(b"\n" + line.encode() + b"\r" for line in lines) + b"\n" + prompt.encode()
+    plain = parse_reply(raw, expect_payload=False)
+    with_xon = bytearray(raw)
+    for position in sorted(xon_at, reverse=True):
+        with_xon.insert(min(position, len(with_xon)), 0x11)
+    assert parse_reply(bytes(with_xon), expect_payload=False) == plain
+    assert plain is not None and plain.lines == tuple(lines)
+
+
+def test_the_force_reply_and_its_pressure():
+    assert parse_force_pct("100%") == 100
+    assert parse_force_pct(" 17 %") == 17
+    for bad in ("0%", "101%", "50", "half"):
+        with pytest.raises(PumpProtocolError):
+            parse_force_pct(bad)
+    # The issue's figure: 75 lbf over a 27.6 mm plunger is ~560 kPa (by hand:
+    # 333.62 N / (pi * 13.8 mm^2 = 598.28 mm^2) = 557.6 kPa); 17 % of it is 94.8 kPa.
+    assert force_limit_pressure_kpa(100, 75 * 4.4482216, 27.6) == pytest.approx(557.6, abs=0.1)
+    assert force_limit_pressure_kpa(17, 75 * 4.4482216, 27.6) == pytest.approx(94.8, abs=0.1)
+
+
+def test_the_address_forms_tried_follow_the_manual_first():
+    assert candidate_address_forms(0) == ("none", "digits")
+    assert candidate_address_forms(12) == ("colon", "digits")  # never unaddressed: pump 0
+
+
+def test_the_force_limit_is_set_and_read_back():
+    table = [
+        (b"00force 17\r", b"\n:"),
+        (b"00force\r", b"\n17%\r\n:"),
+        (b"00force 40\r", b"\n:"),
+        (b"00force\r", b"\n100%\r\n:"),  # a pump that ignored the setting
+    ]
+    with expected_protocol(table) as pump:
+        pump.set_force_limit(17)
+        with pytest.raises(PumpError, match="force limit of 100 % after being set to 40 %"):
+            pump.set_force_limit(40)
+        for bad in (0, 101, 50.0, True):
+            with pytest.raises(PumpLimitError):
+                pump.set_force_limit(bad)
 
 
 @pytest.mark.parametrize(
@@ -330,15 +405,16 @@ def test_a_formatted_rate_reads_back_within_its_rounding(rate_ml_min):
 # ---- the driver's exchanges ----------------------------------------------------------
 
 CONNECT = [
+    (b"00poll off\r", b"\n:"),
     (b"00ver\r", b"\nPHD ULTRA 3.0.5\r\n:"),
     (b"00nvram off\r", b"\n:"),
+    (b"00wvolume\r", b"\n0 ul\r\n:"),
     (b"00diameter\r", b"\n26.7000 mm\r\n:"),
     (b"00svolume\r", b"\n60 ml\r\n:"),
 ]
-LIMITS = [
-    (b"00irate lim\r", b"\n116.1297 nl/min to 120.5968 ml/min\r\n:"),
-    (b"00wrate lim\r", b"\n116.1297 nl/min to 120.5968 ml/min\r\n:"),
-]
+INFUSE_LIMITS = (b"00irate lim\r", b"\n116.1297 nl/min to 120.5968 ml/min\r\n:")
+WITHDRAW_LIMITS = (b"00wrate lim\r", b"\n116.1297 nl/min to 120.5968 ml/min\r\n:")
+LIMITS = [INFUSE_LIMITS, WITHDRAW_LIMITS]
 
 
 @pytest.mark.parametrize("chunk", [None, 1, 5])
@@ -351,30 +427,64 @@ def test_connect_identifies_switches_off_nvram_and_reads_the_syringe(chunk):
 
 def test_nvram_falls_back_to_the_other_argument():
     table = [
-        CONNECT[0],
+        *CONNECT[:2],
         (b"00nvram off\r", b"\nArgument error: [off]\r\n   Unknown argument\r\n:"),
         (b"00nvram none\r", b"\n:"),
-        *CONNECT[2:],
+        *CONNECT[3:],
     ]
     with expected_protocol(table) as pump:
         pump.connect()
+    assert pump.nvram_off_command == "nvram none"
+    assert pump.connect_warnings == []
 
 
-def test_connect_fails_when_no_nvram_form_is_accepted():
+def test_connect_warns_and_goes_on_when_no_nvram_form_is_accepted():
+    unknown = b"\nCommand error: [nvram]\r\n   Unknown command\r\n:"
     table = [
-        CONNECT[0],
+        *CONNECT[:2],
         (b"00nvram off\r", b"\nArgument error: [off]\r\n   Unknown argument\r\n:"),
-        (b"00nvram none\r", b"\nCommand error: [nvram]\r\n   Unknown command\r\n:"),
+        (b"00nvram none\r", unknown),
+        (b"00rsave off\r", b"\nCommand error: [rsave]\r\n   Unknown command\r\n:"),
+        *CONNECT[3:],
     ]
-    with expected_protocol(table) as pump, pytest.raises(PumpCommandError, match="NVRAM"):
+    with expected_protocol(table) as pump:
         pump.connect()
+    assert pump.nvram_off_command is None
+    [warning] = pump.connect_warnings
+    assert "'rsave off': Command error: [rsave] / Unknown command" in warning
+    assert "memory is written at every setting change" in warning
+
+
+def test_an_infuse_only_pump_is_asked_nothing_about_withdrawing():
+    refused = b"\nCommand error: [wvolume]\r\n   Unknown command\r\n:"
+    table = [
+        *CONNECT[:3],
+        (b"00wvolume\r", refused),
+        *CONNECT[4:],
+        INFUSE_LIMITS,
+        (b"00irate 10.0000 ml/min\r", b"\n:"),
+        (b"00irate\r", b"\n10.0000 ml/min\r\n:"),
+        (b"00status\r", b"\n0 0 0 i..TI.\r\n:"),
+        (b"00ivolume\r", b"\n0.3000 ml\r\n:"),
+    ]
+    with expected_protocol(table) as pump:
+        pump.connect()
+        assert not pump.can_withdraw
+        pump.set_infuse_rate(10.0)
+        assert pump.rate_limits().withdraw_ml_min is None
+        assert pump.status().withdrawn_ml == 0.0
+        with pytest.raises(PumpCommandError, match=r"infuse-only.*nothing was sent"):
+            pump.set_withdraw_rate(1.0)
+        with pytest.raises(PumpCommandError, match="infuse-only"):
+            pump.withdraw()
 
 
 def test_a_rate_is_sent_and_read_back_in_whatever_unit_the_pump_answers():
     table = [
-        *LIMITS,
+        INFUSE_LIMITS,
         (b"00irate 10.0000 ml/min\r", b"\n:"),
         (b"00irate\r", b"\n10000.0 ul/min\r\n:"),
+        WITHDRAW_LIMITS,
         (b"00wrate 250.0000 ul/min\r", b"\n:"),
         (b"00wrate\r", b"\n15 ml/hr\r\n:"),
     ]
@@ -397,7 +507,7 @@ def test_a_rate_outside_the_syringe_limits_is_refused_before_sending():
 
 def test_a_readback_that_differs_from_the_setting_is_an_error():
     table = [
-        *LIMITS,
+        INFUSE_LIMITS,
         (b"00irate 10.0000 ml/min\r", b"\n:"),
         (b"00irate\r", b"\n1.0000 ml/min\r\n:"),
     ]
@@ -410,7 +520,7 @@ def test_a_readback_that_differs_from_the_setting_is_an_error():
 
 def test_the_pumps_refusal_reaches_the_caller_with_its_text():
     table = [
-        *LIMITS,
+        INFUSE_LIMITS,
         (b"00irate 100.0000 ml/min\r", b"\nArgument error: [100.0000]\r\n   Out of range\r\n:"),
     ]
     with expected_protocol(table) as pump, pytest.raises(PumpRangeError) as raised:

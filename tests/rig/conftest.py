@@ -1,11 +1,7 @@
 """The demo protocol's simulated run, made once for every test of it."""
 
-from pathlib import Path
-
 import pytest
-from simrig import run_sim
-
-DEMO = Path(__file__).parents[2] / "protocols" / "demo.yaml"
+from simrig import DEMO, run_sim
 
 
 @pytest.fixture(scope="session")

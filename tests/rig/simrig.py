@@ -9,6 +9,8 @@ from labrig.protocol import load_protocol
 from labrig.rig import build_rig, sim_rig_config
 from labrig.runner import Rig, Runner, RunResult
 
+DEMO = Path(__file__).parents[2] / "protocols" / "demo.yaml"
+
 SHORT = textwrap.dedent(
     """\
     name: short fault test

@@ -4,7 +4,7 @@ length within the tracking error."""
 
 import numpy as np
 import pytest
-from conftest import DEMO
+from simrig import DEMO
 
 from labrig.storage import open_run, read_log, repetition_statuses
 

@@ -8,8 +8,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import DEMO
-from simrig import run_sim, short_protocol
+from simrig import DEMO, run_sim, short_protocol
 
 from labrig.storage import open_run, read_log
 

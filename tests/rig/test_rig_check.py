@@ -17,8 +17,8 @@ from labrig.sim.pump import PumpEmulator
 BENCH = "protocols/rigs/bench.yaml"
 # what the check may send: queries, NVRAM writes off, and the stop the driver sends
 # after a reply that never came (a stop moves nothing)
-READ_ONLY = {"ver", "version", "nvram off", "diameter", "svolume", "irate lim", "wrate lim",
-             "status", "ivolume", "wvolume", "stop"}  # fmt: skip
+READ_ONLY = {"ver", "version", "poll off", "nvram off", "diameter", "svolume", "irate lim",
+             "wrate lim", "force", "status", "ivolume", "wvolume", "stop"}  # fmt: skip
 
 
 def rig_check(capsys, *args: str) -> tuple[int, dict[str, str]]:
@@ -70,9 +70,26 @@ def test_the_pump_check_finds_the_address_and_moves_nothing():
         right = check_pump(PumpConfig(port=emulator.port, address=5), clock)
         assert right.ok, right.line()
         assert "at address 5" in right.found
-        sent = {line[2:] if line[:2].isdigit() else line for line in emulator.received}
+        sent = {re.sub(r"^\d{1,2}:?", "", line) for line in emulator.received}
         assert sent <= READ_ONLY, sent - READ_ONLY
         assert emulator.net_volume_ml(clock.now()) == 0.0
+
+
+def test_the_pump_check_on_a_pump_left_by_other_software_says_what_it_can_do():
+    # poll on, only the manual's address form, infuse-only, no NVRAM command known
+    clock = RealClock()
+    options = {"poll_mode": "on", "strict_address_form": "none", "infuse_only": True}
+    with PumpEmulator(clock, memory_command=None, **options) as emulator:
+        check = check_pump(PumpConfig(port=emulator.port, force_limit_pct=30), clock)
+        assert check.ok, check.line()
+        assert "(none form)" in check.found
+        assert "no withdraw (infuse-only pump)" in check.found
+        # 100 % of 75 lbf over the 26.7 mm plunger: 595.8 kPa (docs/pump.md)
+        assert "force limit 100 % (stalls above 596 kPa; a run sets 30 %)" in check.found
+        assert "its memory is written at every setting change" in check.found
+        sent = {re.sub(r"^\d{1,2}:?", "", line) for line in emulator.received}
+        assert sent <= READ_ONLY | {"nvram none", "rsave off"}, sent - READ_ONLY
+        assert not any(line.startswith("w") and line != "wvolume" for line in sent)
 
 
 def test_a_missing_ni_daqmx_driver_is_named():
@@ -129,3 +146,21 @@ def test_a_bench_rig_with_a_video_and_a_pump_on_a_port(tmp_path):
     assert abs(float(found[1]) - distance_px) < 0.2  # the tracker's sub-pixel centres
     assert abs(float(found[2]) - 0.08) < 1e-4
     assert "10 fps" in camera.found and "1280x720" in camera.found
+
+
+def test_the_pressure_check_shows_the_range_daqmx_uses():
+    # The recommended wiring asks 0-5 V in RSE; a USB-6009 digitises +-10 V at 13 bits,
+    # so the 5.0 V supply on ai1 is far from the top of the range (issue 16).
+    from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
+    from labrig.virtual_clock import VirtualClock
+
+    clock = VirtualClock()
+    check = check_pressure(
+        PressureConfig(min_v=0.0, max_v=5.0, supply_channel="Dev1/ai1"),
+        clock,
+        task_factory=lambda: SimDaqTask(clock, lambda t: np.zeros(np.shape(t)), supply_v=5.0),
+        reader_factory=SimAnalogMultiChannelReader,
+    )
+    assert check.ok, check.line()
+    assert "Dev1/ai0 (RSE, -10 to 10 V at 13 bits, 1000 S/s)" in check.found
+    assert "supply 5.000 V" in check.found

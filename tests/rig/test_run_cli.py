@@ -100,3 +100,26 @@ def test_run_cli_writes_a_complete_file(tmp_path):
     assert result.returncode == 0, result.stderr
     assert f"complete: {out_file}" in result.stderr
     assert out_file.exists()
+
+
+def test_dry_run_on_a_rig_file_shows_the_backstop_and_what_the_pump_can_do(tmp_path, capsys):
+    (tmp_path / "rigs").mkdir()
+    rig = "pump: {port: /dev/ttyACM0, infuse_only: true, syringe: {diameter_mm: 27.6}}\n"
+    (tmp_path / "rigs" / "bench.yaml").write_text(rig)
+    protocol = tmp_path / "p.yaml"
+    protocol.write_text(GOOD.replace("rig: sim", "rig: rigs/bench.yaml"))
+    code, out, err = run_cli(["run", str(protocol), "--dry-run"], capsys)
+    assert code == 2  # refused before any device is opened
+    assert "pump        infuse only (pump.infuse_only)" in out
+    assert "error: steps[2].withdraw: the rig's pump is infuse-only" in out + err
+    # 75 lbf over 598.3 mm^2 is 557.6 kPa (by hand); 1.5 x 95 kPa needs 26 % of it.
+    assert "force limit 100 % of 333.6 N on the 27.6 mm syringe (598.3 mm²)" in out
+    assert "stalls above 557.6 kPa (pressure limit 95 kPa)" in out
+    assert "pump.force_limit_pct: 26 stalls it at 145 kPa" in out
+    (tmp_path / "rigs" / "bench.yaml").write_text(
+        rig.replace("infuse_only: true", "force_limit_pct: 26")
+    )
+    code, out, _ = run_cli(["run", str(protocol), "--dry-run"], capsys)
+    assert code == 0
+    assert "pump        infuses and withdraws" in out and "stalls above 145.0 kPa" in out
+    assert "warning" not in out

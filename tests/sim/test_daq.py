@@ -4,17 +4,26 @@ import inspect
 
 import numpy as np
 import pytest
-from nidaqmx.constants import READ_ALL_AVAILABLE, AcquisitionType, TerminalConfiguration
+from nidaqmx.constants import (
+    READ_ALL_AVAILABLE,
+    AcquisitionType,
+    ResolutionType,
+    TaskMode,
+    TerminalConfiguration,
+)
 from nidaqmx.errors import DaqError, DaqReadError
 from nidaqmx.stream_readers import AnalogMultiChannelReader
-from nidaqmx.task import Timing
+from nidaqmx.task import InStream, Task, Timing
+from nidaqmx.task.channels import AIChannel
 from nidaqmx.task.collections import AIChannelCollection
 
 from labrig.drivers import mpx5100
 from labrig.sim.daq import (
+    SimAIChannel,
     SimAIChannelCollection,
     SimAnalogMultiChannelReader,
     SimDaqTask,
+    SimInStream,
     SimTiming,
     quantise,
 )
@@ -62,6 +71,7 @@ def read(reader, n_chans, n, timeout=10.0):
     [
         (SimAIChannelCollection.add_ai_voltage_chan, AIChannelCollection.add_ai_voltage_chan),
         (SimTiming.cfg_samp_clk_timing, Timing.cfg_samp_clk_timing),
+        (SimDaqTask.control, Task.control),
         (
             SimAnalogMultiChannelReader.read_many_sample,
             AnalogMultiChannelReader.read_many_sample,
@@ -251,3 +261,99 @@ def test_read_starts_a_task_that_was_not_started():
     reader = SimAnalogMultiChannelReader(task.in_stream)
     assert task.in_stream.avail_samp_per_chan == 0
     assert read(reader, 1, 3).shape == (1, 3)
+
+
+# ---- what the device really does (issue 16) -------------------------------------------
+
+
+def test_the_properties_the_driver_reads_exist_in_nidaqmx():
+    for sim, real, name in [
+        (SimAIChannel, AIChannel, "ai_rng_low"),
+        (SimAIChannel, AIChannel, "ai_rng_high"),
+        (SimAIChannel, AIChannel, "ai_resolution"),
+        (SimAIChannel, AIChannel, "ai_resolution_units"),
+        (SimAIChannel, AIChannel, "ai_term_cfg"),
+        (SimInStream, InStream, "total_samp_per_chan_acquired"),
+        (SimInStream, InStream, "avail_samp_per_chan"),
+        (SimTiming, Timing, "samp_clk_rate"),
+    ]:
+        assert isinstance(getattr(real, name), property), name
+        assert hasattr(sim, name) or name == "samp_clk_rate", name
+
+
+@pytest.mark.parametrize(
+    ("terminal", "lo", "hi", "rng", "bits"),
+    [(RSE, 0.0, 5.0, 10.0, 13), (RSE, -1.0, 1.0, 10.0, 13), (DIFF, 0.0, 4.0, 4.0, 14)],
+)
+def test_the_channel_reports_the_range_and_resolution_it_really_uses(terminal, lo, hi, rng, bits):
+    task = make_task()
+    channel = task.ai_channels.add_ai_voltage_chan(
+        "Dev1/ai0", terminal_config=terminal, min_val=lo, max_val=hi
+    )
+    assert (channel.ai_rng_low, channel.ai_rng_high) == (-rng, rng)
+    assert (channel.ai_resolution, channel.ai_resolution_units) == (bits, ResolutionType.BITS)
+    assert channel.ai_term_cfg == terminal
+
+
+def test_rse_is_quantised_to_13_bits():
+    _, reader = started(make_task(noise_kpa=0.0, offset_error_kpa=0.0, supply_v=5.0))
+    v = read(reader, 1, 50)[0]
+    step = 20.0 / 2**13  # 2.44 mV: twice the 14-bit step
+    # 1.1 V is 9093.1 steps of 14 bits: the 14-bit code 9093 would be off this grid.
+    np.testing.assert_allclose((v + 10.0) / step, np.rint((v + 10.0) / step), atol=1e-9)
+    assert np.all(np.abs(v - mpx5100.output_v(20.0, 5.0)) <= step / 2 + 1e-12)
+
+
+@pytest.mark.parametrize(
+    ("requested", "divisor"), [(1000.0, 12_000), (700.0, 17_142), (48_000.0, 250)]
+)
+def test_the_sample_clock_rate_is_coerced_to_the_timebase(requested, divisor):
+    clock = VirtualClock()
+    truth = Recorder()
+    task, reader = started(make_task(clock, truth), rate=requested)
+    rate = 12e6 / divisor  # by hand: the timebase over a whole number, at or above
+    assert task.timing.samp_clk_rate == rate and rate >= requested
+    clock.sleep(0.5)
+    read(reader, 1, task.in_stream.avail_samp_per_chan)
+    np.testing.assert_allclose(np.diff(np.concatenate(truth.times)), 1 / rate, rtol=1e-9)
+
+
+def test_commit_checks_what_start_checks_and_counts_nothing_yet():
+    task = make_task()
+    for c in ("Dev1/ai0", "Dev1/ai1"):
+        task.ai_channels.add_ai_voltage_chan(c, terminal_config=RSE, min_val=-10, max_val=10)
+    task.timing.cfg_samp_clk_timing(30_000.0, sample_mode=CONTINUOUS)
+    with pytest.raises(DaqError) as raised:
+        task.control(TaskMode.TASK_COMMIT)  # 60 kS/s over two channels
+    assert raised.value.error_code == -200081  # SAMPLE_RATE_NUM_CHANS_CONVERT_PERIOD_COMBO
+    task.timing.cfg_samp_clk_timing(1000.0, sample_mode=CONTINUOUS)
+    task.control(TaskMode.TASK_COMMIT)
+    assert task.in_stream.total_samp_per_chan_acquired == 0
+    task.control(TaskMode.TASK_START)
+    task.clock.sleep(0.25)
+    assert 250 <= task.in_stream.total_samp_per_chan_acquired <= 260
+    task.control(TaskMode.TASK_STOP)
+    assert task.in_stream.avail_samp_per_chan == 0
+
+
+def test_a_read_of_what_is_available_never_waits_or_times_out():
+    clock = VirtualClock()
+    task, reader = started(make_task(clock), rate=1000.0)
+    clock.sleep(0.2)
+    task.inject_read_timeout()  # a fault for a read that waits, not for this one
+    reader.verify_array_shape = False  # the count grows while the clock runs
+    before_s = clock.now()
+    got = reader.read_many_sample(np.empty((1, 10_000)), READ_ALL_AVAILABLE, timeout=0.0)
+    assert got >= 200 and clock.now() - before_s < 0.2  # no timeout was waited
+    with pytest.raises(DaqReadError) as raised:  # the next read that waits gets it
+        read(reader, 1, 100_000, timeout=0.1)
+    assert raised.value.samps_per_chan_read == 0
+
+
+def test_a_sample_clock_off_the_host_clock():
+    clock = VirtualClock()
+    truth = Recorder()
+    task, reader = started(make_task(clock, truth, clock_error_ppm=1000.0), rate=100.0)
+    clock.sleep(1.0)
+    read(reader, 1, task.in_stream.avail_samp_per_chan)
+    np.testing.assert_allclose(np.diff(np.concatenate(truth.times)), 1 / 100.1, rtol=1e-9)

@@ -271,3 +271,63 @@ def test_faults_at_the_serial_level(port, emulator):
     with pytest.raises(serial.SerialException):
         port.write(b"ver\r")
         port.read(1)
+
+
+# ---- models of real pumps (issue 16) -------------------------------------------------
+
+
+def test_poll_modes_frame_the_replies_and_the_target_event():
+    clock = VirtualClock()
+    with (
+        PumpEmulator(clock, poll_mode="on") as emulator,
+        serial.Serial(emulator.port, 115200, timeout=QUIET_S) as port,
+    ):
+        assert exchange(port, b"ver\r") == b"\nPHD ULTRA 3.0.5\r\n:\x11"
+        assert exchange(port, b"poll\r") == b"\non\r\n:\x11"
+        exchange(port, b"irate 30 ml/min\r")
+        exchange(port, b"tvolume 1 ml\r")
+        assert exchange(port, b"irun\r") == b"\n>\x11"
+        clock.sleep(2.5)
+        assert silence(port, b"") == b""  # poll on: no event prompt at the target
+        assert exchange(port, b"poll remote\r") == b"\nT*\x11"  # framed as it arrived
+        assert exchange(port, b"ivolume\r") == b"\n1.0000 ml\r"  # remote: no prompt
+        assert silence(port, b"stop\r") == b""
+        assert exchange(port, b"poll off\r") == b""
+        assert exchange(port, b"poll\r") == b"\noff\r\n:"
+
+
+@pytest.mark.parametrize(
+    ("address", "form", "answered", "ignored"),
+    [
+        (0, "none", b"ver\r", [b"00ver\r", b"0:ver\r"]),
+        (12, "colon", b"12:ver\r", [b"12ver\r", b"ver\r", b"1:ver\r"]),
+        (5, "digits", b"05ver\r", [b"5:ver\r", b"ver\r"]),
+    ],
+)
+def test_strict_addressing_ignores_every_other_form(clock, address, form, answered, ignored):
+    with (
+        PumpEmulator(clock, address=address, strict_address_form=form) as emulator,
+        serial.Serial(emulator.port, 115200, timeout=QUIET_S) as port,
+    ):
+        for sent in ignored:
+            assert silence(port, sent) == b"", sent
+        assert exchange(port, answered).startswith(b"\nPHD ULTRA 3.0.5\r\n")
+
+
+def test_an_infuse_only_model_and_firmware_memory_commands(clock):
+    unknown = b"\r\n   Unknown command\r\n:"
+    with (
+        PumpEmulator(clock, infuse_only=True, memory_command="rsave") as emulator,
+        serial.Serial(emulator.port, 115200, timeout=QUIET_S) as port,
+    ):
+        for word in (b"wrate lim", b"wrun", b"wvolume", b"rrun", b"cwvolume"):
+            name = emulator.firmware._aliases.get(word.decode(), word.decode()).split()[0]
+            assert (
+                exchange(port, word + b"\r")
+                == b"\nCommand error: [" + name.encode() + b"]" + unknown
+            )
+        assert exchange(port, b"irate lim\r").endswith(b"ml/min\r\n:")
+        assert exchange(port, b"nvram off\r") == b"\nCommand error: [nvram]" + unknown
+        assert exchange(port, b"rsave off\r") == b"\n:"
+        assert exchange(port, b"rsave\r") == b"\noff\r\n:"
+        assert exchange(port, b"rsave none\r").startswith(b"\nArgument error: [none]")
