@@ -2,10 +2,27 @@
 from them: the labrig LengthSource.
 
 ``FrameSource`` wraps a ``cv2.VideoCapture`` (or any capture-like object, such as
-``labrig.sim.camera.SimCamera``) and says when each frame was taken:
-- a live camera: the shared clock read right after the grab returns. Backend timestamps
-  are 0 or constant on several backends (hardware.md 4.4), so they are not used.
+``labrig.sim.camera.SimCamera``). A live camera streams at its own rate into a few
+driver buffers (V4L2: 4) and ``read()`` hands back the oldest, so a program that reads
+more slowly than the camera streams gets frames up to 4 periods old. ``FrameSource``
+therefore reads every frame in a reader thread (started through the shared clock) and
+keeps only the latest; ``read()`` returns the newest frame not yet returned.
+
+What a frame's time is, per backend (``stamp``):
+- V4L2 (Linux): ``CAP_PROP_POS_MSEC`` is the buffer's capture time that the kernel
+  stamps, on CLOCK_MONOTONIC, the clock ``RealClock`` reads (``time.monotonic``): the
+  exposure's end, free of the transfer and of the reader's delay;
+- SimCamera: the same semantics on the virtual clock (the frame's exposure time);
+- other backends (MSMF, DSHOW, AVFoundation, GStreamer): their ``POS_MSEC`` is 0, a
+  constant or the stream's own origin (hardware.md 4.4), so the frame is stamped with the
+  shared clock read when the grab returns — late by the transfer, within a frame period;
 - a video file: the file's own position, ``CAP_PROP_POS_MSEC`` after the read.
+
+``configure`` sets the size, the rate, and locks exposure and focus where asked, then
+reads them back: a camera that silently stays at 640x480 would make a scale measured at
+1280x720 wrong, so a mismatch is refused in one line. The first ``warmup_frames`` frames
+after the stream starts are dropped: a webcam's auto exposure settles over them (its
+first frame is nearly black, and a scale taken from it would fail).
 
 ``CameraLength`` = frames + ``MarkerTracker`` + a pixel-to-mm scale. The scale is given
 (``mm_per_px``) or taken from the first frame, whose markers are a known distance apart
@@ -15,17 +32,26 @@ camera's axis, where one scale holds across the frame.
 
 from __future__ import annotations
 
+import re
+import threading
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import cv2
 import numpy as np
 
-from labrig.clock import Clock
+from labrig.clock import Clock, ClockThread
 from labrig.devices import LengthSample
 from labrig.drivers.markers import MarkerTracker, mm_per_px_from_reference
 from labrig.errors import DeviceError, InputError
+
+DEVICE_PATH = re.compile(r"^/dev/video\d+$")
+# V4L2 exposure modes as OpenCV passes them (CAP_PROP_AUTO_EXPOSURE)
+V4L2_MANUAL_EXPOSURE, V4L2_AUTO_EXPOSURE = 1.0, 3.0
+DEFAULT_WARMUP_FRAMES = 5
+# no frame for this long (clock seconds) from a live camera is a device fault
+FRAME_TIMEOUT_S = 2.0
 
 
 @dataclass(frozen=True)
@@ -34,15 +60,23 @@ class Frame:
     image: np.ndarray
 
 
-class FrameSource:
-    """Timestamped frames from a capture. ``clock`` given: a live source stamped on the
-    shared clock; ``clock=None``: a file stamped with its own position.
+@dataclass(frozen=True)
+class CameraSettings:
+    """What a live camera is asked for (None: leave the camera's own setting)."""
 
-    ``exposure_timestamps``: a live capture whose ``CAP_PROP_POS_MSEC`` is the exposure
-    time on the shared clock (SimCamera; a hardware-triggered camera could be wired the
-    same way). It is then used instead of the host's reading after the grab, which is
-    late by the transfer and, on a fast simulated clock, by the render time times the
-    clock's speed.
+    width: int | None = 1280
+    height: int | None = 720
+    fps: float | None = None
+    exposure: float | None = None  # manual exposure in the backend's units; None: auto
+    focus: float | None = None  # manual focus in the backend's units; None: leave it
+
+
+class FrameSource:
+    """Timestamped frames from a capture. ``clock`` given: a live source on the shared
+    clock, read in a reader thread; ``clock=None``: a file stamped with its own position.
+
+    ``stamp="capture"``: the capture's ``CAP_PROP_POS_MSEC`` is the capture time on the
+    shared clock (V4L2, SimCamera); ``"host"``: the clock read when the grab returns.
     """
 
     def __init__(
@@ -51,30 +85,66 @@ class FrameSource:
         *,
         clock: Clock | None,
         name: str,
-        exposure_timestamps: bool = False,
+        stamp: Literal["capture", "host"] = "host",
+        warmup_frames: int = 0,
     ) -> None:
         self.capture = capture
         self.clock = clock
         self.name = name
-        self.exposure_timestamps = exposure_timestamps
-        self.n_frames = 0
+        self.stamp = stamp
+        self.warmup_frames = int(warmup_frames)
+        self.n_frames = 0  # frames returned by read()
+        self.n_grabbed = 0  # frames the reader took from the camera (warm-up included)
+        self._lock = threading.Lock()
+        self._latest: Frame | None = None
+        self._latest_seq = 0
+        self._taken_seq = 0
+        self._error: Exception | None = None
+        self._stopping = False
+        self._reader: ClockThread | None = None
 
     @classmethod
-    def open(cls, source: int | str | Path, clock: Clock) -> FrameSource:
-        """A camera (an int, or a string of digits: its device index) or a video file."""
+    def open(
+        cls, source: int | str | Path, clock: Clock, settings: CameraSettings | None = None
+    ) -> FrameSource:
+        """A camera (an int, a string of digits: its device index, or a /dev/video*
+        path) or a video file."""
         if isinstance(source, int) or (isinstance(source, str) and source.isdigit()):
-            return cls.open_camera(int(source), clock)
+            return cls.open_camera(int(source), clock, settings)
+        if DEVICE_PATH.match(str(source)):
+            return cls.open_camera(str(source), clock, settings)
         return cls.open_file(source)
 
     @classmethod
-    def open_camera(cls, index: int, clock: Clock) -> FrameSource:
-        capture = cv2.VideoCapture(index)
+    def open_camera(
+        cls, device: int | str, clock: Clock, settings: CameraSettings | None = None
+    ) -> FrameSource:
+        """A live camera by index or /dev/video* path, configured with ``settings``."""
+        if isinstance(device, str) and not Path(device).exists():
+            raise DeviceError(f"camera {device}: no such device (is the camera plugged in?)")
+        capture = cv2.VideoCapture(device, cv2.CAP_V4L2 if isinstance(device, str) else 0)
         if not capture.isOpened():
+            capture.release()
             raise DeviceError(
-                f"camera {index} could not be opened: check that it is connected and no "
+                f"camera {device} could not be opened: check that it is connected and no "
                 "other program uses it, or run without hardware with --sim"
             )
-        return cls(capture, clock=clock, name=f"camera {index}")
+        source = cls.live(capture, clock, f"camera {device}")
+        try:
+            source.configure(settings or CameraSettings())
+        except DeviceError:
+            capture.release()
+            raise
+        return source
+
+    @classmethod
+    def live(
+        cls, capture: Any, clock: Clock, name: str, warmup_frames: int = DEFAULT_WARMUP_FRAMES
+    ) -> FrameSource:
+        """A live capture, its stamp chosen by its backend (module docstring)."""
+        backend = capture.getBackendName() if hasattr(capture, "getBackendName") else ""
+        stamp = "capture" if backend == "V4L2" else "host"
+        return cls(capture, clock=clock, name=name, stamp=stamp, warmup_frames=warmup_frames)
 
     @classmethod
     def open_file(cls, path: str | Path) -> FrameSource:
@@ -90,27 +160,110 @@ class FrameSource:
     def is_file(self) -> bool:
         return self.clock is None
 
+    # --- configuration -----------------------------------------------------------------
+    def configure(self, settings: CameraSettings) -> None:
+        """Set what ``settings`` asks for, then read each back; a mismatch is refused."""
+        c = self.capture
+        asked: list[tuple[str, int, float]] = []
+        if settings.width is not None:
+            asked.append(("width", cv2.CAP_PROP_FRAME_WIDTH, float(settings.width)))
+        if settings.height is not None:
+            asked.append(("height", cv2.CAP_PROP_FRAME_HEIGHT, float(settings.height)))
+        if settings.fps is not None:
+            asked.append(("fps", cv2.CAP_PROP_FPS, float(settings.fps)))
+        if settings.exposure is not None:
+            c.set(cv2.CAP_PROP_AUTO_EXPOSURE, V4L2_MANUAL_EXPOSURE)
+            asked.append(("exposure", cv2.CAP_PROP_EXPOSURE, float(settings.exposure)))
+        if settings.focus is not None:
+            c.set(cv2.CAP_PROP_AUTOFOCUS, 0.0)
+            asked.append(("focus", cv2.CAP_PROP_FOCUS, float(settings.focus)))
+        for _, prop, value in asked:
+            c.set(prop, value)
+        for what, prop, value in asked:
+            got = float(c.get(prop))
+            if what == "fps" and got == 0.0:
+                continue  # the backend does not report a rate: nothing to compare
+            if abs(got - value) > 0.01 * max(abs(value), 1.0):
+                raise DeviceError(
+                    f"{self.name}: asked for {what} {value:g}, the camera gives {got:g} "
+                    f"(set camera.{what} in the rig file to what it supports; "
+                    "v4l2-ctl --all lists it)"
+                )
+
+    # --- reading -----------------------------------------------------------------------
     def read(self) -> Frame | None:
-        """The next frame; None at the end of a file."""
-        ok, image = self.capture.read()
-        if self.clock is not None:
-            t_s = self.clock.now()  # right after the grab, before any processing
+        """The next frame: from a file, the next in it (None at its end); from a camera,
+        the newest frame not returned before, waiting on the clock for one."""
+        if self.clock is None:
+            return self._read_file()
+        if self._reader is None:
+            self._reader = self.clock.start_thread(self._read_frames, f"{self.name} reader")
+        fps = float(self.capture.get(cv2.CAP_PROP_FPS) or 0.0)
+        timeout_s = max(FRAME_TIMEOUT_S, 3.0 / fps) if fps > 0 else FRAME_TIMEOUT_S
+        while True:
+            grabbed = self.n_grabbed
+            self.clock.wait_for(
+                lambda: self._latest_seq > self._taken_seq or self._error is not None,
+                timeout_s=timeout_s,
+            )
+            with self._lock:
+                if self._latest_seq > self._taken_seq:
+                    self._taken_seq = self._latest_seq
+                    self.n_frames += 1
+                    return self._latest
+                error = self._error
+            if error is not None:
+                raise error
+            if self.n_grabbed == grabbed:  # not even a warm-up frame came meanwhile
+                raise DeviceError(f"{self.name} sent no frame for {timeout_s:g} s")
+
+    def _read_frames(self) -> None:
+        """The reader thread: every frame the camera streams, the latest kept. Whatever
+        ends it early is kept for ``read()`` to raise: a reader that died quietly would
+        look like a camera that stopped sending."""
+        try:
+            self._read_every_frame()
+        except Exception as exc:
+            with self._lock:
+                self._error = DeviceError(f"{self.name} reader failed: {exc!r}")
+
+    def _read_every_frame(self) -> None:
+        while not self._stopping:
+            ok, image = self.capture.read()
+            t_host_s = self.clock.now()  # right after the grab, before any processing
             if not ok or image is None:
-                raise DeviceError(f"{self.name} returned no frame: is it still connected?")
-            if self.exposure_timestamps:
-                t_s = self.capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
-        else:
-            if not ok or image is None:
-                if self.n_frames == 0:
-                    raise InputError(
-                        f"{self.name}: no frame could be read (corrupt or empty video)"
+                with self._lock:
+                    self._error = DeviceError(
+                        f"{self.name} returned no frame: is it still connected?"
                     )
-                return None
-            t_s = self.capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
+                return
+            self.n_grabbed += 1
+            if self.n_grabbed <= self.warmup_frames:
+                continue  # the exposure is still settling
+            t_s = t_host_s
+            if self.stamp == "capture":
+                t_capture_s = self.capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
+                t_s = t_capture_s if t_capture_s > 0 else t_host_s
+            with self._lock:
+                self._latest = Frame(t_s=t_s, image=image)
+                self._latest_seq += 1
+
+    def _read_file(self) -> Frame | None:
+        ok, image = self.capture.read()
+        if not ok or image is None:
+            if self.n_frames == 0:
+                raise InputError(f"{self.name}: no frame could be read (corrupt or empty video)")
+            return None
+        t_s = self.capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
         self.n_frames += 1
         return Frame(t_s=t_s, image=image)
 
     def close(self) -> None:
+        """Stop the reader (it ends after its current frame), then release the capture."""
+        self._stopping = True
+        reader = self._reader
+        if reader is not None and self.clock is not None:
+            self.clock.wait_for(lambda: reader.done, timeout_s=FRAME_TIMEOUT_S)
         self.capture.release()
 
 
@@ -136,6 +289,12 @@ class CameraLength:
         self.mm_per_px = mm_per_px
         self.reference_distance_mm = reference_distance_mm
 
+    @property
+    def waits_for_frames(self) -> bool:
+        """True when ``read`` waits for the camera's next frame (a live camera): its
+        reader needs no pacing of its own. A video file is read as fast as asked."""
+        return not self.frames.is_file
+
     def read(self) -> LengthSample | None:
         frame = self.frames.read()
         if frame is None:
@@ -152,6 +311,7 @@ class CameraLength:
             y2_px=fix.y2_px,
             length_mm=fix.distance_px * self.mm_per_px,
             ok=fix.ok,
+            image=frame.image,
         )
 
     def close(self) -> None:

@@ -10,8 +10,8 @@ device's own units. Every timestamp is on the run's shared clock (``labrig.clock
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -119,7 +119,9 @@ class LengthSample:
     """The specimen's length from one camera frame.
 
     Marker positions in px, length in mm; ``ok`` is False when a marker was lost or two
-    merged, and then the length is NaN rather than a wrong number.
+    merged, and then the length is NaN rather than a wrong number. ``image`` is the
+    frame it was measured in (an array, or an array-like that renders on access), for
+    a video of the run; None when the source keeps no frames.
     """
 
     t_s: float
@@ -129,6 +131,7 @@ class LengthSample:
     y2_px: float
     length_mm: float
     ok: bool
+    image: Any = field(default=None, repr=False, compare=False)
 
 
 @runtime_checkable

@@ -59,6 +59,15 @@ class Acquisition(Strict):
     camera_fps: float = Field(
         0.0, ge=0, le=60, description="Camera frames per second; 0 means no camera"
     )
+    video: bool = Field(
+        False, description="Record the camera's frames to RUN.avi beside the run file"
+    )
+
+    @model_validator(mode="after")
+    def _video_needs_camera(self) -> Acquisition:
+        if self.video and self.camera_fps == 0:
+            raise ValueError("video: true needs a camera (camera_fps > 0)")
+        return self
 
 
 class Analysis(Strict):

@@ -33,6 +33,7 @@ PHD_ULTRA_RATED_FORCE_N = 75 * 4.4482216
 # The simulated pump's reply deadline in host seconds. The emulator answers at once in
 # virtual time; this only bounds how long a starved host thread may take to do it.
 SIM_REPLY_TIMEOUT_S = 10.0
+SIM_CAMERA_SIZE = (1280, 720)  # the simulated camera's sensor (px)
 
 
 class SyringeConfig(Strict):
@@ -78,9 +79,37 @@ class PressureConfig(Strict):
 
 
 class CameraConfig(Strict):
-    source: int | str = Field(0, description="Camera index or video file")
+    source: int | str = Field(0, description="Camera index, /dev/video* path or video file")
     mm_per_px: float | None = Field(None, gt=0)
     reference_distance_mm: float | None = Field(None, gt=0)
+    # set on the camera and read back; a camera that cannot do them is refused
+    width: int | None = Field(1280, gt=0, description="Frame width (px); V4L2 opens at 640")
+    height: int | None = Field(720, gt=0, description="Frame height (px); V4L2 opens at 480")
+    fps: float | None = Field(
+        None, gt=0, le=240, description="Streaming rate; default the protocol's camera_fps"
+    )
+    exposure: float | None = Field(
+        None, description="Manual exposure in the backend's units (V4L2: 100 us); default auto"
+    )
+    focus: float | None = Field(
+        None, ge=0, description="Manual focus in the backend's units; default the camera's own"
+    )
+    warmup_frames: int = Field(
+        5, ge=0, le=300, description="Frames dropped at start while the auto exposure settles"
+    )
+
+    def settings(self, protocol_fps: float | None):
+        """What the driver sets on the camera (the rate: this file's, else the
+        protocol's camera_fps; None leaves the camera's own)."""
+        from labrig.drivers.camera import CameraSettings
+
+        return CameraSettings(
+            width=self.width,
+            height=self.height,
+            fps=self.fps or protocol_fps,
+            exposure=self.exposure,
+            focus=self.focus,
+        )
 
     @model_validator(mode="after")
     def _one_scale(self) -> CameraConfig:
@@ -188,7 +217,11 @@ def _build_real_rig(protocol: Protocol, config: RigConfig) -> Rig:
         if protocol.acquisition.camera_fps > 0:
             if config.camera is None:
                 raise InputError("the protocol asks for camera frames but the rig has no camera")
-            frames = FrameSource.open(config.camera.source, clock)
+            camera = config.camera
+            frames = FrameSource.open(
+                camera.source, clock, camera.settings(protocol.acquisition.camera_fps)
+            )
+            frames.warmup_frames = camera.warmup_frames
             stack.callback(frames.close)
             length = CameraLength(
                 frames,
@@ -297,13 +330,22 @@ def _build_sim_rig(protocol: Protocol, config: RigConfig) -> Rig:
                 clock,
                 plant.length_mm_at,
                 mm_per_px=mm_per_px,
-                fps=protocol.acquisition.camera_fps,
+                size=SIM_CAMERA_SIZE,
                 seed=sim.seed,
             )
-            frames = FrameSource(
-                camera, clock=clock, name="simulated camera", exposure_timestamps=True
+            # the camera is set up through the driver as on the bench: from the rig's
+            # camera section if it has one (its scale too), else at the sensor's size
+            wanted = config.camera or CameraConfig(mm_per_px=mm_per_px)
+            frames = FrameSource.live(
+                camera, clock, "simulated camera", warmup_frames=wanted.warmup_frames
             )
-            length = CameraLength(frames, mm_per_px=mm_per_px)
+            frames.configure(wanted.settings(protocol.acquisition.camera_fps))
+            stack.callback(frames.close)
+            length = CameraLength(
+                frames,
+                mm_per_px=wanted.mm_per_px,
+                reference_distance_mm=wanted.reference_distance_mm,
+            )
         closer = stack.pop_all()
     simulation = SimulatedParts(plant, emulator, camera, daq_tasks)
     return Rig(clock, pump, pressure, length, rig_config_text(config), closer.close, simulation)

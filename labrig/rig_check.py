@@ -388,7 +388,10 @@ def _check_real_camera(config: CameraConfig, clock: Clock) -> DeviceCheck:
     # OpenCV's own warnings about a missing device would repeat the line below
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
     try:
-        frames = FrameSource.open(config.source, clock)
+        # set up as a run sets it up (size, exposure, focus read back); the rate is the
+        # rig file's, if it names one: a check has no protocol
+        frames = FrameSource.open(config.source, clock, config.settings(None))
+        frames.warmup_frames = config.warmup_frames
     except (DeviceError, InputError) as exc:
         return _camera_unreachable(exc, f"a camera or video at {config.source!r}")
     try:

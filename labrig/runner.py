@@ -43,6 +43,7 @@ from labrig.protocol import (
     plan,
 )
 from labrig.storage import RunWriter
+from labrig.video import VideoRecorder
 
 MOVING = (PumpState.INFUSING, PumpState.WITHDRAWING)
 
@@ -155,6 +156,7 @@ class Runner:
         self.shutdown_errors: list[str] = []
         self.writer: RunWriter | None = None
         self.data_tap = data_tap  # sees every append to the run file (the live view)
+        self.video: VideoRecorder | None = None
 
     # --- public --------------------------------------------------------------------
     def run(self) -> RunResult:
@@ -168,7 +170,10 @@ class Runner:
             repetitions=max(1, self.plan.repetitions),
             with_length=self.rig.length is not None,
             tap=self.data_tap,
+            video_file=self._video_path().name if self._video_path() else None,
         )
+        if self._video_path() is not None:
+            self.video = VideoRecorder(self._video_path(), self.protocol.acquisition.camera_fps)
         restore_sigint = self._install_sigint()
         status, reason = "faulted", "the run did not finish"
         # the main thread takes part in the clock's time for the whole run
@@ -193,6 +198,12 @@ class Runner:
                 self._shutdown(status, reason)
                 restore_sigint()
         return RunResult(self.out_path, status, reason)
+
+    def _video_path(self) -> Path | None:
+        """RUN.avi beside RUN.h5, when the protocol asks for a video and has a camera."""
+        if not self.protocol.acquisition.video or self.rig.length is None:
+            return None
+        return self.out_path.with_suffix(".avi")
 
     # --- steps ---------------------------------------------------------------------
     def _execute(self) -> None:
@@ -377,21 +388,23 @@ class Runner:
         )
 
     def _camera_loop(self) -> None:
-        period_s = 1.0 / self.protocol.acquisition.camera_fps
-        # wake a quarter period early: a camera delivers its next frame when it is
-        # exposed, and a reader that arrives just after that moment gets the one after
-        self._device_loop("camera", period_s, self._read_length, early_s=0.25 * period_s)
+        # a live camera's read waits for its next frame: no period of its own, so every
+        # frame it streams (at the protocol's camera_fps) is tracked; a video file
+        # standing in for the camera is read at camera_fps
+        waits = getattr(self.rig.length, "waits_for_frames", False)
+        period_s = None if waits else 1.0 / self.protocol.acquisition.camera_fps
+        self._device_loop("camera", period_s, self._read_length)
 
     def _device_loop(
         self,
         device: str,
-        period_s: float,
+        period_s: float | None,
         read_once: Callable[[], None],
-        early_s: float = 0.0,
         rephase: Callable[[], int] | None = None,
     ) -> None:
         """Read one device every ``period_s`` (paced by deadlines, so a slow read does
-        not stretch the period); a device error is a fault of the run. When
+        not stretch the period), or as fast as its reads return (``None``: a read that
+        waits for the device); a device error is a fault of the run. When
         ``rephase()`` changes, read at once and count the periods from then."""
         start_s, k = self.clock.now(), 0
         token = rephase() if rephase is not None else None
@@ -405,10 +418,12 @@ class Runner:
                 # a loop that died quietly would leave its interlock blind: fault the run
                 self.monitor.trip(f"{device}: internal error: {exc!r}", "faulted")
                 raise
+            if period_s is None:
+                continue
             # deadlines on a fixed grid (start + k periods, no accumulated rounding); a
             # read that overran whole periods skips them rather than bunching up
             k = max(k + 1, math.floor((self.clock.now() - start_s) / period_s))
-            wait_s = start_s + k * period_s - early_s - self.clock.now()
+            wait_s = start_s + k * period_s - self.clock.now()
             if rephase is None:
                 self.clock.sleep(wait_s)
             elif self.clock.wait_for(lambda seen=token: rephase() != seen, wait_s):
@@ -451,8 +466,8 @@ class Runner:
 
     def _read_length(self) -> None:
         sample = self.rig.length.read()
-        if sample is None:
-            return
+        if sample is None or self._stop_loops.is_set():
+            return  # a frame that came after the loops were told to stop is not recorded
         self.writer.append_length(
             self._current_repetition(),
             sample.t_s,
@@ -463,6 +478,9 @@ class Runner:
             sample.y2_px,
             sample.ok,
         )
+        if self.video is not None and sample.image is not None:
+            self.video.add(sample.image)
+            self.writer.append_video_frame(self._current_repetition(), sample.t_s)
         if sample.ok:
             self._marker_lost_since = None
             with self.latest.lock:
@@ -537,6 +555,10 @@ class Runner:
             if not reason:
                 status, reason = "faulted", f"pump stop failed: {exc}"
         self._stop_acquisition()
+        if self.video is not None:
+            self.video.close()
+            if self.video.error is not None and not reason:
+                status, reason = "faulted", f"video: {self.video.error}"
         if self._repetition_started:
             self._leave_repetition(status, reason)
         self.writer.finalise(status, reason)

@@ -65,6 +65,8 @@ LOG_DESCRIPTION = {
     "pump": "net volume supplied by the pump (infused - withdrawn)",
     "length": "specimen length between the two markers",
 }
+# The run's video (labrig.video): frame i of the file was taken at time[i].
+VIDEO_FIELDS = {"time": ("f8", "s"), "repetition": ("i4", "")}
 
 RUN_STATUSES = ("running", "complete", "aborted", "faulted")
 REPETITION_STATUSES = ("pending", "running", "complete", "aborted", "faulted")
@@ -131,6 +133,7 @@ class RunWriter:
         rig_config_text: str,
         repetitions: int,
         with_length: bool,
+        video_file: str | None = None,
         flush_interval_s: float = 0.5,
         tap: Callable[[int, str, dict[str, np.ndarray]], None] | None = None,
     ) -> None:
@@ -142,11 +145,12 @@ class RunWriter:
             raise ValueError("a run has at least one repetition")
         self.repetitions = repetitions
         self.with_length = with_length
+        self.video_file = video_file
         self.flush_interval_s = flush_interval_s
         self._lock = threading.Lock()
         self._closed = False
-        # rows appended since the last write, per (repetition, log), in arrival order
-        self._pending: dict[tuple[int, str], list[dict[str, np.ndarray]]] = {}
+        # rows appended since the last write, per group path, in arrival order
+        self._pending: dict[str, list[dict[str, np.ndarray]]] = {}
         self._file = h5py.File(self.path, "w", libver="latest")
         self._create_layout(title, protocol_text, protocol_path, rig_config_text)
         self._file.swmr_mode = True
@@ -195,42 +199,57 @@ class RunWriter:
                 if log == "length" and not self.with_length:
                     continue
                 self._create_log(rep, log)
+        if self.video_file is not None:
+            video = self._create_log(entry, "video", VIDEO_FIELDS)
+            video.attrs.update(
+                description="time of each frame of the run's video, in the video's order",
+                file=self.video_file,
+            )
 
     @staticmethod
-    def _create_log(parent: h5py.Group, log: str) -> None:
+    def _create_log(parent: h5py.Group, log: str, fields=None) -> h5py.Group:
         group = parent.create_group(log)
-        group.attrs.update(NX_class="NXlog", description=LOG_DESCRIPTION[log])
-        for field, (dtype, units) in LOG_FIELDS[log].items():
+        if fields is None:
+            fields = LOG_FIELDS[log]
+            group.attrs.update(NX_class="NXlog", description=LOG_DESCRIPTION[log])
+        else:
+            group.attrs["NX_class"] = "NXlog"
+        for field, (dtype, units) in fields.items():
             dataset = group.create_dataset(
                 field, shape=(0,), maxshape=(None,), chunks=(CHUNK,), dtype=dtype
             )
             if units:
                 dataset.attrs["units"] = units
+        return group
 
     # --- appending -----------------------------------------------------------------
     def _append(self, repetition: int, log: str, columns: dict[str, np.ndarray]) -> None:
         if not 1 <= repetition <= self.repetitions:
             raise ValueError(f"repetition {repetition} outside 1..{self.repetitions}")
+        rows = self._append_to(f"entry/repetitions/{repetition_name(repetition)}/{log}", columns)
+        if rows is not None and self.tap is not None:
+            self.tap(repetition, log, rows)
+
+    def _append_to(self, where: str, columns: dict[str, np.ndarray]) -> dict | None:
+        """Gather rows for the group at ``where``; the rows, or None if there were none."""
         lengths = {len(np.atleast_1d(values)) for values in columns.values()}
         if len(lengths) != 1:
-            raise ValueError(f"{log}: columns of different lengths {sorted(lengths)}")
+            raise ValueError(f"{where}: columns of different lengths {sorted(lengths)}")
         (count,) = lengths
         if count == 0:
-            return
+            return None
         rows = {field: np.atleast_1d(values) for field, values in columns.items()}
         with self._lock:
             if self._closed:
                 raise RuntimeError(f"{self.path}: the run file is already closed")
-            self._pending.setdefault((repetition, log), []).append(rows)
+            self._pending.setdefault(where, []).append(rows)
             self._flush_if_due()
-        if self.tap is not None:
-            self.tap(repetition, log, rows)
+        return rows
 
     def _write_pending(self) -> None:
         """Write the gathered rows, one resize and one write per dataset (under the lock)."""
-        repetitions = self._file["entry/repetitions"]
-        for (repetition, log), chunks in self._pending.items():
-            group = repetitions[repetition_name(repetition)][log]
+        for where, chunks in self._pending.items():
+            group = self._file[where]
             for field in chunks[0]:
                 values = np.concatenate([chunk[field] for chunk in chunks])
                 dataset = group[field]
@@ -268,6 +287,13 @@ class RunWriter:
             "length",
             {"time": t_s, "value": length_mm, "x1": x1, "y1": y1, "x2": x2, "y2": y2, "ok": ok},
         )
+
+    def append_video_frame(self, repetition: int, t_s) -> None:
+        """The time of the next frame(s) written to the run's video."""
+        if self.video_file is None:
+            raise ValueError("this run was created without a video")
+        t = np.atleast_1d(t_s)
+        self._append_to("entry/video", {"time": t, "repetition": np.full(len(t), repetition)})
 
     # --- status ----------------------------------------------------------------------
     def set_zero_offset(self, offset_kpa: float) -> None:

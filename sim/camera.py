@@ -5,18 +5,22 @@ where a length source puts them, so the real tracker can be run and checked agai
 the truth. The dots are anti-aliased from their exact sub-pixel centres, then blurred,
 lit by a slowly drifting light and overlaid with sensor noise.
 
-It is also a capture: ``read()`` returns ``(ok, frame)`` like ``cv2.VideoCapture``,
-paced by the shared clock at ``fps`` and rendered at the frame's time, and ``get``
-answers ``CAP_PROP_POS_MSEC`` and the frame size. ``write_video`` writes frames to a
-real MJPG/AVI file that ``cv2.VideoCapture`` reads back.
+It is also a capture that behaves as a UVC webcam under OpenCV's V4L2 backend:
+``read()`` returns ``(ok, frame)`` like ``cv2.VideoCapture``, paced by the shared clock
+at ``fps``; it streams at 640x480 until a size is set; it keeps 4 buffers and hands back
+the oldest; its first frames after the stream starts are dark while the auto exposure
+settles; ``CAP_PROP_POS_MSEC`` is the frame's capture time on the clock (V4L2: the
+kernel's monotonic buffer timestamp); ``set``/``get`` take and read back the size, rate,
+exposure and focus. ``write_video`` writes frames to a real MJPG/AVI file.
 
-Only what changes is rendered: the flat background and band are filled, and only the
-small patches around the dots are computed in floating point, so a frame costs about
-2 ms (most of it adding the noise).
+Frames are rendered where they are read (``SimFrame``): the tracker reads two small
+windows per frame, so a 30 fps run costs little more than a 2 fps one; a full frame
+(for a video) costs about 1 ms at 1280x720, most of it adding the noise.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -28,6 +32,10 @@ import numpy as np
 from labrig.clock import Clock
 
 _NOISE_MARGIN_PX = 32  # noise frames are this much larger, to be read at random offsets
+V4L2_DEFAULT_SIZE = (640, 480)  # what a UVC camera streams until the driver sets a size
+# The light reaching the sensor in the first frames after the stream starts, while the
+# auto exposure settles (a webcam's first frame is nearly black).
+SETTLING_EXPOSURE = (0.0, 0.3, 0.7)
 
 
 @dataclass(frozen=True)
@@ -101,8 +109,16 @@ class SimCamera:
         self._noise = self._make_noise() if self.noise_grey > 0 else None
         self.hidden_markers: set[int] = set()  # fault injection: 0 and/or 1 not drawn
         self._pos_msec = 0.0
-        # streaming starts when the capture is made: no frame from before it is queued
-        self._last_frame = math.ceil(clock.now() * self.fps) - 1
+        # as a capture: V4L2 streams at 640x480 until a size is set
+        self.stream_size = V4L2_DEFAULT_SIZE
+        self._asked_size = list(V4L2_DEFAULT_SIZE)
+        self._controls = {
+            cv2.CAP_PROP_AUTO_EXPOSURE: 3.0,  # V4L2: aperture-priority auto exposure
+            cv2.CAP_PROP_EXPOSURE: 156.0,
+            cv2.CAP_PROP_AUTOFOCUS: 1.0,
+            cv2.CAP_PROP_FOCUS: 0.0,
+        }
+        self._restart_stream()
         self._opened = True
 
     # -- the truth ------------------------------------------------------------------------------
@@ -127,87 +143,170 @@ class SimCamera:
     # -- rendering -----------------------------------------------------------------------------
 
     def render(self, t_s: float) -> np.ndarray:
-        """The frame at time t: BGR uint8, height x width x 3."""
-        gain = self.light_gain(t_s)
-        centres = self.marker_centres_px(t_s)
-        frame = np.empty((self.height, self.width, 3), dtype=np.uint8)
-        _fill(frame, 0, 0, self.width, self.height, self.background_bgr * gain)
-        ends_px = 3 * self.radius_px + 40  # the band runs a little past the markers
-        x0 = max(round(centres[0, 0] - ends_px), 0)
-        x1 = min(round(centres[1, 0] + ends_px), self.width)
-        cy = 0.5 * (centres[0, 1] + centres[1, 1])
-        y0 = max(round(cy - self.band_half_px), 0)
-        y1 = min(round(cy + self.band_half_px), self.height)
-        if x0 < x1 and y0 < y1:
-            _fill(frame, x0, y0, x1, y1, self.specimen_bgr * gain)
-        for index, (x, y) in enumerate(centres):
-            if index not in self.hidden_markers:
-                self._draw_dot(frame, x, y, gain)
-        if self._noise is not None:
-            frame = self._add_noise(frame)
-        return frame
+        """The frame at time t at the sensor's full size: BGR uint8, height x width x 3."""
+        return np.asarray(self.frame_at(t_s))
 
-    def _draw_dot(self, frame: np.ndarray, x: float, y: float, gain: float) -> None:
-        """Blend one anti-aliased, blurred dot into the frame around (x, y).
+    def frame_at(self, t_s: float, exposure: float = 1.0) -> SimFrame:
+        """The frame at time t, rendered only where it is read (``SimFrame``). Everything
+        random about it (the noise's pick and offset) is drawn now, so what a region
+        shows does not depend on when, or whether, it is read."""
+        noise = None
+        if self._noise is not None:
+            k = int(self._rng.integers(2))
+            dy, dx = (int(v) for v in self._rng.integers(_NOISE_MARGIN_PX, size=2))
+            noise = (k, dy, dx)
+        return SimFrame(
+            self,
+            gain=self.light_gain(t_s) * exposure,
+            centres=self.marker_centres_px(t_s),
+            hidden=frozenset(self.hidden_markers),
+            noise=noise,
+        )
+
+    def _render_box(self, frame: SimFrame, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
+        """The sensor-size frame's pixels [y0:y1, x0:x1]: the same values whichever box
+        is asked for, so a region read alone equals that region of the whole frame."""
+        out = np.empty((y1 - y0, x1 - x0, 3), dtype=np.uint8)
+        if out.size == 0:
+            return out
+        gain, centres = frame.gain, frame.centres
+        _fill(out, 0, 0, x1 - x0, y1 - y0, self.background_bgr * gain)
+        ends_px = 3 * self.radius_px + 40  # the band runs a little past the markers
+        cy = 0.5 * (centres[0, 1] + centres[1, 1])
+        band = (
+            max(round(centres[0, 0] - ends_px), 0, x0),
+            max(round(cy - self.band_half_px), 0, y0),
+            min(round(centres[1, 0] + ends_px), self.width, x1),
+            min(round(cy + self.band_half_px), self.height, y1),
+        )
+        if band[0] < band[2] and band[1] < band[3]:
+            _fill(out, band[0] - x0, band[1] - y0, band[2] - x0, band[3] - y0,
+                  self.specimen_bgr * gain)  # fmt: skip
+        for index, (x, y) in enumerate(centres):
+            if index not in frame.hidden:
+                self._draw_dot(out, x0, y0, float(x), float(y), gain)
+        if frame.noise is not None:
+            k, dy, dx = frame.noise
+            noise = self._noise[k, dy + y0 : dy + y1, dx + x0 : dx + x1]
+            out = cv2.add(out, noise, dtype=cv2.CV_8U)
+        return out
+
+    def _draw_dot(self, out: np.ndarray, ox: int, oy: int, x: float, y: float, gain) -> None:
+        """Blend one anti-aliased, blurred dot around frame point (x, y) into ``out``, the
+        frame's region whose top-left pixel is (ox, oy).
 
         Coverage of each pixel by the disc is a linear ramp of its centre's distance to
         the edge (the covered area for an edge parallel to the pixel's sides, close to it
         otherwise) and radially symmetric, so the dot's centroid is its true centre to
-        ~1e-3 px; blurring the
-        coverage is the same as blurring the image there, because the surroundings are flat.
+        ~1e-3 px; blurring the coverage is the same as blurring the image there, because
+        the surroundings are flat. The coverage is always computed over the dot's whole
+        box (then cut to the region), so every region sees the same values.
         """
+        x0, y0, coverage = self._dot_coverage(x, y)
+        y1, x1 = y0 + coverage.shape[0], x0 + coverage.shape[1]
+        h, w = out.shape[:2]
+        cx0, cy0 = max(x0, ox), max(y0, oy)
+        cx1, cy1 = min(x1, ox + w), min(y1, oy + h)
+        if cx0 >= cx1 or cy0 >= cy1:
+            return  # outside the region
+        c = coverage[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0, None]
+        view = out[cy0 - oy : cy1 - oy, cx0 - ox : cx1 - ox]
+        marker = np.clip(self.marker_bgr * gain, 0, 255)
+        blended = view.astype(np.float32) * (1 - c) + marker * c + 0.5
+        view[:] = np.clip(blended, 0, 255).astype(np.uint8)
+
+    @functools.lru_cache(maxsize=8)  # noqa: B019 - a frame's dots are read several times
+    def _dot_coverage(self, x: float, y: float) -> tuple[int, int, np.ndarray]:
+        """(x0, y0, coverage) of the dot centred at (x, y): its box's top-left pixel and
+        the blurred coverage over the box, cut to the frame."""
         half = math.ceil(self.radius_px + 4 * self.blur_px + 2)
         ix, iy = round(x), round(y)
         x0, y0 = max(ix - half, 0), max(iy - half, 0)
         x1, y1 = min(ix + half + 1, self.width), min(iy + half + 1, self.height)
         if x0 >= x1 or y0 >= y1:
-            return  # outside the frame
+            return x0, y0, np.zeros((0, 0), dtype=np.float32)
         yy, xx = np.ogrid[y0:y1, x0:x1]
         distance = np.sqrt((xx - x) ** 2 + (yy - y) ** 2, dtype=np.float32)
         coverage = np.clip(self.radius_px + 0.5 - distance, 0.0, 1.0).astype(np.float32)
         if self.blur_px > 0:
             coverage = cv2.GaussianBlur(coverage, (0, 0), self.blur_px)
-        patch = frame[y0:y1, x0:x1].astype(np.float32)
-        marker = np.clip(self.marker_bgr * gain, 0, 255)
-        c = coverage[:, :, None]
-        frame[y0:y1, x0:x1] = np.clip(patch * (1 - c) + marker * c + 0.5, 0, 255).astype(np.uint8)
+        return x0, y0, coverage
 
     def _make_noise(self) -> np.ndarray:
-        """Two frames of noise, made once (about 0.1 s at 1280x720)."""
+        """Two frames of noise, made once (about 0.1 s at 1280x720); a frame reads one
+        of them at a random offset: fresh-looking noise for the cost of one addition."""
         shape = (2, self.height + _NOISE_MARGIN_PX, self.width + _NOISE_MARGIN_PX, 3)
         return np.rint(self._rng.normal(0.0, self.noise_grey, shape)).astype(np.int16)
 
-    def _add_noise(self, frame: np.ndarray) -> np.ndarray:
-        """Sensor noise read from one of two pre-made noise frames at a random offset:
-        fresh-looking noise every frame for the cost of one addition."""
-        k = int(self._rng.integers(2))
-        dy, dx = (int(v) for v in self._rng.integers(_NOISE_MARGIN_PX, size=2))
-        noise = self._noise[k, dy : dy + self.height, dx : dx + self.width]
-        return cv2.add(frame, noise, dtype=cv2.CV_8U)
-
     # -- a capture --------------------------------------------------------------------------------
 
-    def read(self) -> tuple[bool, np.ndarray | None]:
-        """The next frame, like ``cv2.VideoCapture.read``: the oldest frame still queued
-        (never the same k twice), or, with none queued, the next one when it is exposed
-        at k / fps; rendered as the scene was at that time."""
+    def read(self) -> tuple[bool, SimFrame | None]:
+        """The next frame, like ``cv2.VideoCapture.read`` on V4L2: the oldest frame still
+        queued (never the same k twice), or, with none queued, the next one when it is
+        exposed at k / fps; showing the scene as it was then, at the streaming size,
+        dark while the auto-exposure settles after the stream (re)starts."""
         if not self._opened:
             return False, None
+        if not self._streaming:
+            # V4L2 under OpenCV starts streaming at the first grab, not when opened:
+            # no frame from before it is queued, and the exposure settles from now
+            self._last_frame = math.ceil(self.clock.now() * self.fps) - 1
+            self._stream_first = self._last_frame + 1
+            self._streaming = True
         exposed = math.floor(self.clock.now() * self.fps)  # the newest frame so far
         k = max(self._last_frame + 1, exposed - self.queue_frames + 1)
         self._last_frame = k
         t_s = k / self.fps
         self.clock.sleep(t_s - self.clock.now())
+        if not self._opened:
+            return False, None  # released while it waited for the frame
         self._pos_msec = 1000.0 * t_s
-        return True, self.render(t_s)
+        settled = k - self._stream_first
+        exposure = SETTLING_EXPOSURE[settled] if settled < len(SETTLING_EXPOSURE) else 1.0
+        frame = self.frame_at(t_s, exposure)
+        if self.stream_size != (self.width, self.height):
+            frame = frame.resized(self.stream_size)
+        return True, frame
+
+    def set(self, prop_id: int, value: float) -> bool:
+        """Set a property as OpenCV's V4L2 backend does: the size takes a supported mode
+        only (640x480 or the sensor's size) and restarts the stream; the rate, the
+        exposure (``CAP_PROP_AUTO_EXPOSURE`` 1 = manual, 3 = auto) and the focus
+        (``CAP_PROP_AUTOFOCUS`` 0/1, ``CAP_PROP_FOCUS``) are kept and read back."""
+        if prop_id in (cv2.CAP_PROP_FRAME_WIDTH, cv2.CAP_PROP_FRAME_HEIGHT):
+            axis = 0 if prop_id == cv2.CAP_PROP_FRAME_WIDTH else 1
+            self._asked_size[axis] = int(value)
+            asked = tuple(self._asked_size)
+            for mode in (V4L2_DEFAULT_SIZE, (self.width, self.height)):
+                if asked == mode and mode != self.stream_size:
+                    self.stream_size = mode
+                    self._restart_stream()
+            return True
+        if prop_id == cv2.CAP_PROP_FPS:
+            self.fps = float(value)
+            self._restart_stream()
+            return True
+        if prop_id in self._controls:
+            self._controls[prop_id] = float(value)
+            return True
+        return False
+
+    def _restart_stream(self) -> None:
+        """A new format: the stream stops (its queued buffers are dropped) and starts
+        again at the next read, where the exposure settles again."""
+        self._streaming = False
 
     def get(self, prop_id: int) -> float:
         return {
             cv2.CAP_PROP_POS_MSEC: self._pos_msec,
-            cv2.CAP_PROP_FRAME_WIDTH: float(self.width),
-            cv2.CAP_PROP_FRAME_HEIGHT: float(self.height),
+            cv2.CAP_PROP_FRAME_WIDTH: float(self.stream_size[0]),
+            cv2.CAP_PROP_FRAME_HEIGHT: float(self.stream_size[1]),
             cv2.CAP_PROP_FPS: self.fps,
+            **self._controls,
         }.get(prop_id, 0.0)
+
+    def getBackendName(self) -> str:
+        return "V4L2"
 
     def isOpened(self) -> bool:
         return self._opened
@@ -239,6 +338,70 @@ class SimCamera:
             centres_px=np.array([self.marker_centres_px(float(t)) for t in t_s]),
             length_mm=np.array([float(self.length_mm_at(float(t))) for t in t_s]),
         )
+
+
+class SimFrame:
+    """A frame of ``SimCamera`` that renders only the pixels that are read.
+
+    It answers ``shape``, ``ndim``, ``size`` and ``dtype`` like the ndarray it stands
+    for; slicing it (``frame[y0:y1, x0:x1]``) renders just that region, and
+    ``np.asarray(frame)`` the whole frame. The tracker reads two small windows per frame,
+    so a frame it tracks costs a few tenths of a millisecond instead of a full render;
+    the region's pixels are those of the full frame, bit for bit.
+    """
+
+    ndim = 3
+    dtype = np.dtype(np.uint8)
+
+    def __init__(self, camera: SimCamera, *, gain, centres, hidden, noise) -> None:
+        self.camera = camera
+        self.gain = gain
+        self.centres = centres
+        self.hidden = hidden
+        self.noise = noise
+        self.shape = (camera.height, camera.width, 3)
+        self.size = camera.height * camera.width * 3
+        self._resized_to: tuple[int, int] | None = None
+        self._full: np.ndarray | None = None
+        self._regions: list[tuple[int, int, int, int, np.ndarray]] = []  # last rendered
+
+    def resized(self, size: tuple[int, int]) -> SimFrame:
+        """This frame as the camera's scaler delivers it at another streaming size."""
+        self._resized_to = size
+        self.shape = (size[1], size[0], 3)
+        self.size = size[0] * size[1] * 3
+        return self
+
+    def __getitem__(self, key):
+        h, w = self.shape[:2]
+        if self._resized_to is None and isinstance(key, tuple) and len(key) >= 2:
+            rows, cols = key[0], key[1]
+            if isinstance(rows, slice) and isinstance(cols, slice):
+                y0, y1, dy = rows.indices(h)
+                x0, x1, dx = cols.indices(w)
+                if dy == dx == 1:
+                    region = self._region(x0, y0, max(x1, x0), max(y1, y0))
+                    return region[(slice(None), slice(None), *key[2:])]
+        return np.asarray(self)[key]
+
+    def _region(self, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
+        """The pixels of a box: cut from a box rendered before that holds it (the
+        tracker's centroid windows lie inside its search windows), else rendered."""
+        for bx0, by0, bx1, by1, pixels in self._regions:
+            if bx0 <= x0 and by0 <= y0 and x1 <= bx1 and y1 <= by1:
+                return pixels[y0 - by0 : y1 - by0, x0 - bx0 : x1 - bx0].copy()
+        pixels = self.camera._render_box(self, x0, y0, x1, y1)
+        self._regions = [*self._regions[-3:], (x0, y0, x1, y1, pixels)]
+        return pixels.copy()
+
+    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+        if self._full is None:
+            camera = self.camera
+            full = camera._render_box(self, 0, 0, camera.width, camera.height)
+            if self._resized_to is not None:
+                full = cv2.resize(full, self._resized_to, interpolation=cv2.INTER_AREA)
+            self._full = full
+        return self._full if dtype is None else self._full.astype(dtype)
 
 
 def _fill(frame: np.ndarray, x0: int, y0: int, x1: int, y1: int, bgr: np.ndarray) -> None:

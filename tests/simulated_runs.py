@@ -39,11 +39,15 @@ SNAP_FLOW_ML_S = 0.8  # internal flow above this (mL/s) is a snap, not a redistr
 
 @dataclass(frozen=True)
 class TrueSnap:
+    """A snap of the plant: its time and supplied volume at the internal flow's peak,
+    and ``dl_mm``, the quasi-static jump of the noise-free length (``_true_jump``)."""
+
     repetition: int
     direction: int
     t_s: float
     v_ml: float
     flow_ml_s: float
+    dl_mm: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -188,7 +192,8 @@ def simulate_run(
         for k, t in enumerate(t_truth):
             plant.advance_to(t)
             w[k] = plant.volumes_ml
-        snaps += _true_snaps(rep, t_truth, w, pump)
+        l_truth = plant.length_mm_at(t_truth)
+        snaps += _true_snaps(rep, t_truth, w, pump, l_truth)
 
         t_p = np.arange(t_start, t_end, 1e-3)
         p = plant.pressure_kpa_at(t_p) + offset_kpa + rng.normal(0, noise_kpa, len(t_p))
@@ -219,7 +224,7 @@ def simulate_run(
     )
 
 
-def _true_snaps(rep, t, w, pump) -> list[TrueSnap]:
+def _true_snaps(rep, t, w, pump, length_mm) -> list[TrueSnap]:
     """Peaks of the internal flow: half the sum over segments of |inflow - pump share|."""
     if w.shape[1] < 2:
         return []
@@ -235,8 +240,32 @@ def _true_snaps(rep, t, w, pump) -> list[TrueSnap]:
         if 0 < k < len(internal) - 1:  # parabola through the peak and its neighbours
             y0, y1, y2 = internal[k - 1 : k + 2]
             t_peak += 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2) * TRUTH_STEP_S
-        out.append(TrueSnap(rep, pump.direction(t_peak), t_peak, pump(t_peak), float(internal[k])))
+        dl = _true_jump(t_mid, internal, t, length_mm, k, t_peak)
+        direction = pump.direction(t_peak)
+        out.append(TrueSnap(rep, direction, t_peak, pump(t_peak), float(internal[k]), dl))
     return out
+
+
+def _true_jump(t_mid, internal, t, length_mm, k, t_peak, fit_s=1.0) -> float:
+    """The quasi-static jump of the plant's noise-free length at a snap, as the model
+    defines it (post minus pre at one supplied volume): the snap spans the internal
+    flow above a quarter of its peak; lines through the length over ``fit_s`` before and
+    after that span, each on its own branch, are extrapolated to the peak and differenced.
+    Uses the plant's own flow and noise-free length, nothing the analysis computes."""
+    above = internal > 0.25 * internal[k]
+    first = last = k
+    while first > 0 and above[first - 1]:
+        first -= 1
+    while last < len(above) - 1 and above[last + 1]:
+        last += 1
+    t_a, t_b = t_mid[first], t_mid[last]
+    before = (t >= t_a - fit_s) & (t <= t_a)
+    after = (t >= t_b) & (t <= t_b + fit_s)
+    if np.count_nonzero(before) < 3 or np.count_nonzero(after) < 3:
+        return float("nan")
+    pre = np.polyval(np.polyfit(t[before] - t_peak, length_mm[before], 1), 0.0)
+    post = np.polyval(np.polyfit(t[after] - t_peak, length_mm[after], 1), 0.0)
+    return float(post - pre)
 
 
 # --- small files for damage and recovery tests ---------------------------------------

@@ -72,7 +72,7 @@ def run_table(record: RunRecord) -> Table:
          f"{protocol.limits.max_volume_ml:g} mL"),
         ("acquisition", f"pressure {protocol.acquisition.pressure_rate_hz:g} Hz, camera "
          + (f"{protocol.acquisition.camera_fps:g} fps" if protocol.acquisition.camera_fps
-            else "none")),
+            else "none") + (", video" if protocol.acquisition.video else "")),
         ("analysis", f"mean of the last {protocol.analysis.average_last}, compare with the "
          f"model: {'yes' if protocol.analysis.compare_model else 'no'}"),
         ("zero offset", _num(record.zero_offset_kpa, ".3f", " kPa")),
@@ -209,6 +209,53 @@ def matches_table(result: AnalysisResult) -> RenderableType | None:
             _num(m.dl_mm, "+.2f") if m else "-",
         )
     return table
+
+
+def _finite(value: float | None) -> float | None:
+    """A number for JSON: NaN and missing become null."""
+    if value is None or not math.isfinite(value):
+        return None
+    return float(value)
+
+
+def comparison_json(result: AnalysisResult) -> dict:
+    """The comparison as one JSON-ready object (``labrig compare --json``): the RMSE per
+    phase and quantity, and each predicted transition with the measured one paired to
+    it (null where none was); measured transitions the model does not predict are
+    listed under ``unpredicted``."""
+    comparison = result.comparison
+    rmse = {}
+    for phase, name in PHASES.items():
+        rmse[f"{name}_pressure_kpa"] = _finite(comparison.rmse_p_kpa[phase])
+        rmse[f"{name}_length_mm"] = _finite(comparison.rmse_l_mm[phase])
+    transitions, unpredicted = [], []
+    for match in comparison.matches:
+        p, m = match.predicted, match.measured
+        if p is None:
+            unpredicted.append(
+                {
+                    "phase": DIRECTION[match.direction],
+                    "v_meas_ml": _finite(m.v_ml),
+                    "dp_meas_kpa": _finite(m.dp_kpa),
+                    "dl_meas_mm": _finite(m.dl_mm),
+                }
+            )
+            continue
+        transitions.append(
+            {
+                "phase": DIRECTION[match.direction],
+                "type": "stable" if p.stable else "snap",
+                "alpha": p.alpha,
+                "beta": p.beta,
+                "v_ml": _finite(p.v_ml),
+                "v_meas_ml": _finite(m.v_ml) if m else None,
+                "dp_kpa": _finite(p.dp_kpa),
+                "dp_meas_kpa": _finite(m.dp_kpa) if m else None,
+                "dl_mm": _finite(p.dl_mm),
+                "dl_meas_mm": _finite(m.dl_mm) if m else None,
+            }
+        )
+    return {"rmse": rmse, "transitions": transitions, "unpredicted": unpredicted}
 
 
 def comparison_tables(result: AnalysisResult) -> list[RenderableType]:

@@ -29,9 +29,16 @@ and stop, where the inlet's flow-resistance offset steps, are left out):
   (constant-fraction timing): the internal flow peaks near that point, while the
   pressure's own fastest change lags it (the segments stiffen as the fluid moves). Its
   volume is the supplied volume then;
-- its size dp, dl is the step between the trend lines at that time (the quasi-static
-  slope is not counted as jump), or for the pressure the dip, if deeper: a snap onto a
-  stiff branch drops and then recovers while the pump goes on.
+- its size dp is the step between the trend lines at that time (the quasi-static
+  slope is not counted as jump), or the dip, if deeper: a snap onto a stiff branch
+  drops and then recovers while the pump goes on;
+- its length change dl is measured on the length series' own jump (``length_jump``):
+  at a native camera rate the length jumps within a few frames, while the pressure's
+  extent (a spike and its recovery) may span a millilitre, and lines fitted beyond that
+  would cross the next kink of the length curve. So dl is the step, at the middle of
+  the jump, between lines through the length just before and just after the frames
+  where its rate stands out from the rate around it: the quasi-static jump, post minus
+  pre at one volume, as the model defines it.
 
 A snap within ``trend_gap_s`` of the start or end of a pump motion has no trend on one
 side and is not reported.
@@ -63,7 +70,9 @@ class DetectionSettings:
     min_dl_mm: float = 0.3
     timing_fraction: float = 0.5  # constant-fraction timing of a transition
     timing_window_s: float = 0.5  # least-squares window for a transition's time and size
-    step_fit_s: float = 2.0  # lines before/after a transition, for dp and dl
+    step_fit_s: float = 2.0  # lines before/after a transition, for dp
+    jump_fit_s: float = 1.0  # lines before/after the length's own jump, for dl
+    jump_fraction: float = 0.2  # the length's jump: its rate beyond this part of the peak
     cluster_ml: float = 1.0  # transitions of different repetitions closer than this agree
 
 
@@ -358,6 +367,8 @@ def _detect_in_motion(
         dl = dl_score = np.nan
         if lt is not None and len(lt) >= 2:
             dl, dl_score = _jump(lt, lv, *fit)
+            # the size from the length's own jump, where the camera resolves one
+            dl = length_jump(lt, lv, t_peak, s, t_lo, t_hi, fallback=dl)
         if not (dp_score >= 0.5 * s.min_dp_kpa or dl_score >= 0.5 * s.min_dl_mm):
             continue
         v_peak, v_from, v_to = volume_at(np.array([t_peak, t_from, t_to]), pump_t, pump_v)
@@ -376,6 +387,54 @@ def _detect_in_motion(
             )
         )
     return out
+
+
+def length_jump(
+    lt: np.ndarray,
+    lv: np.ndarray,
+    t_at: float,
+    s: DetectionSettings,
+    lo: float,
+    hi: float,
+    fallback: float = np.nan,
+) -> float:
+    """The length's quasi-static jump at a transition timed ``t_at`` (module docstring).
+
+    Within ``trend_gap_s`` of ``t_at`` the jump is where the length's rate (lines over
+    two frame periods) departs most from its median there; it extends while the
+    departure stays above ``jump_fraction`` of that. Lines over ``jump_fit_s`` before
+    and after it (inside the motion [lo, hi]) are evaluated at its middle. Too few
+    frames to see a jump (a slow camera), or a snap so slow that no frame-to-frame rate
+    stands out of the noise: ``fallback`` (the step between the transition's trends).
+    """
+    inside = (lt >= lo) & (lt <= hi) & np.isfinite(lv)
+    t, y = lt[inside], lv[inside]
+    near = np.nonzero(np.abs(t - t_at) <= s.trend_gap_s)[0]
+    if len(near) < 8:
+        return fallback
+    frame_s = float(np.median(np.diff(t[near])))
+    _, rate = local_lines(t, y, t[near], 2.0 * frame_s)
+    departure = np.abs(rate - np.nanmedian(rate))
+    if not np.any(np.isfinite(departure)):
+        return fallback
+    peak = int(np.nanargmax(departure))
+    if departure[peak] < s.noise_factor * slope_noise(t[near], y[near], 2.0 * frame_s):
+        return fallback  # no jump within the frames: a snap slower than trend_gap_s
+    level = s.jump_fraction * departure[peak]
+    first = last = peak
+    while first > 0 and departure[first - 1] > level:
+        first -= 1
+    while last < len(near) - 1 and departure[last + 1] > level:
+        last += 1
+    t_a, t_b = t[near[first]], t[near[last]]
+    t_mid = 0.5 * (t_a + t_b)
+    before = (t >= t_a - s.jump_fit_s) & (t < t_a)
+    after = (t > t_b) & (t <= t_b + s.jump_fit_s)
+    if np.count_nonzero(before) < 3 or np.count_nonzero(after) < 3:
+        return fallback
+    pre = np.polyval(np.polyfit(t[before] - t_mid, y[before], 1), 0.0)
+    post = np.polyval(np.polyfit(t[after] - t_mid, y[after], 1), 0.0)
+    return float(post - pre)
 
 
 def _merge(events: list, gap: int) -> list[list]:

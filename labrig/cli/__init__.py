@@ -23,6 +23,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("labrig.cli.bench", "bench"),
     "compare": ("labrig.cli.review", "compare_command"),
     "export": ("labrig.cli.review", "export"),
+    "frames": ("labrig.cli.frames", "frames"),
     "library": ("labrig.cli.library", "library"),
     "model": ("labrig.cli.model", "model"),
     "plot": ("labrig.cli.review", "plot"),

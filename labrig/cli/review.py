@@ -142,8 +142,14 @@ def export(file: Path, directory: Path) -> None:
     help="Folder of measured segments (default $LABRIG_LIBRARY or ./library).",
 )
 @click.option("--store", is_flag=True, help="Store this analysis in the run file.")
+@click.option(
+    "--json",
+    "as_json",
+    is_flag=True,
+    help='Print the comparison as one JSON object: {"rmse": {...}, "transitions": [...]}.',
+)
 def compare_command(
-    file: Path, segments: tuple[str, ...], library: Path | None, store: bool
+    file: Path, segments: tuple[str, ...], library: Path | None, store: bool, as_json: bool
 ) -> None:
     """Compare a run with the stability model: RMSE of pressure and length against the
     mean, and predicted against measured transitions."""
@@ -153,7 +159,6 @@ def compare_command(
 
     console = _console()
     record, result, stored = load(file)
-    _warn_open(record)
     if segments or library is not None or store or result.comparison is None:
         # the specimen's own segments unless others are named; a segment that cannot be
         # loaded is an error here, not a note
@@ -163,8 +168,15 @@ def compare_command(
     if store:
         write_analysis(file, result)
         stored = True
+    if not as_json:
+        _warn_open(record)
     if result.comparison is None:
         raise InputError(f"{file}: no comparison with the model ({'; '.join(result.notes)})")
+    if as_json:
+        import json
+
+        click.echo(json.dumps(report.comparison_json(result)))
+        return
     console.print(report.transitions_table(result))
     for renderable in report.comparison_tables(result):
         console.print(renderable)

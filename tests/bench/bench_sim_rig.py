@@ -6,11 +6,17 @@ completeness: pressure samples, pump polls and camera frames against what the
 protocol's rig time implies. Rig time over wall time is the speed-up; on virtual time
 it changes with the host, the data do not.
 
-Run: python tests/bench/bench_sim_rig.py [--burners N]
+The camera's cost (issue 14): the demo run at the old 2 fps without video against the
+shipped 30 fps, without and with ``video: true``; the wall time of the whole process and
+of the run alone (the "simulated ... in X s" line), and the video's frames.
+
+Run: python tests/bench/bench_sim_rig.py [--burners N] [--camera-only]
 (--burners 2 runs two CPU-burning processes alongside, as on a busy CI machine.)
 """
 
 import argparse
+import json
+import re
 import subprocess
 import sys
 import tempfile
@@ -33,7 +39,8 @@ def completeness(path: Path) -> tuple[float, int, int, int, int, int, int]:
         for name in reps:
             if not name.startswith("rep_"):
                 continue
-            for log, period_s in (("pressure", 0.001), ("pump", 0.2), ("length", 0.5)):
+            fps = float(re.search(r"camera_fps: ([0-9.]+)", f["entry/protocol"][()].decode())[1])
+            for log, period_s in (("pressure", 0.001), ("pump", 0.2), ("length", 1 / fps)):
                 t = reps[name][log]["time"][:]
                 counts[log][0] += len(t)
                 # a regular grid: the span over the period, plus the first reading
@@ -43,9 +50,72 @@ def completeness(path: Path) -> tuple[float, int, int, int, int, int, int]:
     return rig_s, *counts["pressure"], *counts["pump"], *counts["length"]
 
 
+def run_protocol(protocol: Path, out: Path) -> tuple[float, float]:
+    """(wall time of the process, wall time of the run itself) of `labrig run --sim`."""
+    wall0 = time.monotonic()
+    done = subprocess.run(
+        [sys.executable, "-m", "labrig", "run", str(protocol), "--sim", "--out", str(out)],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    run_s = float(re.search(r"rig\s+time\s+in\s+([0-9.]+)\s+s", done.stdout + done.stderr)[1])
+    return time.monotonic() - wall0, run_s
+
+
+def camera_cost(tmp: Path, video: bool = True) -> None:
+    """The demo at 2 fps without video, at 30 fps without and with video."""
+    demo = (ROOT / "protocols" / "demo.yaml").read_text()
+    variants = {
+        "2 fps, no video": demo.replace("camera_fps: 30}", "camera_fps: 2}"),
+        "30 fps, no video": demo,
+        "30 fps, video": demo.replace("camera_fps: 30}", "camera_fps: 30, video: true}"),
+    }
+    print(f"{'demo.yaml':<20} {'process s':>10} {'run s':>8} {'x process':>10} {'x run':>7} "
+          f"{'frames':>7} {'video frames':>13} {'video MB':>9}  snap (2,1)")  # fmt: skip
+    if not video:
+        del variants["30 fps, video"]
+    base = None
+    for k, (name, text) in enumerate(variants.items()):
+        protocol = tmp / f"demo_{k}.yaml"
+        protocol.write_text(text)
+        out = tmp / f"demo_{k}.h5"
+        wall_s, run_s = run_protocol(protocol, out)
+        base = base or (wall_s, run_s)
+        *_, frames, _ = completeness(out)
+        video = out.with_suffix(".avi")
+        n_video, size = "-", "-"
+        if video.exists():
+            import cv2
+
+            capture = cv2.VideoCapture(str(video))
+            n_video = str(int(capture.get(cv2.CAP_PROP_FRAME_COUNT)))
+            size = f"{video.stat().st_size / 1e6:.0f}"
+        print(
+            f"{name:<20} {wall_s:10.1f} {run_s:8.1f} {wall_s / base[0]:10.2f} "
+            f"{run_s / base[1]:7.2f} {frames:7d} {n_video:>13} {size:>9}  {snap_dl(out)}"
+        )
+
+
+def snap_dl(path: Path) -> str:
+    """The demo's snap (2,1): measured against the model's length change."""
+    done = subprocess.run(
+        [sys.executable, "-m", "labrig", "compare", str(path), "--json"],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    for t in json.loads(done.stdout)["transitions"]:
+        if (t["type"], t["alpha"], t["beta"]) == ("snap", 2, 1) and t["dl_meas_mm"] is not None:
+            return f"snap dl {t['dl_meas_mm']:+.2f} mm (model {t['dl_mm']:+.2f})"
+    return "snap dl not measured"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--burners", type=int, default=0)
+    parser.add_argument("--camera-only", action="store_true")
+    parser.add_argument("--no-video", action="store_true", help="leave the video run out")
     args = parser.parse_args()
     burners = [
         subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.burners)
@@ -57,7 +127,8 @@ def main() -> None:
     )
     try:
         with tempfile.TemporaryDirectory() as tmp:
-            for name in PROTOCOLS:
+            camera_cost(Path(tmp), video=not args.no_video)
+            for name in () if args.camera_only else PROTOCOLS:
                 out = Path(tmp) / f"{name}.h5"
                 wall0 = time.monotonic()
                 protocol = str(ROOT / "protocols" / name)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from labrig.devices import LengthSource
-from labrig.drivers.camera import CameraLength, FrameSource
+from labrig.drivers.camera import CameraLength, CameraSettings, FrameSource
 from labrig.errors import DeviceError, InputError
 from labrig.sim.camera import SimCamera
 from labrig.virtual_clock import VirtualClock
@@ -53,20 +53,109 @@ def test_scale_from_the_first_frame_as_reference(video):
     np.testing.assert_allclose([s.length_mm for s in samples], truth.length_mm, atol=0.01)
 
 
-def test_live_frames_are_stamped_on_the_shared_clock():
+def live_source(clock, cam, **settings):
+    """A SimCamera behind the real driver, configured as the rig does."""
+    frames = FrameSource.live(cam, clock, "simulated camera")
+    frames.configure(CameraSettings(**settings))
+    return frames
+
+
+def test_live_frames_through_the_driver_are_set_up_and_stamped_with_their_capture_time():
     clock = VirtualClock()
-    cam = SimCamera(clock, lambda t: 35.0, size=(640, 360), mm_per_px=MM_PER_PX, fps=20.0)
-    length = CameraLength(FrameSource(cam, clock=clock, name="simulated camera"), mm_per_px=0.08)
-    for _ in range(5):
-        sample = length.read()
-        frame_time_s = cam.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
-        # The host clock right after the grab: just after the frame was taken (its render
-        # takes a millisecond or two; the bound leaves room for a busy machine).
-        assert 0.0 <= sample.t_s - frame_time_s < 0.1
-        assert sample.ok and sample.length_mm == pytest.approx(35.0, abs=0.01)
-    cam.release()
-    with pytest.raises(DeviceError, match="simulated camera returned no frame"):
-        length.read()
+    # the test takes part in the clock's time: the camera streams only while it waits
+    with clock.participate():
+        cam = SimCamera(clock, lambda t: 35.0, size=(640, 360), mm_per_px=MM_PER_PX, fps=5.0)
+        frames = live_source(clock, cam, width=640, height=360, fps=20.0)
+        assert frames.stamp == "capture"  # a V4L2 capture: the kernel's buffer time
+        length = CameraLength(frames, mm_per_px=MM_PER_PX)
+        stamps = []
+        for _ in range(5):
+            sample = length.read()
+            stamps.append(sample.t_s)
+            assert sample.t_s == cam.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
+            assert np.asarray(sample.image).shape == (360, 640, 3)
+            assert sample.ok and sample.length_mm == pytest.approx(35.0, abs=0.01)
+        np.testing.assert_allclose(np.diff(stamps), 0.05, atol=1e-9)  # at the rate it was set to
+        assert frames.n_grabbed - frames.n_frames == frames.warmup_frames  # settling frames dropped
+        cam.release()
+        with pytest.raises(DeviceError, match="simulated camera returned no frame"):
+            length.read()
+
+
+def test_a_slow_reader_gets_the_newest_frame_not_the_oldest_buffered():
+    """V4L2 hands back the oldest of its 4 buffers: read raw at 2 Hz from a 30 fps
+    stream, each frame is 3 periods old; through the driver's reader thread, fresh."""
+    clock = VirtualClock()
+    # the test takes part in the clock's time: the camera streams only while it waits
+    with clock.participate():
+        raw = SimCamera(clock, lambda t: 35.0, size=(640, 360), mm_per_px=MM_PER_PX, fps=30.0)
+        ages = []
+        for _ in range(4):
+            clock.sleep(0.5)
+            raw.read()
+            ages.append(clock.now() - raw.get(cv2.CAP_PROP_POS_MSEC) / 1000.0)
+        assert min(ages[1:]) > 2.5 / 30.0  # the first read starts the stream
+
+        cam = SimCamera(clock, lambda t: 35.0, size=(640, 360), mm_per_px=MM_PER_PX, fps=30.0)
+        frames = live_source(clock, cam, width=640, height=360, fps=30.0)
+        frames.read()
+        for _ in range(4):
+            clock.sleep(0.5)
+            frame = frames.read()
+            assert 0.0 <= clock.now() - frame.t_s <= 1.0 / 30.0 + 1e-9
+        frames.close()
+        assert not cam.isOpened()
+
+
+def test_a_size_rate_or_exposure_the_camera_cannot_do_is_refused_in_one_line():
+    clock = VirtualClock()
+    # the test takes part in the clock's time: the camera streams only while it waits
+    with clock.participate():
+        cam = SimCamera(clock, lambda t: 35.0, size=(1280, 720), mm_per_px=MM_PER_PX)
+        with pytest.raises(DeviceError) as error:
+            live_source(clock, cam, width=1920, height=1080)
+        assert "asked for width 1920, the camera gives 640" in str(error.value)
+        assert "\n" not in str(error.value)
+        frames = live_source(
+            clock, cam, width=1280, height=720, fps=30.0, exposure=80.0, focus=12.0
+        )
+        assert cam.get(cv2.CAP_PROP_AUTO_EXPOSURE) == 1.0  # locked: manual exposure
+        assert cam.get(cv2.CAP_PROP_EXPOSURE) == 80.0 and cam.get(cv2.CAP_PROP_AUTOFOCUS) == 0.0
+        assert np.asarray(frames.read().image).shape == (720, 1280, 3)
+
+
+def test_a_dark_first_frame_fails_the_reference_calibration_unless_dropped():
+    clock = VirtualClock()
+    # the test takes part in the clock's time: the camera streams only while it waits
+    with clock.participate():
+        scene = dict(size=(640, 360), mm_per_px=MM_PER_PX, fps=30.0)
+        cam = SimCamera(clock, lambda t: 35.0, **scene)
+        frames = FrameSource.live(cam, clock, "simulated camera", warmup_frames=0)
+        frames.configure(CameraSettings(width=640, height=360))
+        with pytest.raises(InputError, match="reference frame: both markers must be visible"):
+            CameraLength(frames, reference_distance_mm=35.0).read()
+        cam = SimCamera(clock, lambda t: 35.0, **scene)
+        length = CameraLength(
+            live_source(clock, cam, width=640, height=360), reference_distance_mm=35.0
+        )
+        assert length.read().ok and length.mm_per_px == pytest.approx(MM_PER_PX, rel=1e-3)
+
+
+def test_other_backends_are_stamped_when_the_grab_returns():
+    clock = VirtualClock()
+    # the test takes part in the clock's time: the camera streams only while it waits
+    with clock.participate():
+        cam = SimCamera(clock, lambda t: 35.0, size=(320, 240), mm_per_px=0.2, fps=10.0)
+        cam.getBackendName = lambda: "MSMF"  # its POS_MSEC would not be a capture time
+        frames = FrameSource.live(cam, clock, "camera 0", warmup_frames=0)
+        assert frames.stamp == "host"
+        frame = frames.read()
+        assert frame.t_s == clock.now()
+
+
+def test_a_dev_video_path_is_a_camera_not_a_file():
+    with pytest.raises(DeviceError, match="camera /dev/video97: no such device"):
+        FrameSource.open("/dev/video97", VirtualClock())
 
 
 def test_lost_markers_in_a_video_give_nan_rows(tmp_path):
@@ -108,13 +197,3 @@ def test_exactly_one_scale_is_required(video):
         CameraLength(frames, mm_per_px=0.1, reference_distance_mm=30.0)
     with pytest.raises(InputError, match="must be > 0"):
         CameraLength(frames, mm_per_px=-0.1)
-
-
-def test_exposure_timestamps_come_from_the_capture():
-    clock = VirtualClock()
-    camera = SimCamera(clock, lambda t: 40.0 + t, fps=5.0)
-    frames = FrameSource(camera, clock=clock, name="sim", exposure_timestamps=True)
-    stamps = [frames.read().t_s for _ in range(3)]
-    assert stamps == sorted(stamps)
-    assert stamps[-1] == camera.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
-    assert np.allclose(np.diff(stamps), 0.2, atol=0.05)  # one frame per 1/fps

@@ -46,14 +46,16 @@ class Outcome:
         return emulator.net_volume_ml(self.end_s) == emulator.net_volume_ml(self.end_s + 30.0)
 
 
-def run_sim(tmp_path, text, *, inject=None, speed=None, seed=0, name="run.h5") -> Outcome:
+def run_sim(
+    tmp_path, text, *, inject=None, speed=None, seed=0, name="run.h5", config=None
+) -> Outcome:
     """Run protocol ``text`` on a fresh simulated rig; ``inject(rig)`` runs in a thread
     that takes part in the rig's time, so it acts at a definite rig time and holds time
-    still while it acts."""
+    still while it acts. ``config``: a simulated rig configuration of the test's own."""
     protocol_path = tmp_path / "protocol.yaml"
     protocol_path.write_text(text)
     loaded = load_protocol(protocol_path)
-    rig = build_rig(loaded.protocol, sim_rig_config(speed, seed))
+    rig = build_rig(loaded.protocol, config or sim_rig_config(speed, seed))
     # the main thread takes part in time before the injector starts: alone, a waiting
     # injector would see everyone waiting and let time run to its timeout
     with rig.clock.participate():

@@ -57,7 +57,7 @@ def test_every_sample_poll_and_frame_is_kept(demo):
             assert dt == pytest.approx(np.full(len(dt), 0.001), abs=1e-9)  # 1 kHz
             assert len(log) == pytest.approx(124_000, abs=1)  # 124 s at 1 kHz
         elif name == "length":
-            assert dt == pytest.approx(np.full(len(dt), 0.5), abs=1e-9)  # 2 fps, no gap
+            assert dt == pytest.approx(np.full(len(dt), 1 / 30), abs=1e-9)  # 30 fps, no gap
             assert log.fields["ok"].all()
         else:
             # every 0.2 s, and once more when a motion starts (after its run command,

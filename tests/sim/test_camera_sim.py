@@ -5,6 +5,8 @@ import math
 import cv2
 import numpy as np
 import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 
 from labrig.sim.camera import SimCamera
 from labrig.virtual_clock import VirtualClock
@@ -14,6 +16,13 @@ def camera(**kwargs):
     kwargs.setdefault("clock", VirtualClock())
     kwargs.setdefault("length_mm_at", lambda t: 40.0)
     return SimCamera(**kwargs)
+
+
+def streaming_at_sensor_size(cam):
+    """Set the stream to the sensor's size, as the driver does (V4L2 opens at 640x480)."""
+    cam.set(cv2.CAP_PROP_FRAME_WIDTH, cam.width)
+    cam.set(cv2.CAP_PROP_FRAME_HEIGHT, cam.height)
+    return cam
 
 
 def test_markers_sit_where_the_length_puts_them():
@@ -65,7 +74,7 @@ def test_noise_and_lighting_drift():
 
 def test_read_is_a_capture_paced_by_the_clock():
     clock = VirtualClock()
-    cam = camera(clock=clock, fps=10.0, size=(320, 240), mm_per_px=0.2)
+    cam = streaming_at_sensor_size(camera(clock=clock, fps=10.0, size=(320, 240), mm_per_px=0.2))
     stamps = []
     for _ in range(4):
         ok, frame = cam.read()
@@ -82,7 +91,7 @@ def test_read_is_a_capture_paced_by_the_clock():
 
 def test_a_reader_behind_gets_the_queued_frames_and_loses_only_what_fell_out():
     clock = VirtualClock()  # slow enough that rendering takes no frame time
-    cam = camera(clock=clock, fps=10.0, size=(160, 120), mm_per_px=0.4)
+    cam = streaming_at_sensor_size(camera(clock=clock, fps=10.0, size=(160, 120), mm_per_px=0.4))
     start = cam.read()[1] is not None and cam.get(cv2.CAP_PROP_POS_MSEC)
     clock.sleep(0.25)  # 2.5 frames behind: frames 1 and 2 are queued
     stamps = [cam.read()[1] is not None and cam.get(cv2.CAP_PROP_POS_MSEC) for _ in range(3)]
@@ -134,3 +143,70 @@ def test_a_hidden_marker_is_not_drawn_until_shown_again():
     assert cam.render(0.0)[round(y2), round(x2)].max() < 60
     with pytest.raises(ValueError, match="markers 0 and 1"):
         cam.hide_marker(2)
+
+
+def test_a_lazy_frame_region_is_that_region_of_the_full_frame_bit_for_bit():
+    cam = camera(length_mm_at=lambda t: 40.0 + t)
+    for t in (0.0, 0.7, 3.1):
+        frame = cam.frame_at(t)
+        full = np.asarray(frame)
+        assert frame.shape == full.shape == (720, 1280, 3) and frame.size == full.size
+        (x1, y1), (x2, _) = cam.marker_centres_px(t)
+        for y0, y1_, x0, x1_ in [
+            (int(y1) - 40, int(y1) + 41, int(x1) - 40, int(x1) + 41),  # around a dot
+            (int(y1) - 5, int(y1) + 5, int(x1) - 3, int(x2) + 90),  # across both, past the band
+            (0, 720, 0, 1280),
+        ]:
+            np.testing.assert_array_equal(frame[y0:y1_, x0:x1_], full[y0:y1_, x0:x1_])
+        np.testing.assert_array_equal(frame[10, 20], full[10, 20])  # any other index
+
+
+def test_v4l2_streams_at_640x480_until_the_size_is_set_and_restarts_dark():
+    clock = VirtualClock()
+    cam = camera(clock=clock, fps=30.0, length_mm_at=lambda t: 40.0, mm_per_px=0.05)
+    assert (cam.get(cv2.CAP_PROP_FRAME_WIDTH), cam.get(cv2.CAP_PROP_FRAME_HEIGHT)) == (640, 480)
+    ok, frame = cam.read()
+    assert ok and np.asarray(frame).shape == (480, 640, 3)  # the sensor scaled down
+    brightness = [float(np.mean(np.asarray(cam.read()[1]))) for _ in range(5)]
+    assert cam.set(cv2.CAP_PROP_FRAME_WIDTH, 1280) and cam.set(cv2.CAP_PROP_FRAME_HEIGHT, 720)
+    assert (cam.get(cv2.CAP_PROP_FRAME_WIDTH), cam.get(cv2.CAP_PROP_FRAME_HEIGHT)) == (1280, 720)
+    first = np.asarray(cam.read()[1])
+    assert first.shape == (720, 1280, 3)
+    # a new format restarts the stream: the auto exposure settles again from dark
+    later = [float(np.mean(np.asarray(cam.read()[1]))) for _ in range(4)]
+    assert float(np.mean(first)) < 0.1 * later[-1]
+    assert later[-1] == pytest.approx(brightness[-1], rel=0.05)
+    cam.set(cv2.CAP_PROP_FRAME_WIDTH, 1000)  # not a mode: V4L2 keeps the last valid one
+    assert cam.get(cv2.CAP_PROP_FRAME_WIDTH) == 1280
+
+
+def test_exposure_and_focus_are_kept_and_read_back():
+    cam = camera()
+    assert cam.get(cv2.CAP_PROP_AUTO_EXPOSURE) == 3.0  # auto, as a webcam opens
+    assert cam.set(cv2.CAP_PROP_AUTO_EXPOSURE, 1.0) and cam.set(cv2.CAP_PROP_EXPOSURE, 50.0)
+    assert cam.set(cv2.CAP_PROP_AUTOFOCUS, 0.0) and cam.set(cv2.CAP_PROP_FOCUS, 20.0)
+    assert cam.get(cv2.CAP_PROP_EXPOSURE) == 50.0 and cam.get(cv2.CAP_PROP_FOCUS) == 20.0
+    assert not cam.set(cv2.CAP_PROP_ZOOM, 2.0)  # a control this camera does not have
+
+
+@settings(max_examples=60, deadline=None)
+@example(t=0.0, box=(0, 0, 0, 0), seed=0)  # an empty region (found by hypothesis)
+@given(
+    t=st.floats(0.0, 30.0),
+    box=st.tuples(
+        st.integers(-50, 700), st.integers(-50, 1300), st.integers(0, 300), st.integers(0, 300)
+    ),
+    seed=st.integers(0, 3),
+)
+def test_any_region_a_tracker_reads_is_that_region_of_the_full_frame(t, box, seed):
+    """Whatever box is read (cut by the edges, empty, across dots and band), the lazily
+    rendered pixels are the full frame's (the tracker must see the frame the video
+    records)."""
+    cam = _SHARED[seed]
+    frame = cam.frame_at(t)
+    full = np.asarray(frame)
+    y0, x0, h, w = box
+    np.testing.assert_array_equal(frame[y0 : y0 + h, x0 : x0 + w], full[y0 : y0 + h, x0 : x0 + w])
+
+
+_SHARED = [camera(length_mm_at=lambda t: 40.0 + t, seed=s, mm_per_px=0.05) for s in range(4)]

@@ -1,0 +1,213 @@
+"""Video of a simulated run (issue 14): one frame per tracked length sample with its
+time in the run file, a killed run's video still opens, the frame strips show the
+transition frames, `labrig compare --json`, and a failed scale calibration faults."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import cv2
+import numpy as np
+import pytest
+from conftest import DEMO
+from simrig import run_sim, short_protocol
+
+from labrig.analysis.strip import CAPTION_PX, TILE_WIDTH_PX
+from labrig.cli import main
+from labrig.drivers.markers import MarkerTracker
+from labrig.rig import CameraConfig, PumpConfig, RigConfig, SimConfig
+from labrig.storage import open_run, read_log
+
+VIDEO_DEMO = (
+    DEMO.read_text()
+    .replace("camera_fps: 30}", "camera_fps: 30, video: true}")
+    .replace("times: 3", "times: 1")
+    .replace("average_last: 2", "average_last: 1")
+)
+
+
+@pytest.fixture(scope="module")
+def video_run(tmp_path_factory):
+    outcome = run_sim(tmp_path_factory.mktemp("video"), VIDEO_DEMO, seed=0)
+    assert outcome.result.status == "complete", outcome.result.reason
+    return outcome.path
+
+
+def decoded_frames(path, keep=lambda i: True):
+    """(number of frames the video decodes to, {index: frame} of those ``keep``-ed)."""
+    capture = cv2.VideoCapture(str(path))
+    assert capture.isOpened()
+    count, frames = 0, {}
+    while capture.grab():
+        if keep(count):
+            ok, frames[count] = capture.retrieve()
+            assert ok
+        count += 1
+    capture.release()
+    return count, frames
+
+
+def length_rows(path):
+    with open_run(path) as run:
+        length = read_log(run, 1, "length")
+        video_t = run["entry/video/time"][:]
+        video_rep = run["entry/video/repetition"][:]
+        name = run["entry/video"].attrs["file"]
+    return length, video_t, video_rep, name
+
+
+def assert_frames_show_the_logged_markers(frames, length, indices):
+    """Each decoded frame shows the markers where the length log's row puts them."""
+    for i in indices:
+        fix = MarkerTracker().track(frames[i])
+        assert fix.ok
+        logged = [length.fields[k][i] for k in ("x1", "y1", "x2", "y2")]
+        # the frame's own markers (MJPG costs a little precision), not a neighbour's
+        np.testing.assert_allclose([fix.x1_px, fix.y1_px, fix.x2_px, fix.y2_px], logged, atol=0.2)
+
+
+def test_one_video_frame_per_length_sample_with_its_time(video_run):
+    length, video_t, video_rep, name = length_rows(video_run)
+    assert name == "run.avi"
+    # around the snap the specimen moves fastest: a frame off by one would show it
+    snap = int(np.argmax(np.abs(np.diff(length.fields["value"]))))
+    checked = [0, snap, snap + 1, len(length) - 1]
+    count, frames = decoded_frames(video_run.with_suffix(".avi"), keep=checked.__contains__)
+    assert count == len(video_t) == len(length) > 3000  # 30 fps over 124 s
+    assert np.array_equal(video_t, length.time_s) and np.all(video_rep == 1)
+    assert np.diff(video_t) == pytest.approx(np.full(len(video_t) - 1, 1 / 30), abs=1e-9)
+    assert frames[0].shape == (720, 1280, 3)
+    assert_frames_show_the_logged_markers(frames, length, checked)
+
+
+def test_a_killed_runs_video_opens_and_holds_the_frames_up_to_the_kill(tmp_path):
+    protocol = tmp_path / "p.yaml"
+    protocol.write_text(
+        short_protocol(camera_fps=30).replace("camera_fps: 30}", "camera_fps: 30, video: true}")
+    )
+    out = tmp_path / "killed.h5"
+    command = [sys.executable, "-m", "labrig", "run", str(protocol), "--sim", "--out", str(out)]
+    process = subprocess.Popen([*command, "--speed", "5"], stdout=subprocess.PIPE)
+    video = out.with_suffix(".avi")
+    deadline = time.monotonic() + 120
+    while not (video.exists() and video.stat().st_size > 2_000_000):
+        assert process.poll() is None and time.monotonic() < deadline
+        time.sleep(0.2)
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait()
+    length, video_t, _, _ = length_rows(out)
+    count, _ = decoded_frames(video, keep=lambda i: False)
+    n = min(count, len(video_t))
+    _, frames = decoded_frames(video, keep={0, n - 1}.__contains__)
+    assert count >= 40 and len(video_t) >= 1
+    assert np.array_equal(video_t[:n], length.time_s[:n])
+    assert_frames_show_the_logged_markers(frames, length, [0, n - 1])
+
+
+def test_the_transition_strip_shows_the_frames_before_and_after(video_run, tmp_path, capsys):
+    out = tmp_path / "strip.png"
+    with pytest.raises(SystemExit) as done:
+        main(["frames", str(video_run), "--at-transitions", "-o", str(out)])
+    assert done.value.code == 0, capsys.readouterr()
+    strip = cv2.imread(str(out))
+    tile_h = 360 + CAPTION_PX  # 1280x720 frames scaled to 640 px wide, caption under
+    assert strip.shape == (tile_h, 2 * TILE_WIDTH_PX, 3)  # one snap: before, after
+    length = length_rows(video_run)[0]
+    from labrig.analysis.analyse import analyse
+
+    (snap,) = analyse(video_run).repetitions[0].transitions
+    lengths = []
+    for column in (0, 1):
+        tile = strip[:360, column * TILE_WIDTH_PX : (column + 1) * TILE_WIDTH_PX]
+        # the tile's markers: the darkest spots, at the logged positions of its frame
+        grey = cv2.cvtColor(tile, cv2.COLOR_BGR2GRAY)
+        dark = np.argwhere(grey < 80)
+        left, right = dark[dark[:, 1] < 320], dark[dark[:, 1] >= 320]
+        centres = [side.mean(axis=0)[::-1] for side in (left, right)]  # (x, y)
+        k = int(np.argmin(np.abs(length.time_s - (snap.t_s - 1 if column == 0 else snap.t_s + 1))))
+        distance = np.hypot(*(centres[1] - centres[0])) * 2  # tile px -> frame px
+        lengths.append(distance)
+        assert centres[0][1] == pytest.approx(length.fields["y1"][k] / 2, abs=1.5)
+    # before and after differ by the measured jump (in px of the frame)
+    mm_per_px = length.fields["value"][0] / np.hypot(
+        length.fields["x2"][0] - length.fields["x1"][0],
+        length.fields["y2"][0] - length.fields["y1"][0],
+    )
+    assert (lengths[1] - lengths[0]) * mm_per_px == pytest.approx(snap.dl_mm, abs=0.5)
+
+
+def test_the_volume_strip_has_a_frame_per_volume(video_run, tmp_path, capsys):
+    out = tmp_path / "volumes.png"
+    with pytest.raises(SystemExit) as done:
+        main(["frames", str(video_run), "--at-volumes", "10,20,30", "-o", str(out)])
+    assert done.value.code == 0, capsys.readouterr()
+    assert cv2.imread(str(out)).shape == (360 + CAPTION_PX, 3 * TILE_WIDTH_PX, 3)
+    with pytest.raises(SystemExit) as done:
+        main(["frames", str(video_run), "--at-volumes", "10,99", "-o", str(out)])
+    assert done.value.code == 2
+    assert "reached only" in capsys.readouterr().err
+
+
+def test_compare_json_is_the_contract_and_the_snap_length_change_is_measured(video_run, capsys):
+    with pytest.raises(SystemExit) as done:
+        main(["compare", str(video_run), "--json"])
+    assert done.value.code == 0
+    data = json.loads(capsys.readouterr().out)
+    assert set(data["rmse"]) >= {"inflate_pressure_kpa", "deflate_pressure_kpa"}
+    keys = {"phase", "type", "alpha", "beta", "v_ml", "v_meas_ml", "dp_kpa", "dp_meas_kpa",
+            "dl_mm", "dl_meas_mm"}  # fmt: skip
+    assert all(set(t) == keys for t in data["transitions"])
+    (snap,) = [
+        t for t in data["transitions"] if (t["type"], t["alpha"], t["beta"]) == ("snap", 2, 1)
+    ]
+    assert snap["phase"] == "inflate" and snap["v_meas_ml"] is not None
+    # the demo's snap: the measured length change within 0.5 mm of the model's
+    assert snap["dl_meas_mm"] == pytest.approx(snap["dl_mm"], abs=0.5)
+
+
+def test_a_failed_scale_calibration_faults_the_run(tmp_path):
+    """No warm-up frames: the dark first frame is the reference frame, its markers
+    cannot be found, and the run must end faulted, not complete without lengths."""
+    config = RigConfig(
+        pump=PumpConfig(port="emulator"),
+        camera=CameraConfig(reference_distance_mm=60.0, warmup_frames=0),
+        sim=SimConfig(),
+    )
+    outcome = run_sim(tmp_path, short_protocol(camera_fps=30), config=config)
+    assert outcome.result.status == "faulted"
+    assert outcome.result.reason.startswith("camera: reference frame: both markers")
+    assert outcome.pump_is_stopped()
+    with open_run(outcome.path) as run:
+        assert run["entry/status"][()] == b"faulted"
+
+
+def test_a_video_file_standing_in_for_the_camera_is_read_at_camera_fps(tmp_path):
+    """A file's read does not wait for frames: the camera loop paces it. Were it read
+    in a loop without a wait, virtual time would never move and the run never end."""
+    from labrig.drivers.camera import CameraLength, FrameSource
+    from labrig.protocol import load_protocol
+    from labrig.rig import build_rig, sim_rig_config
+    from labrig.runner import Runner
+    from labrig.sim.camera import SimCamera
+    from labrig.virtual_clock import VirtualClock
+
+    video = tmp_path / "specimen.avi"
+    SimCamera(VirtualClock(), lambda t: 50.0, size=(640, 360), mm_per_px=0.1).write_video(
+        video, n_frames=40, fps=25.0
+    )
+    protocol = tmp_path / "p.yaml"
+    protocol.write_text(short_protocol(camera_fps=2))
+    loaded = load_protocol(protocol)
+    rig = build_rig(loaded.protocol, sim_rig_config())
+    rig.length.close()
+    rig.length = CameraLength(FrameSource.open_file(video), mm_per_px=0.1)
+    with rig.clock.participate():
+        result = Runner(loaded, rig, tmp_path / "run.h5").run()
+    assert result.status == "complete", result.reason
+    with open_run(result.path) as run:
+        length = read_log(run, 1, "length")
+    assert len(length) == 40 and length.fields["ok"].all()  # every frame, then the end
+    assert length.fields["value"] == pytest.approx(np.full(40, 50.0), abs=0.02)
