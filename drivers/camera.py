@@ -52,6 +52,10 @@ V4L2_MANUAL_EXPOSURE, V4L2_AUTO_EXPOSURE = 1.0, 3.0
 DEFAULT_WARMUP_FRAMES = 5
 # no frame for this long (clock seconds) from a live camera is a device fault
 FRAME_TIMEOUT_S = 2.0
+# A reader nobody has asked for a frame for this long (clock seconds) stops; the next
+# read() starts it again. An abandoned FrameSource (one never closed after an error)
+# would otherwise read forever, and on a virtual clock a lone reader runs flat out.
+READER_IDLE_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -102,6 +106,7 @@ class FrameSource:
         self._error: Exception | None = None
         self._stopping = False
         self._reader: ClockThread | None = None
+        self._last_read_s = float("-inf")
 
     @classmethod
     def open(
@@ -196,7 +201,8 @@ class FrameSource:
         the newest frame not returned before, waiting on the clock for one."""
         if self.clock is None:
             return self._read_file()
-        if self._reader is None:
+        self._last_read_s = self.clock.now()
+        if self._reader is None or self._reader.done:
             self._reader = self.clock.start_thread(self._read_frames, f"{self.name} reader")
         fps = float(self.capture.get(cv2.CAP_PROP_FPS) or 0.0)
         timeout_s = max(FRAME_TIMEOUT_S, 3.0 / fps) if fps > 0 else FRAME_TIMEOUT_S
@@ -228,7 +234,7 @@ class FrameSource:
                 self._error = DeviceError(f"{self.name} reader failed: {exc!r}")
 
     def _read_every_frame(self) -> None:
-        while not self._stopping:
+        while not self._stopping and self.clock.now() - self._last_read_s < READER_IDLE_S:
             ok, image = self.capture.read()
             t_host_s = self.clock.now()  # right after the grab, before any processing
             if not ok or image is None:
