@@ -21,7 +21,10 @@ def recorded(path):
 
 
 def test_same_seed_same_data_beside_two_cpu_burners(demo, tmp_path):
-    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
+    # each burns a core until killed, or until this process is gone (a killed pytest
+    # must not leave them burning)
+    burn = "import os\nparent = os.getppid()\nwhile os.getppid() == parent: pass"
+    burners = [subprocess.Popen([sys.executable, "-c", burn]) for _ in range(2)]
     try:
         again = run_sim(tmp_path, DEMO.read_text(), seed=0)
     finally:
