@@ -130,5 +130,7 @@ class FileFollower:
         self.state.set_step(
             Step(step, repetition, elapsed_s, max(0.0, self.duration_s - elapsed_s))
         )
-        if self.state.status == "starting" and running:
+        # a watcher that opens the file between two repetitions sees none running, yet
+        # the run is under way once any repetition has begun
+        if self.state.status == "starting" and done:
             self.state.status = "running"
