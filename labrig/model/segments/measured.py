@@ -18,6 +18,7 @@ on the table (model-notes, trap 10).
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 from pathlib import Path
 
@@ -25,16 +26,27 @@ import numpy as np
 
 from labrig.errors import InputError
 from labrig.model.segments.curve import SegmentCurve
+from labrig.model.segments.resolution import (
+    ROUTE_FITTED,
+    ROUTE_TABULATED,
+    STEP_PROMINENCE,
+    MeasuredImport,
+    TableResolution,
+    resolution_of,
+)
 from labrig.model.segments.shape_fit import (
     DIP_NOISE_FACTOR,
     binned_trimmed_means,
     fit_rise_fall_rise,
+    monotone_pieces,
+    smooth_with_shape,
 )
 
 HEADER = ("volume_ml", "pressure_kpa", "length_mm")
 MIN_ROWS = 10
 MAX_FIRST_VOLUME_ML = 0.5  # the first row must be (close to) the unpressurised state
 MAX_BINS = 250
+STEEP_NOISE_FACTOR = 10.0
 P_END_KPA = 300.0
 MIN_END_SLOPE_KPA_PER_ML = 1.0
 EXTENSION_SAMPLES = 8
@@ -98,25 +110,70 @@ def read_csv_table(path: Path) -> np.ndarray:
     return values
 
 
-def _has_segment_shape(v, p) -> bool:
-    """Rising, or rising to one peak, falling to one valley and rising again."""
+def _has_segment_shape(v, p, min_dip_kpa: float = 0.0) -> bool:
+    """Rising, or rising to one peak, falling to one valley and rising again, with a dip
+    (and a rise after the valley) larger than ``min_dip_kpa``."""
     branches = SegmentCurve("raw", v, p, np.ones_like(v), V0_ml=1.0).branch_bounds
-    return len(branches) in (1, 3) and p[branches[0][1]] > p[0]
+    if len(branches) not in (1, 3) or not p[branches[0][1]] > p[0]:
+        return False
+    if len(branches) == 1:
+        return True
+    peak, valley = p[branches[0][1]], p[branches[1][1]]
+    return peak - valley > min_dip_kpa and p[-1] - valley > min_dip_kpa
 
 
-def _fit_noisy(v, p, length):
-    """Bin, fit the shape, and return the fitted blocks' centres as the table."""
-    n_bins = min(MAX_BINS, max(MIN_ROWS, len(v) // 4))
-    v_bin, (p_bin, l_bin), counts = binned_trimmed_means(v, [p, length], n_bins)
-    fit = fit_rise_fall_rise(p_bin, counts)
+def collapse_plateaus(v, p, length):
+    """Each run of rows with equal pressure (a quantised table's plateau) as one row at
+    the run's centre, where a rounded monotone curve has the plateau's value; the first
+    run keeps its first row (the unpressurised state). Returns (v, p, l, runs merged)."""
+    scale = max(float(np.max(np.abs(p))), 1.0)
+    new_run = np.abs(np.diff(p)) > 1e-12 * scale
+    starts = np.flatnonzero(np.r_[True, new_run])
+    if len(starts) == len(v):
+        return v, p, length, 0
+    ends = np.r_[starts[1:], len(v)]
+    counts = ends - starts
+    v_c = np.add.reduceat(v, starts) / counts
+    l_c = np.add.reduceat(length, starts) / counts
+    v_c[0], l_c[0] = v[0], length[0]
+    return v_c, p[starts], l_c, int(np.sum(counts > 1))
+
+
+def _fit_noisy(v, p, length, resolution: TableResolution):
+    """Bin, decide the shape (a dip only if it stands out of the noise of the bins and
+    of the table's step), and return the smoothest-needed curve of that shape on the
+    bins (``smooth_with_shape``), or the isotonic fit's block centres if no smoothing
+    gives it; None if the fitted curve still falls at its end."""
+    v_bin, (p_bin, l_bin), counts = binned_trimmed_means(v, [p, length], min(MAX_BINS, len(v)))
+    min_dip = STEP_PROMINENCE * resolution.step_kpa
+    fit = fit_rise_fall_rise(p_bin, counts, min_dip_kpa=min_dip)
     if len(fit.branches) == 3:
         valley = min(fit.branches[1][-1][2], fit.branches[2][0][2])
-        if fit.branches[2][-1][2] - valley <= DIP_NOISE_FACTOR * fit.noise_kpa:
+        if fit.branches[2][-1][2] - valley <= max(DIP_NOISE_FACTOR * fit.noise_kpa, min_dip):
             return None
+    smooth = smooth_with_shape(v_bin, p_bin, counts, len(fit.branches))
+    if smooth is not None:
+        return v_bin, keep_steep_means(p_bin, smooth, fit.noise_kpa), l_bin
     blocks = [block for branch in fit.branches for block in branch]
     v_fit = np.array([np.average(v_bin[a:b], weights=counts[a:b]) for a, b, _ in blocks])
     p_fit = np.array([value for _, _, value in blocks])
     return v_fit, p_fit, np.interp(v_fit, v_bin, l_bin)
+
+
+def keep_steep_means(means, smooth, noise_kpa: float) -> np.ndarray:
+    """The bins' own means where the curve is steep (it changes by more than
+    ``STEEP_NOISE_FACTOR`` noise levels per bin: the noise is nothing there, and
+    smoothing would only round the steep start and the stiffening end), the smooth
+    curve where it is not, blended over a few bins; the smooth curve alone if the blend
+    loses its shape."""
+    means = np.asarray(means, dtype=float)
+    if len(means) < 5 or noise_kpa <= 0:
+        return smooth
+    change = np.abs(np.gradient(means))
+    raw_weight = np.clip(change / (STEEP_NOISE_FACTOR * noise_kpa) - 1.0, 0.0, 1.0)
+    raw_weight = np.convolve(np.pad(raw_weight, 2, mode="edge"), np.ones(5) / 5, "valid")
+    blended = raw_weight * means + (1.0 - raw_weight) * smooth
+    return blended if monotone_pieces(blended) == monotone_pieces(smooth) else smooth
 
 
 def _extend(v, p, length):
@@ -142,16 +199,37 @@ def load_csv(
 ) -> SegmentCurve:
     """A clean ``SegmentCurve`` from a measured-curve CSV (see the module docstring)."""
     path = Path(path)
-    table = read_csv_table(path)
-    v, p, length = table.T
-    notes = []
-    if _has_segment_shape(v, p):
+    return curve_from_table(
+        read_csv_table(path), name=name or path.stem, where=str(path), V0_ml=V0_ml
+    )
+
+
+def curve_from_table(
+    table: np.ndarray, *, name: str, where: str, V0_ml: float | None = None
+) -> SegmentCurve:
+    """The one route from a valid table (rows of volume_ml, pressure_kpa, length_mm,
+    volume strictly increasing) to a ``SegmentCurve``: used as tabulated when it is
+    clean at its own resolution (only plateaus of equal values, which are collapsed,
+    and no dip smaller than ``TableResolution.prominence_kpa``), else fitted. ``where``
+    names the data's origin in errors and in the curve's source."""
+    raw = np.array(table, dtype=float)
+    v, p, length = raw.T
+    resolution = resolution_of(v, p)
+    notes = [resolution.describe()]
+    v_c, p_c, l_c, merged = collapse_plateaus(v, p, length)
+    if len(v_c) >= 4 and _has_segment_shape(v_c, p_c, resolution.prominence_kpa):
+        route = ROUTE_TABULATED
+        v, p, length = v_c, p_c, l_c
         notes.append("used as tabulated")
+        if merged:
+            plural = "s" if merged > 1 else ""
+            notes.append(f"{merged} plateau{plural} of equal pressure collapsed to their centres")
     else:
-        fitted = _fit_noisy(v, p, length)
+        route = ROUTE_FITTED
+        fitted = _fit_noisy(v, p, length, resolution)
         if fitted is None or not _has_segment_shape(fitted[0], fitted[1]):
             raise InputError(
-                f"{path}: the pressure still falls at the last rows (v = {v[-1]:g} mL): "
+                f"{where}: the pressure still falls at the last rows (v = {v[-1]:g} mL): "
                 "measure past the valley, until the curve stiffens again"
             )
         v, p, length = fitted
@@ -166,14 +244,18 @@ def load_csv(
     v, p, length, slope = _extend(v, p, length)
     if slope is not None:
         notes.append(f"extended linearly at {slope:.2f} kPa/mL to {P_END_KPA:g} kPa")
-    return SegmentCurve(
-        name or path.stem,
+    curve = SegmentCurve(
+        name,
         v,
         p,
         length,
         V0_ml=np.pi * TUBE_RADIUS_MM**2 * length[0] / 1000 if V0_ml is None else V0_ml,
-        source=f"measured curve {path} ({'; '.join(notes)})",
+        source=f"measured curve {where} ({'; '.join(notes)})",
     )
+    peak, valley = curve.peak, curve.valley
+    dip = 0.0 if peak is None or valley is None else peak.p_kpa - valley.p_kpa
+    measured = MeasuredImport(resolution, route, peak is not None, dip, tuple(notes), raw)
+    return dataclasses.replace(curve, measured=measured)
 
 
 def write_csv(curve: SegmentCurve, path: Path | str) -> None:
