@@ -7,6 +7,7 @@ an independent table of the same physics; the tolerances are the issue's."""
 from __future__ import annotations
 
 import functools
+import itertools
 
 import numpy as np
 import pytest
@@ -20,6 +21,7 @@ from measured_tables import (
     write_table,
 )
 
+from labrig.model.scan.scan import ScanLibrary, load_library, scan_actuator
 from labrig.model.segments.library import BRAID_LENGTHS_MM, TUBE_LENGTHS_MM, analytical_segment
 from labrig.model.segments.measured import curve_from_table, load_csv
 from labrig.model.segments.resolution import ROUTE_FITTED, ROUTE_TABULATED, resolution_of
@@ -283,3 +285,59 @@ def test_random_rise_fall_rise_shapes_snap_like_their_clean_curves(
     tolerance = max(0.05, 2 * spacing_ml) if exact else (1.0 if noise_kpa else 0.5)
     resolvable = all(dip_kpa(c) > 10 * max(step, noise_kpa) for c in (a, b))
     check_same_snaps(clean, got, tolerance, resolvable)
+
+
+# --- scans of measured libraries -----------------------------------------------------------
+SCAN_SEGMENTS = ("B42-T24", "B46-T28", "B50-T22")
+
+
+def snapping_actuators(library, n: int) -> dict[tuple[int, ...], int]:
+    """Each actuator of n segments of the library with the number of its snaps."""
+    out = {}
+    for combo in itertools.combinations(range(len(library.curves)), n):
+        out[combo] = sum(not t.stable for t in scan_actuator(library, combo))
+    return out
+
+
+@pytest.mark.parametrize(("spacing_ml", "round_to_kpa"), [(0.002, 1e-5), (0.05, 0.27)])
+def test_a_scan_of_measured_csvs_snaps_like_the_scan_of_the_clean_curves(
+    tmp_path, spacing_ml, round_to_kpa
+):
+    """Three segments written as CSVs at two resolutions (dense and rounded to 5
+    decimals; sparse and quantised at 0.27 kPa), scanned with ``--library DIR``: the
+    same actuators snap, as often, as in the scan of the clean curves."""
+    clean = ScanLibrary("clean", tuple(analytical_segment(n) for n in SCAN_SEGMENTS))
+    for k, curve in enumerate(clean.curves):
+        table = sample_table(curve, spacing_ml, round_to_kpa=round_to_kpa, seed=k)
+        write_table(table, tmp_path / f"{curve.name}.csv")
+    library = load_library(str(tmp_path))
+    assert library.names == list(SCAN_SEGMENTS)
+    for n in (2, 3):
+        want = snapping_actuators(clean, n)
+        assert any(want.values())  # the scan has snapping actuators to find
+        assert snapping_actuators(library, n) == want
+
+
+def test_a_scan_of_mixed_resolutions_runs_through_the_command_line(tmp_path, capsys):
+    """Measured CSVs of mixed resolutions in one folder: ``labrig model scan --library``
+    computes every actuator (no failure recorded)."""
+    from labrig.cli import main
+    from labrig.model.scan.scan_file import read_scan
+
+    folder = tmp_path / "lib"
+    folder.mkdir()
+    settings_by_segment = [(0.001, 1e-5, 0.0), (0.05, ADC_STEP_KPA, 0.0), (0.3, None, 0.0)]
+    for (spacing, rounding, noise), name in zip(settings_by_segment, SCAN_SEGMENTS, strict=True):
+        table = sample_table(
+            analytical_segment(name), spacing, round_to_kpa=rounding, noise_kpa=noise
+        )
+        write_table(table, folder / f"{name}.csv")
+    out = tmp_path / "scan.h5"
+    with pytest.raises(SystemExit) as exited:
+        main(["model", "scan", "--n", "2", "--library", str(folder), "--out", str(out),
+              "--workers", "1"])  # fmt: skip
+    capsys.readouterr()
+    assert exited.value.code == 0
+    data = read_scan(out)
+    assert data.complete and data.actuators_done == 3
+    assert len(data.failed_actuator) == 0, data.failed_error
