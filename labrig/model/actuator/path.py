@@ -639,6 +639,13 @@ def state_on_piece(actuator: Actuator, piece: Piece, v_ml: float) -> State:
     try:
         return tracer.reach_between(piece.branches, piece.p_from_kpa, piece.p_to_kpa, v)
     except (FlowError, ArithmeticError, ValueError) as exc:
+        # no sign change of the volume between the piece's ends: v is within rounding of
+        # one end (the ends' volumes were found at other pressures); within the tables'
+        # resolution (their volume unit) that end is the state
+        ends = [tracer.at(piece.branches, p) for p in (piece.p_from_kpa, piece.p_to_kpa)]
+        nearest = min(ends, key=lambda state: abs(state.v_ml - v))
+        if abs(nearest.v_ml - v) <= tracer.unit_ml:
+            return nearest
         raise _unresolved(actuator, v, exc) from exc
 
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import itertools
 import math
 from pathlib import Path
 
@@ -47,6 +48,10 @@ MIN_ROWS = 10
 MAX_FIRST_VOLUME_ML = 0.5  # the first row must be (close to) the unpressurised state
 MAX_BINS = 250
 STEEP_NOISE_FACTOR = 10.0
+STEEP_WEIGHT_GAIN = 100.0
+FOLLOW_SIGMAS = 6.0  # how far a joined peak may stray from the bins' means
+JOIN_BINS = 5  # bins a rising branch may give to the falling one next to it
+OFFSET_BINS = 4  # bins through which the zero at v = 0 of a fitted curve is found
 P_END_KPA = 300.0
 MIN_END_SLOPE_KPA_PER_ML = 1.0
 EXTENSION_SAMPLES = 8
@@ -141,9 +146,16 @@ def collapse_plateaus(v, p, length):
 
 def _fit_noisy(v, p, length, resolution: TableResolution):
     """Bin, decide the shape (a dip only if it stands out of the noise of the bins and
-    of the table's step), and return the smoothest-needed curve of that shape on the
-    bins (``smooth_with_shape``), or the isotonic fit's block centres if no smoothing
-    gives it; None if the fitted curve still falls at its end."""
+    of the table's step) and fit it: returns (v, p, l, offset) on the bins, or None if
+    the fitted curve still falls at its end.
+
+    The curve up to the valley and the curve after it are smoothed apart: the valley is
+    where the braids touch the tube, a corner, which a smoothing across it would raise
+    (by 0.2 kPa for B42-T24 at 0.25 kPa noise, and an actuator's snap moves with it).
+    Each part is the least-smoothed spline of its shape (``smooth_with_shape``), with
+    the bins' own means kept where the curve is steep; if no smoothing gives the shape,
+    the isotonic fit's block centres. The offset at v = 0 is the quadratic through the
+    first bins' means (the smoothed values there are the least certain)."""
     v_bin, (p_bin, l_bin), counts = binned_trimmed_means(v, [p, length], min(MAX_BINS, len(v)))
     min_dip = STEP_PROMINENCE * resolution.step_kpa
     fit = fit_rise_fall_rise(p_bin, counts, min_dip_kpa=min_dip)
@@ -151,28 +163,129 @@ def _fit_noisy(v, p, length, resolution: TableResolution):
         valley = min(fit.branches[1][-1][2], fit.branches[2][0][2])
         if fit.branches[2][-1][2] - valley <= max(DIP_NOISE_FACTOR * fit.noise_kpa, min_dip):
             return None
-    smooth = smooth_with_shape(v_bin, p_bin, counts, len(fit.branches))
+    first = min(OFFSET_BINS, len(v_bin))
+    offset = float(np.polyval(np.polyfit(v_bin[:first], p_bin[:first], 2, w=counts[:first]), 0))
+    steep = steep_weight(p_bin, fit.noise_kpa)
+    # the noise of each bin's mean: the rows' noise over the square root of the bin's
+    # rows; with less noise than quantisation step the rounding errors of neighbouring
+    # rows are not independent (a staircase), and they do not average out
+    sigma = np.maximum(
+        resolution.noise_kpa / np.sqrt(counts),
+        resolution.step_kpa
+        / np.sqrt(12)
+        / np.sqrt(counts if resolution.noise_kpa >= resolution.step_kpa else 1),
+    )
+    branch_starts = [branch[0][0] for branch in fit.branches]
+    # steep bins weigh more: the spline follows them there and smooths the flat rest
+    weights = counts * (1.0 + STEEP_WEIGHT_GAIN * steep)
+    smooth = _smooth_parts(v_bin, p_bin, weights, branch_starts, sigma)
     if smooth is not None:
-        return v_bin, keep_steep_means(p_bin, smooth, fit.noise_kpa), l_bin
+        values = keep_steep_means(p_bin, smooth, steep)
+        if monotone_pieces(values) == len(fit.branches):
+            return v_bin, values, l_bin, offset
     blocks = [block for branch in fit.branches for block in branch]
     v_fit = np.array([np.average(v_bin[a:b], weights=counts[a:b]) for a, b, _ in blocks])
     p_fit = np.array([value for _, _, value in blocks])
-    return v_fit, p_fit, np.interp(v_fit, v_bin, l_bin)
+    return v_fit, p_fit, np.interp(v_fit, v_bin, l_bin), offset
 
 
-def keep_steep_means(means, smooth, noise_kpa: float) -> np.ndarray:
-    """The bins' own means where the curve is steep (it changes by more than
+def _smooth_parts(v, p, weights, branch_starts: list[int], sigma) -> np.ndarray | None:
+    """The smooth curve on the bins, branch by branch (``branch_starts``: the first bin
+    of each): a rising branch is the smoothest spline the noise allows
+    (``smooth_with_shape``), a falling branch the weighted least-squares polynomial of
+    the lowest degree (cubic down to linear) that falls all along it, because what an
+    actuator's folds depend on there is the slope, which is small (-0.3 to -0.6 kPa/mL
+    for the library) and which a spline would let flicker by more than itself. The
+    branches are joined as the envelope of their continuations (the lower one at a
+    peak, the upper at a valley: a corner such as the braids' contact is kept, with no
+    undershoot or steep drop into it). None if a branch cannot be given its shape."""
+    edges = [*branch_starts, len(v)]
+    fits: list = [None] * len(branch_starts)
+    # a rising branch whose first (or, before a peak, last) bins are still flat within
+    # the noise gives them to the falling branch next to it, a few bins at most
+    for k in range(0, len(branch_starts), 2):
+        for shift in range(JOIN_BINS + 1):
+            a = edges[k] + (shift if k > 0 else 0)
+            b = edges[k + 1] - (shift if k + 1 < len(branch_starts) else 0)
+            fit = smooth_with_shape(v[a:b], p[a:b], weights[a:b], 1, sigma=sigma[a:b])
+            if fit is not None:
+                edges[k], edges[k + 1] = a, b
+                fits[k] = fit
+                break
+        else:
+            return None
+    for k in range(1, len(branch_starts), 2):
+        a, b = edges[k], edges[k + 1]
+        fits[k] = falling_polynomial(v[a:b], p[a:b], 1.0 / sigma[a:b] ** 2)
+        if fits[k] is None:
+            return None
+    # each branch continued along its end tangents; a peak is the lower, a valley the
+    # upper envelope of the branches that meet there
+    c = [
+        _continued(fit, v, v[a], v[b - 1], rising=k % 2 == 0)
+        for k, (fit, (a, b)) in enumerate(zip(fits, itertools.pairwise(edges), strict=True))
+    ]
+    if len(c) == 1:
+        return c[0]
+    peak = np.minimum(c[0], c[1])
+    # tangents that meet far from the data (a falling cubic steep at its end) make a
+    # spike: then the rise and fall up to the valley are one spline of that shape
+    if np.any(np.abs(peak - p)[: edges[2]] > FOLLOW_SIGMAS * sigma[: edges[2]]):
+        a, b = 0, edges[2]
+        both = smooth_with_shape(v[a:b], p[a:b], weights[a:b], 2, sigma=sigma[a:b])
+        if both is None:
+            return None
+        peak = _continued(both, v, v[a], v[b - 1], rising=True)
+    # the last branch, continued back from its valley, only meets the falling one
+    return np.where(v >= v[edges[1]], np.maximum(peak, c[2]), peak)
+
+
+def _continued(fit, x, lo: float, hi: float, *, rising: bool) -> np.ndarray:
+    """``fit`` on [lo, hi], continued along its end tangents outside (a cubic's own
+    continuation can turn back within a few bins), each tangent no steeper than flat
+    against the branch's direction (a spline's end may bend between its bins)."""
+    h = 1e-6 * (hi - lo)
+    bound = max if rising else min
+    slope_lo = bound((fit(lo + h) - fit(lo)) / h, 0.0)
+    slope_hi = bound((fit(hi) - fit(hi - h)) / h, 0.0)
+    inside = fit(np.clip(x, lo, hi))
+    return np.where(
+        x < lo,
+        fit(lo) + slope_lo * (x - lo),
+        np.where(x > hi, fit(hi) + slope_hi * (x - hi), inside),
+    )
+
+
+def falling_polynomial(x, y, w):
+    """The weighted least-squares polynomial of the lowest degree from 3 down to 1 that
+    decreases all along x (a callable), or None."""
+    if len(x) < 2:
+        return None
+    fine = np.linspace(x[0], x[-1], 200)
+    for degree in range(min(3, len(x) - 1), 0, -1):
+        poly = np.polynomial.Polynomial.fit(x, y, degree, w=np.sqrt(w))
+        if np.all(np.diff(poly(fine)) < 0):
+            return poly
+    return None
+
+
+def steep_weight(means, noise_kpa: float) -> np.ndarray:
+    """Per bin, 1 where the curve is steep (it changes by more than twice
     ``STEEP_NOISE_FACTOR`` noise levels per bin: the noise is nothing there, and
-    smoothing would only round the steep start and the stiffening end), the smooth
-    curve where it is not, blended over a few bins; the smooth curve alone if the blend
-    loses its shape."""
+    smoothing would only round the steep start and the stiffening end), 0 where it is
+    flat, blended over a few bins."""
     means = np.asarray(means, dtype=float)
     if len(means) < 5 or noise_kpa <= 0:
-        return smooth
+        return np.zeros(len(means))
     change = np.abs(np.gradient(means))
-    raw_weight = np.clip(change / (STEEP_NOISE_FACTOR * noise_kpa) - 1.0, 0.0, 1.0)
-    raw_weight = np.convolve(np.pad(raw_weight, 2, mode="edge"), np.ones(5) / 5, "valid")
-    blended = raw_weight * means + (1.0 - raw_weight) * smooth
+    weight = np.clip(change / (STEEP_NOISE_FACTOR * noise_kpa) - 1.0, 0.0, 1.0)
+    return np.convolve(np.pad(weight, 2, mode="edge"), np.ones(5) / 5, "valid")
+
+
+def keep_steep_means(means, smooth, weight) -> np.ndarray:
+    """The bins' own means where the curve is steep (``steep_weight``), the smooth
+    curve where it is not; the smooth curve alone if the blend loses its shape."""
+    blended = weight * np.asarray(means, dtype=float) + (1.0 - weight) * smooth
     return blended if monotone_pieces(blended) == monotone_pieces(smooth) else smooth
 
 
@@ -232,10 +345,12 @@ def curve_from_table(
                 f"{where}: the pressure still falls at the last rows (v = {v[-1]:g} mL): "
                 "measure past the valley, until the curve stiffens again"
             )
-        v, p, length = fitted
+        # where a branch's tangent was flat, the envelope can repeat a value: one row
+        v, p, length, _ = collapse_plateaus(*fitted[:3])
+        offset = fitted[3]
         notes.append(f"fitted rise-fall-rise to {len(v)} samples")
-    # zero at v = 0: extrapolate the first two samples linearly
-    offset = p[0] - (p[1] - p[0]) / (v[1] - v[0]) * v[0]
+    if route == ROUTE_TABULATED:  # zero at v = 0: extrapolate the first two samples
+        offset = p[0] - (p[1] - p[0]) / (v[1] - v[0]) * v[0]
     p = p - offset
     if v[0] > 0:
         v, p, length = np.r_[0.0, v], np.r_[0.0, p], np.r_[length[0], length]

@@ -116,14 +116,19 @@ def monotone_pieces(y) -> int:
     return 1 + int(np.count_nonzero(signs[1:] != signs[:-1]))
 
 
-def smooth_with_shape(x, y, w, pieces: int, steps: int = 12) -> np.ndarray | None:
-    """The values at x of the least-smoothed cubic smoothing spline through (x, y, w)
-    that has the wanted number of monotone ``pieces`` (1: rising; 3: rise-fall-rise):
-    first the one chosen by generalised cross-validation, then ever smoother ones (the
-    penalty multiplied by 10 at each of ``steps``). None if none has that shape. The
-    slopes of such a curve (which decide where an actuator folds) do not flicker from
-    one bin to the next, and its peak and valley keep a curvature the data support,
-    where an isotonic fit would end a branch on a flat block."""
+def smooth_with_shape(x, y, w, pieces: int, *, sigma=None):
+    """The smoothest cubic smoothing spline through (x, y, w) that the noise allows and
+    whose values at x have the wanted number of monotone ``pieces`` (1: rising; 2:
+    rise-fall). Returns the spline (callable, continued past the ends along its end
+    pieces), or None if no smoothing gives that shape.
+
+    With ``sigma`` (the standard error of each y) the smoothing is the largest whose
+    residuals are still noise (the discrepancy principle: chi^2 within two of its
+    standard deviations of the number of points), because what an
+    actuator's folds depend on are the curve's slopes, and the smoothing that is best
+    for the values (cross-validation) leaves slopes that flicker by more than the
+    slope of a falling branch. Without ``sigma``, the spline chosen by generalised
+    cross-validation, smoothed further only as far as the shape needs."""
     from scipy.interpolate import make_smoothing_spline
 
     x = np.asarray(x, dtype=float)
@@ -133,12 +138,32 @@ def smooth_with_shape(x, y, w, pieces: int, steps: int = 12) -> np.ndarray | Non
         return None
     # the penalty's natural scale: a bin's weight times the cube of the bin width
     scale = float(np.mean(w)) * float(np.mean(np.diff(x))) ** 3
-    for k in range(-1, steps):
-        lam = None if k < 0 else scale * 10.0**k
-        values = make_smoothing_spline(x, y, w=w, lam=lam)(x)
-        if monotone_pieces(values) == pieces and values[-1] > values[0]:
-            return values
-    return None
+
+    def shaped(spline) -> bool:
+        values = spline(x)
+        return monotone_pieces(values) == pieces and values[-1] > values[0]
+
+    if sigma is None:
+        for k in range(-1, 12):
+            spline = make_smoothing_spline(x, y, w=w, lam=None if k < 0 else scale * 10.0**k)
+            if shaped(spline):
+                return spline
+        return None
+    allowed = len(x) + 2.0 * np.sqrt(2.0 * len(x))
+    best = least = None
+    for k in np.arange(-4.0, 12.01, 0.5):
+        spline = make_smoothing_spline(x, y, w=w, lam=scale * 10.0**k)
+        if not shaped(spline):
+            continue
+        if float(np.sum(((y - spline(x)) / np.asarray(sigma)) ** 2)) <= allowed:
+            best = spline
+        elif best is None and least is None:
+            # shaped only past what the noise allows (a flat end of a branch): the least
+            # smoothing that gives the shape (the caller keeps the means where steep)
+            least = spline
+        else:
+            break
+    return best if best is not None else least
 
 
 def fit_rise_fall_rise(
