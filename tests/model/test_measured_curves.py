@@ -300,9 +300,9 @@ def test_random_rise_fall_rise_shapes_snap_like_their_clean_curves(
     got = snap_volumes(curves)
     step = round_to_kpa or 0.0
     if noise_kpa:
-        # noisy synthetic tables: only no exception. Measured on this branch (80 random
-        # cases, /tmp-free script in the report): about 1 in 8 still shows spurious
-        # snaps where the valley's rise is gentle (docs/model.md, open point)
+        # noisy synthetic tables: only no exception. Measured on this branch (70 random
+        # cases): 6 still show spurious snaps where the valley's rise is gentle
+        # (docs/model.md §9, open)
         return
     exact = step <= 1e-6
     tolerance = max(0.05, 2 * spacing_ml) if exact else 0.5
