@@ -122,3 +122,25 @@ def _predict_pressure(protocol: Protocol, volume_ml: float, report: DryRunReport
             f"the model predicts {peak_kpa:.1f} kPa at {at_ml:.2f} mL, at or above the "
             f"pressure limit {limit:g} kPa: the run will stop there"
         )
+    if len(segments) == 1:
+        _warn_before_valley(segments[0], volume_ml, report)
+
+
+# how far the pressure must rise again past the valley for the run's curve to show it
+RISE_PAST_VALLEY_KPA = 1.0
+
+
+def _warn_before_valley(segment, volume_ml: float, report: DryRunReport) -> None:
+    """A single-segment run that stops before its segment's valley (and the rise after
+    it) cannot become a measured segment: ``labrig library add`` refuses a curve that
+    still falls at its end."""
+    valley = segment.valley
+    if valley is None:
+        return
+    rise = float(segment.pressure_kpa(volume_ml)) - valley.p_kpa
+    if volume_ml <= valley.v_ml or rise < RISE_PAST_VALLEY_KPA:
+        report.warnings.append(
+            f"the run stops at {volume_ml:g} mL, before {segment.name}'s valley at "
+            f"{valley.v_ml:.2f} mL and the rise after it (model): labrig library add "
+            "cannot use it; infuse past the valley, until the curve stiffens again"
+        )

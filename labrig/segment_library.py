@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -78,24 +77,22 @@ def add_measured(
     directory: str | Path | None = None,
     *,
     replace: bool = False,
+    where: str | None = None,
 ) -> MeasuredSegment:
     """Fit a measured mean curve to the segment's shape and store it with its provenance.
 
-    The raw mean goes through ``load_csv`` exactly as a hand-made CSV would (shape fit,
-    zero at v = 0, linear extension), so a library segment is what a CSV of the same
-    data would give; what the fit did is recorded in the provenance.
+    The raw mean goes the one route every table takes (``curve_from_table``: resolution,
+    tabulated or fitted, zero at v = 0, linear extension), so a library segment is what
+    a CSV of the same data would give; what was done is recorded in the provenance.
+    ``where`` names the data's origin in errors (the run file).
     """
-    from labrig.model.segments.measured import HEADER, load_csv, write_csv
+    from labrig.model.segments.measured import curve_from_table, write_csv
 
     folder = resolve_library_dir(directory)
     check_new_name(name, folder, replace)
+    table = np.column_stack([np.asarray(x, dtype=float) for x in (v_ml, p_kpa, l_mm)])
+    curve = curve_from_table(table, name=name, where=where or f"measured segment {name}")
     folder.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory() as scratch:
-        raw = Path(scratch) / f"{name}.csv"
-        rows = [",".join(HEADER)]
-        rows += [f"{v!r},{p!r},{length!r}" for v, p, length in zip(v_ml, p_kpa, l_mm, strict=True)]
-        raw.write_text("\n".join(rows) + "\n", encoding="utf-8")
-        curve = load_csv(raw, name=name)
     csv_path = folder / f"{name}.csv"
     provenance_path = folder / f"{name}.json"
     write_csv(curve, csv_path)
@@ -196,4 +193,5 @@ def add_from_run(
         provenance,
         directory,
         replace=replace,
+        where=f"{run_path} (mean inflation curve)",
     )

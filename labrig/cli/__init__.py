@@ -3,7 +3,8 @@
 Sub-commands live in their own modules and are imported only when used, so that
 ``labrig --help`` answers at once and a missing optional device library cannot break
 unrelated commands. A ``LabrigError`` becomes one clear line on stderr and its exit code
-(2 for bad input), never a traceback.
+(2 for bad input), never a traceback; any other exception (a bug) too, as one line with
+exit code 1. ``labrig --debug COMMAND`` shows the traceback instead.
 """
 
 from __future__ import annotations
@@ -65,9 +66,21 @@ class LazyGroup(click.Group):
     context_settings={"help_option_names": ["-h", "--help"]},
 )
 @click.version_option(labrig.__version__, prog_name="labrig")
-def cli() -> None:
+@click.option(
+    "--debug", is_flag=True, help="Show the full traceback of an error instead of one line."
+)
+def cli(debug: bool) -> None:
     """labrig: run inflation protocols on a soft-actuator rig (real or simulated),
     store them in HDF5, and compare them with the snap-through stability model."""
+    _SETTINGS["debug"] = debug
+
+
+_SETTINGS = {"debug": False}
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
 
 
 # commands that solve one actuator: a few hundred calls of the solver's inner loops,
@@ -97,9 +110,20 @@ def main(argv: list[str] | None = None) -> None:
     except click.ClickException as exc:
         exc.show()
         sys.exit(exc.exit_code)
-    except LabrigError as exc:
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(exc.exit_code)
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
+    except LabrigError as exc:
+        if _SETTINGS["debug"]:
+            raise
+        click.echo(f"error: {_one_line(exc)}", err=True)
+        sys.exit(exc.exit_code)
+    except Exception as exc:
+        if _SETTINGS["debug"]:
+            raise
+        click.echo(
+            f"error: internal error ({type(exc).__name__}: {_one_line(exc)}); "
+            "labrig --debug ... shows the traceback",
+            err=True,
+        )
+        sys.exit(1)
     sys.exit(result if isinstance(result, int) else 0)

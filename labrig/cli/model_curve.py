@@ -2,7 +2,9 @@
 
 SEG is a library name (``B46-T20``), a Gent membrane (``gent-a``) or a measured-curve
 CSV. The JSON carries the segment's table itself, so the peak and valley it reports are
-samples of the arrays.
+samples of the arrays. For a measured table it also says what was done to it (used as
+tabulated or fitted), the table's resolution (spacing, step, noise) and whether a peak
+was kept; the plot then overlays the raw rows on the curve used.
 """
 
 from __future__ import annotations
@@ -13,6 +15,8 @@ from pathlib import Path
 import click
 
 from labrig.errors import InputError
+
+RAW_POINTS_PLOTTED = 20_000  # more rows than this are thinned evenly in the plot
 
 
 def _extremum(extremum) -> dict | None:
@@ -48,7 +52,38 @@ def summary_lines(curve, contact_ml: float | None) -> list[str]:
         f"  table    {len(curve.v_ml)} samples, v 0 to {curve.v_max_ml:.3f} mL, "
         f"p up to {curve.p_kpa[-1]:.0f} kPa"
     )
+    measured = curve.measured
+    if measured is not None:
+        what = "used as tabulated" if measured.route == "tabulated" else "fitted (robust)"
+        lines.append(f"  import   {what}")
+        lines.append(f"  rows     {measured.resolution.describe()}")
+        resolves = f"dips above {measured.resolution.prominence_kpa:.3g} kPa count"
+        kept = (
+            f"1 peak kept (dip {measured.dip_kpa:.3g} kPa; {resolves})"
+            if measured.peak_kept
+            else f"no peak kept ({resolves})"
+        )
+        lines.append(f"  peaks    {kept}")
     return lines
+
+
+def measured_document(curve) -> dict:
+    """What was done to a measured table, for ``--json``."""
+    measured = curve.measured
+    res = measured.resolution
+    return {
+        "route": measured.route,
+        "rows": res.rows,
+        "spacing_ml": res.spacing_ml,
+        "spacing_min_ml": res.spacing_min_ml,
+        "spacing_max_ml": res.spacing_max_ml,
+        "uniform": res.uniform,
+        "step_kpa": res.step_kpa,
+        "noise_kpa": res.noise_kpa,
+        "prominence_kpa": res.prominence_kpa,
+        "peaks_kept": int(measured.peak_kept),
+        "dip_kpa": measured.dip_kpa,
+    }
 
 
 def plot_curve(curve, contact_ml: float | None, path: Path) -> None:
@@ -59,7 +94,12 @@ def plot_curve(curve, contact_ml: float | None, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, (ax_p, ax_l) = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
-    ax_p.plot(curve.v_ml, curve.p_kpa, color="tab:blue")
+    if curve.measured is not None:
+        raw = curve.measured.raw[:: max(1, len(curve.measured.raw) // RAW_POINTS_PLOTTED)]
+        ax_p.plot(raw[:, 0], raw[:, 1], ".", color="grey", markersize=2, label="raw rows")
+        ax_l.plot(raw[:, 0], raw[:, 2], ".", color="grey", markersize=2)
+    used = "" if curve.measured is None else f"curve used ({curve.measured.route})"
+    ax_p.plot(curve.v_ml, curve.p_kpa, color="tab:blue", label=used or None)
     ax_l.plot(curve.v_ml, curve.l_mm, color="tab:green")
     marks = [(curve.peak, "v", "peak"), (curve.valley, "o", "valley")]
     for extremum, marker, label in marks:
@@ -116,6 +156,8 @@ def curve(seg: str, as_json: bool, plot_path: Path | None) -> None:
             "p_kpa": segment.p_kpa.tolist(),
             "l_mm": segment.l_mm.tolist(),
         }
+        if segment.measured is not None:
+            document["measured"] = measured_document(segment)
         click.echo(json.dumps(document))
         return
     for line in summary_lines(segment, contact_ml):

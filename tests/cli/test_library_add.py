@@ -3,6 +3,7 @@ wherever a SEG does."""
 
 import hashlib
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -94,3 +95,38 @@ def test_add_does_not_overwrite_unless_asked(segment_run, tmp_path, capsys):
     assert run([*argv, "--replace"], capsys)[0] == 0
     code, out, _ = run(["library", "list", "--library", tmp_path], capsys)
     assert out.splitlines()[0].startswith("twice\tsimulated B46-T20\t")
+
+
+def test_a_failed_fit_names_the_run_file_not_a_temporary_csv(tmp_path):
+    """The mean curve of a run that stopped before its valley cannot be fitted: the
+    error names where the data came from."""
+    from labrig.errors import InputError
+    from labrig.segment_library import add_measured
+
+    clean = analytical_segment("B46-T20")
+    v = np.linspace(0.0, 0.9 * clean.valley.v_ml, 400)  # still falling at the end
+    with pytest.raises(InputError) as error:
+        add_measured(
+            "short",
+            v,
+            clean.pressure_kpa(v),
+            clean.length_mm(v),
+            {},
+            tmp_path,
+            where="runs/short.h5 (mean inflation curve)",
+        )
+    assert str(error.value).startswith("runs/short.h5 (mean inflation curve): ")
+    assert "tmp" not in str(error.value).split(":")[0]
+    assert not (tmp_path / "short.csv").exists()
+
+
+def test_the_dry_run_warns_when_a_segment_run_stops_before_its_valley(tmp_path, capsys):
+    """B46-T20's valley is at 19.78 mL: infusing 15 mL makes a run that library add
+    cannot use, 20.8 mL (the shipped protocol) one it can."""
+    shipped = Path("protocols/segment_characterization.yaml").read_text(encoding="utf-8")
+    for volume, warned in (("15", True), ("20.8", False)):
+        protocol = tmp_path / f"p{volume}.yaml"
+        protocol.write_text(shipped.replace("volume_ml: 20.8", f"volume_ml: {volume}"))
+        code, out, err = run(["run", str(protocol), "--dry-run"], capsys)
+        assert code == 0
+        assert ("before B46-T20's valley at 19.78 mL" in out + err) is warned

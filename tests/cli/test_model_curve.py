@@ -76,3 +76,26 @@ def test_bad_csv_is_one_line_and_exit_2(tmp_path, capsys):
     code, _, err = run(["model", "curve", str(bad)], capsys)
     assert code == 2
     assert err.strip() == f"error: {bad}: line 3, column pressure_kpa: 'x' is not a number"
+
+
+def test_a_measured_table_says_what_was_done_and_plots_the_raw_rows(tmp_path, capsys):
+    clean = analytical_segment("B42-T24")
+    v = np.linspace(0.0, clean.v_max_ml, 8000).tolist()
+    rows = ["volume_ml,pressure_kpa,length_mm"]
+    p = np.round(clean.pressure_kpa(v), 2).tolist()
+    rows += [
+        f"{a!r},{b!r},{c!r}" for a, b, c in zip(v, p, clean.length_mm(v).tolist(), strict=True)
+    ]
+    table = tmp_path / "rounded.csv"
+    table.write_text("\n".join(rows) + "\n")
+    png = tmp_path / "c.png"
+    code, out, _ = run(["model", "curve", str(table), "--plot", str(png)], capsys)
+    assert code == 0
+    assert "import   used as tabulated" in out
+    assert "rows     8000 rows, spacing 0.002049 mL, step 0.01 kPa, noise" in out
+    assert "peaks    1 peak kept (dip 1.66 kPa; dips above 0.03 kPa count)" in out
+    assert png.stat().st_size > 10_000
+    code, out, _ = run(["model", "curve", str(table), "--json"], capsys)
+    measured = json.loads(out)["measured"]
+    assert measured["route"] == "tabulated" and measured["rows"] == 8000
+    assert measured["step_kpa"] == pytest.approx(0.01) and measured["peaks_kept"] == 1

@@ -134,3 +134,37 @@ def test_bad_input_is_one_line_and_exit_2(argv, message, capsys):
 def test_the_model_group_lists_path(capsys):
     code, out, _ = run(["model", "--help"], capsys)
     assert code == 0 and "path" in out and "curve" in out
+
+
+def test_an_unresolvable_state_is_one_line_naming_segments_and_volume(capsys, monkeypatch):
+    """Whatever fails inside the solver (here every bracketed root, as a table outside
+    the model's assumptions would), the user sees one line and exit code 2; --debug
+    shows the traceback."""
+    import labrig.model.actuator.path as path_module
+
+    def no_root(*args):
+        raise ValueError("no sign change between the ends of the bracket")
+
+    monkeypatch.setattr(path_module, "bracketed_root", no_root)
+    code, _, err = run(["model", "path", "B42-T24", "B50-T22"], capsys)
+    assert code == 2
+    assert err.startswith("error: B42-T24 + B50-T22: the model cannot resolve the state near v = ")
+    assert "no sign change" in err and "Traceback" not in err and len(err.splitlines()) == 1
+    with pytest.raises(path_module.PathError):
+        main(["--debug", "model", "path", "B42-T24", "B50-T22"])
+
+
+def test_any_other_error_is_one_line_unless_debug(capsys, monkeypatch):
+    import labrig.model.actuator.transitions as transitions_module
+
+    def broken(path, window_ml=1e-4):
+        raise ZeroDivisionError("a bug")
+
+    monkeypatch.setattr(transitions_module, "transitions", broken)
+    code, _, err = run(["model", "path", "B42-T24", "B50-T22"], capsys)
+    assert code == 1
+    assert err.strip() == (
+        "error: internal error (ZeroDivisionError: a bug); labrig --debug ... shows the traceback"
+    )
+    with pytest.raises(ZeroDivisionError):
+        main(["--debug", "model", "path", "B42-T24", "B50-T22"])

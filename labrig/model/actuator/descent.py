@@ -76,7 +76,9 @@ def settle(
             if stable_scalar(k):
                 return w
             w = _escape_saddle(w, k, 1e-2 * unit)
-        raise FlowError(f"the flow keeps stalling on unstable equilibria near {w}")
+        raise FlowError(
+            f"the flow keeps stalling on unstable equilibria near {[float(x) for x in w]}"
+        )
     tables = tables_of(tuple(kernels))
     w = np.array(w0, dtype=float)
     for _ in range(MAX_SADDLE_ESCAPES):

@@ -38,6 +38,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from labrig.errors import InputError
 from labrig.model.actuator.curve_tables import (
     EXCESS_VOLUME,
     excess_volume,
@@ -57,6 +58,18 @@ DEFLATE = -1
 # fraction of its terms' magnitudes from 0. At 0.05, 35 of 400 random library actuators
 # lost a small snap next to coincident peaks; at 0.2 and up, 2 of 400 (docs/actuator.md).
 SCREEN_MARGIN = 0.2
+
+
+class PathError(FlowError, InputError):
+    """A state of the path could not be resolved: one line naming the segments and the
+    volume (exit 2 on the command line; a scan records it for that actuator)."""
+
+
+def _unresolved(actuator: Actuator, v_ml: float, exc: Exception) -> PathError:
+    return PathError(
+        f"{' + '.join(actuator.names)}: the model cannot resolve the state near "
+        f"v = {v_ml:.4g} mL ({exc}); check the segments' tables (labrig model curve)"
+    )
 
 
 @dataclass(frozen=True)
@@ -155,10 +168,14 @@ def quasi_static_path(
     defaults are what every command uses, the benchmark varies them."""
     tracer = _Tracer(actuator, screen_margin=screen_margin, flow_tol=flow_tol)
     v_end = default_end_volume_ml(actuator) if v_end_ml is None else float(v_end_ml)
-    start = tracer.at(tuple(0 for _ in range(actuator.n)), 0.0)
-    timeline, end = tracer.follow(start, INFLATE, v_end)
-    if deflate:
-        timeline += tracer.follow(end, DEFLATE, 0.0)[0]
+    try:
+        start = tracer.at(tuple(0 for _ in range(actuator.n)), 0.0)
+        timeline, end = tracer.follow(start, INFLATE, v_end)
+        if deflate:
+            timeline += tracer.follow(end, DEFLATE, 0.0)[0]
+    except (FlowError, ArithmeticError, ValueError) as exc:
+        # a root without a bracket, a flow that did not settle: never a traceback
+        raise _unresolved(actuator, tracer.v_ml, exc) from exc
     return Path(actuator, tuple(timeline))
 
 
@@ -183,6 +200,7 @@ class _Tracer:
         # actuator of microlitres behaves like one of millilitres)
         self.unit_ml = volume_unit_ml(self.kernels)
         self.tables = tables_of(self.kernels)
+        self.v_ml = 0.0  # the volume of the last state reached (for error messages)
 
     # --- states on a branch combination ------------------------------------------------
     def at(self, branches: tuple[int, ...], p: float) -> State:
@@ -206,6 +224,7 @@ class _Tracer:
     def follow(self, state: State, direction: int, v_target: float):
         timeline: list[Piece | Event] = []
         for _ in range(self.max_events):
+            self.v_ml = state.v_ml
             b = state.branches
             falling = [i for i in range(self.n) if not self._rising(i, b[i])]
             s_p = direction if not falling else -direction
@@ -617,7 +636,17 @@ def state_on_piece(actuator: Actuator, piece: Piece, v_ml: float) -> State:
         return tracer.at(piece.branches, piece.p_from_kpa)
     if v == piece.v_to_ml:
         return tracer.at(piece.branches, piece.p_to_kpa)
-    return tracer.reach_between(piece.branches, piece.p_from_kpa, piece.p_to_kpa, v)
+    try:
+        return tracer.reach_between(piece.branches, piece.p_from_kpa, piece.p_to_kpa, v)
+    except (FlowError, ArithmeticError, ValueError) as exc:
+        # no sign change of the volume between the piece's ends: v is within rounding of
+        # one end (the ends' volumes were found at other pressures); within the tables'
+        # resolution (their volume unit) that end is the state
+        ends = [tracer.at(piece.branches, p) for p in (piece.p_from_kpa, piece.p_to_kpa)]
+        nearest = min(ends, key=lambda state: abs(state.v_ml - v))
+        if abs(nearest.v_ml - v) <= tracer.unit_ml:
+            return nearest
+        raise _unresolved(actuator, v, exc) from exc
 
 
 @dataclass(frozen=True)

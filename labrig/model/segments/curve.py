@@ -20,11 +20,13 @@ pressure, the paper's operational method, Fig. S5A).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
+
+from labrig.model.segments.resolution import MeasuredImport
 
 
 @dataclass(frozen=True)
@@ -70,6 +72,8 @@ class SegmentCurve:
     l_mm: np.ndarray
     V0_ml: float
     source: str = ""
+    # for a measured table: its resolution and what was done to it (``measured.py``)
+    measured: MeasuredImport | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         v = np.asarray(self.v_ml, dtype=float)

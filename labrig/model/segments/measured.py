@@ -18,6 +18,8 @@ on the table (model-notes, trap 10).
 from __future__ import annotations
 
 import csv
+import dataclasses
+import itertools
 import math
 from pathlib import Path
 
@@ -25,16 +27,31 @@ import numpy as np
 
 from labrig.errors import InputError
 from labrig.model.segments.curve import SegmentCurve
+from labrig.model.segments.resolution import (
+    ROUTE_FITTED,
+    ROUTE_TABULATED,
+    STEP_PROMINENCE,
+    MeasuredImport,
+    TableResolution,
+    resolution_of,
+)
 from labrig.model.segments.shape_fit import (
     DIP_NOISE_FACTOR,
     binned_trimmed_means,
     fit_rise_fall_rise,
+    monotone_pieces,
+    smooth_with_shape,
 )
 
 HEADER = ("volume_ml", "pressure_kpa", "length_mm")
 MIN_ROWS = 10
 MAX_FIRST_VOLUME_ML = 0.5  # the first row must be (close to) the unpressurised state
 MAX_BINS = 250
+STEEP_NOISE_FACTOR = 10.0
+STEEP_WEIGHT_GAIN = 100.0
+FOLLOW_SIGMAS = 6.0  # how far a joined peak may stray from the bins' means
+JOIN_BINS = 5  # bins a rising branch may give to the falling one next to it
+OFFSET_BINS = 4  # bins through which the zero at v = 0 of a fitted curve is found
 P_END_KPA = 300.0
 MIN_END_SLOPE_KPA_PER_ML = 1.0
 EXTENSION_SAMPLES = 8
@@ -98,25 +115,178 @@ def read_csv_table(path: Path) -> np.ndarray:
     return values
 
 
-def _has_segment_shape(v, p) -> bool:
-    """Rising, or rising to one peak, falling to one valley and rising again."""
+def _has_segment_shape(v, p, min_dip_kpa: float = 0.0) -> bool:
+    """Rising, or rising to one peak, falling to one valley and rising again, with a dip
+    (and a rise after the valley) larger than ``min_dip_kpa``."""
     branches = SegmentCurve("raw", v, p, np.ones_like(v), V0_ml=1.0).branch_bounds
-    return len(branches) in (1, 3) and p[branches[0][1]] > p[0]
+    if len(branches) not in (1, 3) or not p[branches[0][1]] > p[0]:
+        return False
+    if len(branches) == 1:
+        return True
+    peak, valley = p[branches[0][1]], p[branches[1][1]]
+    return peak - valley > min_dip_kpa and p[-1] - valley > min_dip_kpa
 
 
-def _fit_noisy(v, p, length):
-    """Bin, fit the shape, and return the fitted blocks' centres as the table."""
-    n_bins = min(MAX_BINS, max(MIN_ROWS, len(v) // 4))
-    v_bin, (p_bin, l_bin), counts = binned_trimmed_means(v, [p, length], n_bins)
-    fit = fit_rise_fall_rise(p_bin, counts)
+def collapse_plateaus(v, p, length):
+    """Each run of rows with equal pressure (a quantised table's plateau) as one row at
+    the run's centre, where a rounded monotone curve has the plateau's value; the first
+    run keeps its first row (the unpressurised state). Returns (v, p, l, runs merged)."""
+    scale = max(float(np.max(np.abs(p))), 1.0)
+    new_run = np.abs(np.diff(p)) > 1e-12 * scale
+    starts = np.flatnonzero(np.r_[True, new_run])
+    if len(starts) == len(v):
+        return v, p, length, 0
+    ends = np.r_[starts[1:], len(v)]
+    counts = ends - starts
+    v_c = np.add.reduceat(v, starts) / counts
+    l_c = np.add.reduceat(length, starts) / counts
+    v_c[0], l_c[0] = v[0], length[0]
+    return v_c, p[starts], l_c, int(np.sum(counts > 1))
+
+
+def _fit_noisy(v, p, length, resolution: TableResolution):
+    """Bin, decide the shape (a dip only if it stands out of the noise of the bins and
+    of the table's step) and fit it: returns (v, p, l, offset) on the bins, or None if
+    the fitted curve still falls at its end.
+
+    The curve up to the valley and the curve after it are smoothed apart: the valley is
+    where the braids touch the tube, a corner, which a smoothing across it would raise
+    (by 0.2 kPa for B42-T24 at 0.25 kPa noise, and an actuator's snap moves with it).
+    Each part is the least-smoothed spline of its shape (``smooth_with_shape``), with
+    the bins' own means kept where the curve is steep; if no smoothing gives the shape,
+    the isotonic fit's block centres. The offset at v = 0 is the quadratic through the
+    first bins' means (the smoothed values there are the least certain)."""
+    v_bin, (p_bin, l_bin), counts = binned_trimmed_means(v, [p, length], min(MAX_BINS, len(v)))
+    min_dip = STEP_PROMINENCE * resolution.step_kpa
+    fit = fit_rise_fall_rise(p_bin, counts, min_dip_kpa=min_dip)
     if len(fit.branches) == 3:
         valley = min(fit.branches[1][-1][2], fit.branches[2][0][2])
-        if fit.branches[2][-1][2] - valley <= DIP_NOISE_FACTOR * fit.noise_kpa:
+        if fit.branches[2][-1][2] - valley <= max(DIP_NOISE_FACTOR * fit.noise_kpa, min_dip):
             return None
+    first = min(OFFSET_BINS, len(v_bin))
+    offset = float(np.polyval(np.polyfit(v_bin[:first], p_bin[:first], 2, w=counts[:first]), 0))
+    steep = steep_weight(p_bin, fit.noise_kpa)
+    # the noise of each bin's mean: the rows' noise over the square root of the bin's
+    # rows; with less noise than quantisation step the rounding errors of neighbouring
+    # rows are not independent (a staircase), and they do not average out
+    sigma = np.maximum(
+        resolution.noise_kpa / np.sqrt(counts),
+        resolution.step_kpa
+        / np.sqrt(12)
+        / np.sqrt(counts if resolution.noise_kpa >= resolution.step_kpa else 1),
+    )
+    branch_starts = [branch[0][0] for branch in fit.branches]
+    # steep bins weigh more: the spline follows them there and smooths the flat rest
+    weights = counts * (1.0 + STEEP_WEIGHT_GAIN * steep)
+    smooth = _smooth_parts(v_bin, p_bin, weights, branch_starts, sigma)
+    if smooth is not None:
+        values = keep_steep_means(p_bin, smooth, steep)
+        if monotone_pieces(values) == len(fit.branches):
+            return v_bin, values, l_bin, offset
     blocks = [block for branch in fit.branches for block in branch]
     v_fit = np.array([np.average(v_bin[a:b], weights=counts[a:b]) for a, b, _ in blocks])
     p_fit = np.array([value for _, _, value in blocks])
-    return v_fit, p_fit, np.interp(v_fit, v_bin, l_bin)
+    return v_fit, p_fit, np.interp(v_fit, v_bin, l_bin), offset
+
+
+def _smooth_parts(v, p, weights, branch_starts: list[int], sigma) -> np.ndarray | None:
+    """The smooth curve on the bins, branch by branch (``branch_starts``: the first bin
+    of each): a rising branch is the smoothest spline the noise allows
+    (``smooth_with_shape``), a falling branch the weighted least-squares polynomial of
+    the lowest degree (cubic down to linear) that falls all along it, because what an
+    actuator's folds depend on there is the slope, which is small (-0.3 to -0.6 kPa/mL
+    for the library) and which a spline would let flicker by more than itself. The
+    branches are joined as the envelope of their continuations (the lower one at a
+    peak, the upper at a valley: a corner such as the braids' contact is kept, with no
+    undershoot or steep drop into it). None if a branch cannot be given its shape."""
+    edges = [*branch_starts, len(v)]
+    fits: list = [None] * len(branch_starts)
+    # a rising branch whose first (or, before a peak, last) bins are still flat within
+    # the noise gives them to the falling branch next to it, a few bins at most
+    for k in range(0, len(branch_starts), 2):
+        for shift in range(JOIN_BINS + 1):
+            a = edges[k] + (shift if k > 0 else 0)
+            b = edges[k + 1] - (shift if k + 1 < len(branch_starts) else 0)
+            fit = smooth_with_shape(v[a:b], p[a:b], weights[a:b], 1, sigma=sigma[a:b])
+            if fit is not None:
+                edges[k], edges[k + 1] = a, b
+                fits[k] = fit
+                break
+        else:
+            return None
+    for k in range(1, len(branch_starts), 2):
+        a, b = edges[k], edges[k + 1]
+        fits[k] = falling_polynomial(v[a:b], p[a:b], 1.0 / sigma[a:b] ** 2)
+        if fits[k] is None:
+            return None
+    # each branch continued along its end tangents; a peak is the lower, a valley the
+    # upper envelope of the branches that meet there
+    c = [
+        _continued(fit, v, v[a], v[b - 1], rising=k % 2 == 0)
+        for k, (fit, (a, b)) in enumerate(zip(fits, itertools.pairwise(edges), strict=True))
+    ]
+    if len(c) == 1:
+        return c[0]
+    peak = np.minimum(c[0], c[1])
+    # tangents that meet far from the data (a falling cubic steep at its end) make a
+    # spike: then the rise and fall up to the valley are one spline of that shape
+    if np.any(np.abs(peak - p)[: edges[2]] > FOLLOW_SIGMAS * sigma[: edges[2]]):
+        a, b = 0, edges[2]
+        both = smooth_with_shape(v[a:b], p[a:b], weights[a:b], 2, sigma=sigma[a:b])
+        if both is None:
+            return None
+        peak = _continued(both, v, v[a], v[b - 1], rising=True)
+    # the last branch, continued back from its valley, only meets the falling one
+    return np.where(v >= v[edges[1]], np.maximum(peak, c[2]), peak)
+
+
+def _continued(fit, x, lo: float, hi: float, *, rising: bool) -> np.ndarray:
+    """``fit`` on [lo, hi], continued along its end tangents outside (a cubic's own
+    continuation can turn back within a few bins), each tangent no steeper than flat
+    against the branch's direction (a spline's end may bend between its bins)."""
+    h = 1e-6 * (hi - lo)
+    bound = max if rising else min
+    slope_lo = bound((fit(lo + h) - fit(lo)) / h, 0.0)
+    slope_hi = bound((fit(hi) - fit(hi - h)) / h, 0.0)
+    inside = fit(np.clip(x, lo, hi))
+    return np.where(
+        x < lo,
+        fit(lo) + slope_lo * (x - lo),
+        np.where(x > hi, fit(hi) + slope_hi * (x - hi), inside),
+    )
+
+
+def falling_polynomial(x, y, w):
+    """The weighted least-squares polynomial of the lowest degree from 3 down to 1 that
+    decreases all along x (a callable), or None."""
+    if len(x) < 2:
+        return None
+    fine = np.linspace(x[0], x[-1], 200)
+    for degree in range(min(3, len(x) - 1), 0, -1):
+        poly = np.polynomial.Polynomial.fit(x, y, degree, w=np.sqrt(w))
+        if np.all(np.diff(poly(fine)) < 0):
+            return poly
+    return None
+
+
+def steep_weight(means, noise_kpa: float) -> np.ndarray:
+    """Per bin, 1 where the curve is steep (it changes by more than twice
+    ``STEEP_NOISE_FACTOR`` noise levels per bin: the noise is nothing there, and
+    smoothing would only round the steep start and the stiffening end), 0 where it is
+    flat, blended over a few bins."""
+    means = np.asarray(means, dtype=float)
+    if len(means) < 5 or noise_kpa <= 0:
+        return np.zeros(len(means))
+    change = np.abs(np.gradient(means))
+    weight = np.clip(change / (STEEP_NOISE_FACTOR * noise_kpa) - 1.0, 0.0, 1.0)
+    return np.convolve(np.pad(weight, 2, mode="edge"), np.ones(5) / 5, "valid")
+
+
+def keep_steep_means(means, smooth, weight) -> np.ndarray:
+    """The bins' own means where the curve is steep (``steep_weight``), the smooth
+    curve where it is not; the smooth curve alone if the blend loses its shape."""
+    blended = weight * np.asarray(means, dtype=float) + (1.0 - weight) * smooth
+    return blended if monotone_pieces(blended) == monotone_pieces(smooth) else smooth
 
 
 def _extend(v, p, length):
@@ -142,22 +312,45 @@ def load_csv(
 ) -> SegmentCurve:
     """A clean ``SegmentCurve`` from a measured-curve CSV (see the module docstring)."""
     path = Path(path)
-    table = read_csv_table(path)
-    v, p, length = table.T
-    notes = []
-    if _has_segment_shape(v, p):
+    return curve_from_table(
+        read_csv_table(path), name=name or path.stem, where=str(path), V0_ml=V0_ml
+    )
+
+
+def curve_from_table(
+    table: np.ndarray, *, name: str, where: str, V0_ml: float | None = None
+) -> SegmentCurve:
+    """The one route from a valid table (rows of volume_ml, pressure_kpa, length_mm,
+    volume strictly increasing) to a ``SegmentCurve``: used as tabulated when it is
+    clean at its own resolution (only plateaus of equal values, which are collapsed,
+    and no dip smaller than ``TableResolution.prominence_kpa``), else fitted. ``where``
+    names the data's origin in errors and in the curve's source."""
+    raw = np.array(table, dtype=float)
+    v, p, length = raw.T
+    resolution = resolution_of(v, p)
+    notes = [resolution.describe()]
+    v_c, p_c, l_c, merged = collapse_plateaus(v, p, length)
+    if len(v_c) >= 4 and _has_segment_shape(v_c, p_c, resolution.prominence_kpa):
+        route = ROUTE_TABULATED
+        v, p, length = v_c, p_c, l_c
         notes.append("used as tabulated")
+        if merged:
+            plural = "s" if merged > 1 else ""
+            notes.append(f"{merged} plateau{plural} of equal pressure collapsed to their centres")
     else:
-        fitted = _fit_noisy(v, p, length)
+        route = ROUTE_FITTED
+        fitted = _fit_noisy(v, p, length, resolution)
         if fitted is None or not _has_segment_shape(fitted[0], fitted[1]):
             raise InputError(
-                f"{path}: the pressure still falls at the last rows (v = {v[-1]:g} mL): "
+                f"{where}: the pressure still falls at the last rows (v = {v[-1]:g} mL): "
                 "measure past the valley, until the curve stiffens again"
             )
-        v, p, length = fitted
+        # where a branch's tangent was flat, the envelope can repeat a value: one row
+        v, p, length, _ = collapse_plateaus(*fitted[:3])
+        offset = fitted[3]
         notes.append(f"fitted rise-fall-rise to {len(v)} samples")
-    # zero at v = 0: extrapolate the first two samples linearly
-    offset = p[0] - (p[1] - p[0]) / (v[1] - v[0]) * v[0]
+    if route == ROUTE_TABULATED:  # zero at v = 0: extrapolate the first two samples
+        offset = p[0] - (p[1] - p[0]) / (v[1] - v[0]) * v[0]
     p = p - offset
     if v[0] > 0:
         v, p, length = np.r_[0.0, v], np.r_[0.0, p], np.r_[length[0], length]
@@ -166,14 +359,18 @@ def load_csv(
     v, p, length, slope = _extend(v, p, length)
     if slope is not None:
         notes.append(f"extended linearly at {slope:.2f} kPa/mL to {P_END_KPA:g} kPa")
-    return SegmentCurve(
-        name or path.stem,
+    curve = SegmentCurve(
+        name,
         v,
         p,
         length,
         V0_ml=np.pi * TUBE_RADIUS_MM**2 * length[0] / 1000 if V0_ml is None else V0_ml,
-        source=f"measured curve {path} ({'; '.join(notes)})",
+        source=f"measured curve {where} ({'; '.join(notes)})",
     )
+    peak, valley = curve.peak, curve.valley
+    dip = 0.0 if peak is None or valley is None else peak.p_kpa - valley.p_kpa
+    measured = MeasuredImport(resolution, route, peak is not None, dip, tuple(notes), raw)
+    return dataclasses.replace(curve, measured=measured)
 
 
 def write_csv(curve: SegmentCurve, path: Path | str) -> None:

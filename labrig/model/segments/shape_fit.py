@@ -107,13 +107,76 @@ class ShapeFit:
     noise_kpa: float
 
 
-def fit_rise_fall_rise(y, w) -> ShapeFit:
+def monotone_pieces(y) -> int:
+    """How many monotone runs the sequence y makes (1 for monotone, 3 for
+    rise-fall-rise); a flat step counts as a run of its own."""
+    signs = np.sign(np.diff(np.asarray(y, dtype=float)))
+    if np.any(signs == 0):
+        return len(signs) + 1
+    return 1 + int(np.count_nonzero(signs[1:] != signs[:-1]))
+
+
+def smooth_with_shape(x, y, w, pieces: int, *, sigma=None):
+    """The smoothest cubic smoothing spline through (x, y, w) that the noise allows and
+    whose values at x have the wanted number of monotone ``pieces`` (1: rising; 2:
+    rise-fall). Returns the spline (callable, continued past the ends along its end
+    pieces), or None if no smoothing gives that shape.
+
+    With ``sigma`` (the standard error of each y) the smoothing is the largest whose
+    residuals are still noise (the discrepancy principle: chi^2 within two of its
+    standard deviations of the number of points), because what an
+    actuator's folds depend on are the curve's slopes, and the smoothing that is best
+    for the values (cross-validation) leaves slopes that flicker by more than the
+    slope of a falling branch. Without ``sigma``, the spline chosen by generalised
+    cross-validation, smoothed further only as far as the shape needs."""
+    from scipy.interpolate import make_smoothing_spline
+
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    w = np.asarray(w, dtype=float)
+    if len(x) < 5:
+        return None
+    # the penalty's natural scale: a bin's weight times the cube of the bin width
+    scale = float(np.mean(w)) * float(np.mean(np.diff(x))) ** 3
+
+    def shaped(spline) -> bool:
+        values = spline(x)
+        return monotone_pieces(values) == pieces and values[-1] > values[0]
+
+    if sigma is None:
+        for k in range(-1, 12):
+            spline = make_smoothing_spline(x, y, w=w, lam=None if k < 0 else scale * 10.0**k)
+            if shaped(spline):
+                return spline
+        return None
+    allowed = len(x) + 2.0 * np.sqrt(2.0 * len(x))
+    best = least = None
+    for k in np.arange(-4.0, 12.01, 0.5):
+        spline = make_smoothing_spline(x, y, w=w, lam=scale * 10.0**k)
+        if not shaped(spline):
+            continue
+        if float(np.sum(((y - spline(x)) / np.asarray(sigma)) ** 2)) <= allowed:
+            best = spline
+        elif best is None and least is None:
+            # shaped only past what the noise allows (a flat end of a branch): the least
+            # smoothing that gives the shape (the caller keeps the means where steep)
+            least = spline
+        else:
+            break
+    return best if best is not None else least
+
+
+def fit_rise_fall_rise(
+    y, w, *, min_dip_kpa: float = 0.0, noise_kpa: float | None = None
+) -> ShapeFit:
     """Best least-squares rise-fall-rise fit of the sequence y (weights w), or a single
-    rise if its dip is within the noise."""
+    rise if its dip is within the noise of the means (``noise_kpa``, estimated from y
+    when not given) or not above ``min_dip_kpa`` (the table's own resolution: a dip of
+    a few quantisation steps is rounding)."""
     y = np.asarray(y, dtype=float)
     w = np.asarray(w, dtype=float)
     n = len(y)
-    noise = noise_of_means(y)
+    noise = noise_of_means(y) if noise_kpa is None else noise_kpa
     rising = prefix_isotonic_sse(y, w, increasing=True)
     # suffix_rising[j]: best rising fit of y[j:], computed as a falling fit of the reverse
     suffix_rising = prefix_isotonic_sse(y[::-1], w[::-1], increasing=False)[::-1]
@@ -135,6 +198,6 @@ def fit_rise_fall_rise(y, w) -> ShapeFit:
         branches[2] = [(a + j, b + j, value) for a, b, value in branches[2]]
         peak = max(branches[0][-1][2], branches[1][0][2])
         valley = min(branches[1][-1][2], branches[2][0][2])
-        if peak - valley > DIP_NOISE_FACTOR * noise:
+        if peak - valley > max(DIP_NOISE_FACTOR * noise, min_dip_kpa):
             return ShapeFit(branches, peak - valley, noise)
     return ShapeFit([isotonic_blocks(y, w, increasing=True)], 0.0, noise)

@@ -1,0 +1,162 @@
+"""What a measured table can resolve: its volume spacing, its pressure quantisation step
+and its noise, all estimated from the numbers themselves.
+
+A table written by another tool or read off a rig has a resolution of its own, which the
+model must respect rather than the library's: a curve rounded to 0.01 kPa is a staircase
+whose plateaus are not physical (a flat piece of p(v) has zero stiffness and would make
+folds), a raw 1 kHz log has noise larger than the change of p between rows, so that every
+local extremum but the peak and the valley is spurious. ``TableResolution`` carries the
+three numbers, and ``prominence_kpa`` turns them into the smallest dip (peak minus
+valley) the table can be trusted to show.
+
+- spacing: the median volume step between rows (and the extremes, to call the table
+  uniform or not);
+- step: the largest q such that every pressure difference between rows is a whole
+  multiple of q (a sensor's ADC lattice, offset or not), or, failing that, the
+  decimal to which every pressure was rounded; 0 when the values are full-precision;
+- noise: the robust standard deviation of each row's residual from the cubic through
+  its four neighbours (exact for any cubic trend, so curvature of a sparse table does
+  not count as noise), with the quantisation step's own error included (a staircase
+  sampled finer than its step shows none: its residuals are mostly 0).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# A dip counts only if it stands out of the table's resolution by these factors: a
+# one-step rounding wiggle is one step (two at a row next to a jump), and four noise
+# standard deviations are exceeded by chance once in ~30,000 rows
+STEP_PROMINENCE = 3.0
+NOISE_PROMINENCE = 4.0
+# relative size of float rounding in the pressures (a difference smaller is 0)
+_FLOAT_FLOOR = 1e-12
+_MAX_DECIMALS = 10
+_LATTICE_DIVISORS = 16
+ROUTE_TABULATED = "tabulated"
+ROUTE_FITTED = "fitted"
+
+
+@dataclass(frozen=True)
+class TableResolution:
+    """The resolution of a measured table (see the module docstring)."""
+
+    rows: int
+    spacing_ml: float  # median volume step
+    spacing_min_ml: float
+    spacing_max_ml: float
+    step_kpa: float  # quantisation step; 0 for full-precision values
+    noise_kpa: float  # robust standard deviation of the residuals
+
+    @property
+    def uniform(self) -> bool:
+        """Rows evenly spaced in volume (to 1 %)."""
+        return self.spacing_max_ml <= 1.01 * self.spacing_min_ml
+
+    @property
+    def prominence_kpa(self) -> float:
+        """The smallest peak-to-valley dip this table resolves."""
+        return max(STEP_PROMINENCE * self.step_kpa, NOISE_PROMINENCE * self.noise_kpa)
+
+    @property
+    def quantised(self) -> bool:
+        """The noise is no more than the quantisation's own error: a clean staircase."""
+        return self.noise_kpa <= 0.5 * self.step_kpa
+
+    def describe(self) -> str:
+        spacing = (
+            f"spacing {self.spacing_ml:.4g} mL"
+            if self.uniform
+            else f"spacing {self.spacing_min_ml:.4g}..{self.spacing_max_ml:.4g} mL "
+            f"(median {self.spacing_ml:.4g})"
+        )
+        step = f"step {self.step_kpa:.3g} kPa" if self.step_kpa > 0 else "full-precision values"
+        return f"{self.rows} rows, {spacing}, {step}, noise {self.noise_kpa:.3g} kPa"
+
+
+@dataclass(frozen=True)
+class MeasuredImport:
+    """What was done to a measured table to make its curve: the table's resolution, the
+    route (``ROUTE_TABULATED``: its rows, plateaus collapsed; ``ROUTE_FITTED``: the
+    robust rise-fall-rise fit), whether a peak (and its valley) was kept and how deep
+    its dip is, and the raw rows (for plots)."""
+
+    resolution: TableResolution
+    route: str
+    peak_kept: bool
+    dip_kpa: float
+    notes: tuple[str, ...]
+    raw: np.ndarray  # (rows, 3): volume_ml, pressure_kpa, length_mm as read
+
+
+def resolution_of(v_ml, p_kpa) -> TableResolution:
+    """The spacing, step and noise of the table (v, p): v strictly increasing."""
+    v = np.asarray(v_ml, dtype=float)
+    p = np.asarray(p_kpa, dtype=float)
+    dv = np.diff(v)
+    step = quantisation_step(p)
+    return TableResolution(
+        rows=len(v),
+        spacing_ml=float(np.median(dv)),
+        spacing_min_ml=float(dv.min()),
+        spacing_max_ml=float(dv.max()),
+        step_kpa=step,
+        noise_kpa=residual_noise(v, p),
+    )
+
+
+def quantisation_step(p_kpa) -> float:
+    """The pressure lattice of the table (see the module docstring); 0 if none."""
+    p = np.asarray(p_kpa, dtype=float)
+    scale = max(float(np.max(np.abs(p))), 1.0)
+    floor = _FLOAT_FLOOR * scale
+    d = np.abs(np.diff(p))
+    d = d[d > floor]
+    lattice = 0.0
+    if len(d) >= 8:
+        smallest = float(d.min())
+        for divisor in range(1, _LATTICE_DIVISORS + 1):
+            q = smallest / divisor
+            ratio = d / q
+            whole = np.round(ratio)
+            if np.all(np.abs(ratio - whole) <= 1e-3 + 4 * floor / q):
+                lattice = float(np.median(d / whole))
+                break
+    return max(lattice, _decimal_step(p, floor))
+
+
+def _decimal_step(p: np.ndarray, floor: float) -> float:
+    """10^-d for the fewest decimals d to which every value is rounded; 0 if more than
+    ``_MAX_DECIMALS`` (full precision, as far as a table can tell)."""
+    for decimals in range(_MAX_DECIMALS + 1):
+        q = 10.0**-decimals
+        if q < 1e3 * floor:  # rounding to q would not be told from float rounding
+            break
+        if np.all(np.abs(p - np.round(p / q) * q) <= 4 * floor):
+            return q
+    return 0.0
+
+
+def residual_noise(v_ml, p_kpa) -> float:
+    """Robust standard deviation of the residuals of each row from the cubic through
+    its two neighbours on either side (1.4826 x the median absolute residual, each
+    residual divided by its own noise gain sqrt(1 + sum of the cubic's weights^2))."""
+    v = np.asarray(v_ml, dtype=float)
+    p = np.asarray(p_kpa, dtype=float)
+    if len(v) < 5:
+        return 0.0
+    x = v[2:-2]
+    nodes = [v[:-4], v[1:-3], v[3:-1], v[4:]]
+    values = [p[:-4], p[1:-3], p[3:-1], p[4:]]
+    weights = []
+    for j, xj in enumerate(nodes):
+        w = np.ones_like(x)
+        for m, xm in enumerate(nodes):
+            if m != j:
+                w = w * (x - xm) / (xj - xm)
+        weights.append(w)
+    predicted = sum(w * y for w, y in zip(weights, values, strict=True))
+    gain = np.sqrt(1.0 + sum(w * w for w in weights))
+    return float(1.4826 * np.median(np.abs(p[2:-2] - predicted) / gain))

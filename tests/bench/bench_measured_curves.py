@@ -1,0 +1,98 @@
+"""Benchmark: measured curves from anywhere (issue 12). B42-T24 + B50-T22 (the library's
+snap at 25.600 mL) written as CSV tables at several row counts, quantisation steps and
+noise levels, read back through ``load_csv`` and run through the path: prints the import
+time (CSV parse + resolution + tabulate or fit, both curves), the path time, the route,
+the number of snaps and the snap-volume error against the clean curves (the mean and
+the worst over noise seeds). Asserts nothing.
+
+Run: python tests/bench/bench_measured_curves.py
+"""
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "model"))
+
+from measured_tables import ADC_STEP_KPA, sample_table, write_table
+
+from labrig.model.actuator.equilibria import Actuator
+from labrig.model.actuator.path import quasi_static_path
+from labrig.model.actuator.transitions import transitions
+from labrig.model.segments.library import analytical_segment
+from labrig.model.segments.measured import load_csv
+
+PAIR = ("B42-T24", "B50-T22")
+SEEDS = (0, 10, 20)
+
+
+def one(folder: Path, spacing_ml: float, round_to_kpa, noise_kpa: float, seed: int):
+    paths = []
+    for k, name in enumerate(PAIR):
+        table = sample_table(
+            analytical_segment(name),
+            spacing_ml,
+            round_to_kpa=round_to_kpa,
+            noise_kpa=noise_kpa,
+            seed=seed + k,
+        )
+        paths.append(write_table(table, folder / f"{name}-{seed}.csv"))
+    started = time.perf_counter()
+    curves = [load_csv(p) for p in paths]
+    imported = time.perf_counter() - started
+    started = time.perf_counter()
+    path = quasi_static_path(Actuator(curves))
+    snaps = [t.v_ml for t in transitions(path) if not t.stable]
+    solved = time.perf_counter() - started
+    route = "/".join(c.measured.route[0] for c in curves)
+    rows = curves[1].measured.resolution.rows
+    return rows, route, imported, solved, snaps
+
+
+def row(folder, label, spacing_ml, round_to_kpa, noise_kpa, clean) -> str:
+    seeds = SEEDS if noise_kpa else SEEDS[:1]
+    results = [one(folder, spacing_ml, round_to_kpa, noise_kpa, s) for s in seeds]
+    errors = [abs(r[4][0] - clean) for r in results if len(r[4]) == 1]
+    counts = sorted({len(r[4]) for r in results})
+    error = f"{np.mean(errors):6.3f} {max(errors):6.3f}" if errors else "     -      -"
+    return (
+        f"| {label:<34} | {results[0][0]:>6} | {results[0][1]:<3} | "
+        f"{np.mean([r[2] for r in results]) * 1e3:7.0f} | "
+        f"{np.mean([r[3] for r in results]) * 1e3:6.0f} | "
+        f"{','.join(map(str, counts)):>5} | {error} |"
+    )
+
+
+def main() -> None:
+    clean_curves = [analytical_segment(n) for n in PAIR]
+    (clean,) = [
+        t.v_ml for t in transitions(quasi_static_path(Actuator(clean_curves))) if not t.stable
+    ]
+    v_max = clean_curves[1].v_max_ml
+    print(f"clean snap {clean:.3f} mL; {len(SEEDS)} noise seeds per noisy row")
+    print(
+        "| table (B42-T24 + B50-T22) | rows (B50) | route | import ms | path ms | snaps "
+        "| mean err mL | max err mL |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as scratch:
+        folder = Path(scratch)
+        for rows in (40, 500, 2000, 8000, 50_000):
+            print(row(folder, f"{rows} rows, full precision", v_max / rows, None, 0.0, clean))
+        for rows in (2000, 8000):
+            print(row(folder, f"{rows} rows, 5 decimals", v_max / rows, 1e-5, 0.0, clean))
+        for step in (0.01, ADC_STEP_KPA, 0.1, 0.27, 0.5):
+            print(row(folder, f"8000 rows, step {step:.3g} kPa", v_max / 8000, step, 0.0, clean))
+        print(row(folder, "0.05 mL, step 0.27 kPa", 0.05, 0.27, 0.0, clean))
+        for per_ml in (50, 1000):
+            for noise in (0.05, 0.1, 0.2, 0.3, 0.5):
+                step = ADC_STEP_KPA if per_ml == 1000 else None
+                label = f"{per_ml}/mL, noise {noise} kPa" + (", 14-bit" if step else "")
+                print(row(folder, label, 1.0 / per_ml, step, noise, clean))
+
+
+if __name__ == "__main__":
+    main()
