@@ -3,7 +3,10 @@ snap at 25.600 mL) written as CSV tables at several row counts, quantisation ste
 noise levels, read back through ``load_csv`` and run through the path: prints the import
 time (CSV parse + resolution + tabulate or fit, both curves), the path time, the route,
 the number of snaps and the snap-volume error against the clean curves (the mean and
-the worst over noise seeds). Asserts nothing.
+the worst over noise seeds). Then random synthetic rise-fall-rise pairs, noisy (0.1 or
+0.3 kPa, rows dense enough to average it out, raw, 10-bit-like or 14-bit-like steps):
+how many give the clean curves' snaps, how many a spurious one, how many miss one.
+Asserts nothing.
 
 Run: python tests/bench/bench_measured_curves.py
 """
@@ -17,13 +20,20 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "model"))
 
-from measured_tables import ADC_STEP_KPA, sample_table, write_table
+from measured_tables import (
+    ADC_STEP_KPA,
+    noisy_synthetic_pair,
+    sample_table,
+    snap_volumes,
+    snaps,
+    write_table,
+)
 
 from labrig.model.actuator.equilibria import Actuator
 from labrig.model.actuator.path import quasi_static_path
 from labrig.model.actuator.transitions import transitions
 from labrig.model.segments.library import analytical_segment
-from labrig.model.segments.measured import load_csv
+from labrig.model.segments.measured import curve_from_table, load_csv
 
 PAIR = ("B42-T24", "B50-T22")
 SEEDS = (0, 10, 20)
@@ -94,5 +104,43 @@ def main() -> None:
                 print(row(folder, label, 1.0 / per_ml, step, noise, clean))
 
 
+def synthetic_rates(seeds=(1, 2, 3), cases=40) -> None:
+    counts = {"same": 0, "spurious": 0, "missed": 0}
+    errors = []
+    for seed in seeds:
+        for case in range(cases):
+            try:
+                shapes, noise, spacing, rounding, table_seed = noisy_synthetic_pair(seed, case)
+            except AssertionError:  # equal peaks: not drawn further
+                continue
+            curves = [
+                curve_from_table(
+                    sample_table(
+                        c, spacing, round_to_kpa=rounding, noise_kpa=noise, seed=table_seed + k
+                    ),
+                    name=c.name,
+                    where=c.name,
+                )
+                for k, c in enumerate(shapes)
+            ]
+            clean = [v for v, dp in snaps(shapes) if dp > 0.01]
+            got = snap_volumes(curves)
+            got = [v for k, v in enumerate(got) if k == 0 or v - got[k - 1] > 1e-3]
+            if len(got) > len(clean):
+                counts["spurious"] += 1
+            elif len(got) < len(clean):
+                counts["missed"] += 1
+            else:
+                counts["same"] += 1
+                errors += [abs(a - b) for a, b in zip(clean, got, strict=True)]
+    total = sum(counts.values())
+    print(
+        f"noisy synthetic pairs: {total}; clean snaps {counts['same']}, spurious snap "
+        f"{counts['spurious']}, a snap missed {counts['missed']}; snap volume error rms "
+        f"{np.sqrt(np.mean(np.square(errors))):.3f} mL, max {max(errors):.3f} mL"
+    )
+
+
 if __name__ == "__main__":
     main()
+    synthetic_rates()

@@ -73,5 +73,39 @@ def write_table(table: np.ndarray, path: Path) -> Path:
 
 def snap_volumes(curves) -> list[float]:
     """Volumes of the unstable transitions (snaps) on the inflation path."""
+    return [v for v, _ in snaps(curves)]
+
+
+def snaps(curves) -> list[tuple[float, float]]:
+    """(volume, size of the pressure jump in kPa) of each snap on the inflation path."""
     path = quasi_static_path(Actuator(list(curves)))
-    return [t.v_ml for t in transitions(path) if not t.stable]
+    return [(t.v_ml, abs(t.post.p_kpa - t.pre.p_kpa)) for t in transitions(path) if not t.stable]
+
+
+def noisy_synthetic_pair(seed: int, case: int):
+    """The ``case``-th random noisy pair of the generator seeded ``seed`` (the
+    benchmark's and the regression tests' draws): the clean curves and the table settings."""
+    rng = np.random.default_rng(seed)
+    for k in range(case + 1):
+        shapes = []
+        for name in "AB":
+            peak_v, peak_kpa = rng.uniform(3, 8), rng.uniform(30, 45)
+            dip, valley_after, end_after = (
+                rng.uniform(2, 10),
+                rng.uniform(3, 15),
+                rng.uniform(20, 30),
+            )
+            shapes.append(
+                rise_fall_rise(
+                    name, peak_v, peak_kpa, dip, peak_v + valley_after, peak_v + end_after
+                )
+            )
+        if abs(shapes[0].peak.p_kpa - shapes[1].peak.p_kpa) < 0.4:
+            assert k != case, "a pair with equal peaks (skipped by the benchmark)"
+            continue
+        noise = rng.choice([0.1, 0.3])
+        spacing = max(
+            min(10 ** rng.uniform(np.log10(0.0005), np.log10(0.5)), (0.02 / noise) ** 2), 0.0005
+        )
+        rounding = rng.choice([0, 0.027, 0.27])
+    return shapes, float(noise), float(spacing), float(rounding) or None, 2 * case

@@ -11,13 +11,15 @@ import itertools
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 from measured_tables import (
     ADC_STEP_KPA,
+    noisy_synthetic_pair,
     rise_fall_rise,
     sample_table,
     snap_volumes,
+    snaps,
     write_table,
 )
 
@@ -37,8 +39,8 @@ ROUNDINGS = [None, 1e-6, 1e-5, 1e-3, 0.01, ADC_STEP_KPA, 0.1, 0.27, 0.5]
 
 
 @functools.cache
-def clean_snaps(names: tuple[str, ...]) -> tuple[float, ...]:
-    return tuple(snap_volumes([analytical_segment(n) for n in names]))
+def clean_snaps(names: tuple[str, ...]) -> tuple[tuple[float, float], ...]:
+    return tuple(snaps([analytical_segment(n) for n in names]))
 
 
 def measured(curves, spacing_ml, *, uniform=True, round_to_kpa=None, noise_kpa=0.0, seed=0):
@@ -63,19 +65,37 @@ def dip_kpa(curve) -> float:
     return 0.0 if curve.peak is None else curve.peak.p_kpa - curve.valley.p_kpa
 
 
-def check_same_snaps(clean, got, tolerance_ml: float, resolvable: bool) -> None:
-    """The clean path's snaps, each within the tolerance; where a dip is not resolvable
-    at the table's resolution, fewer snaps may be found but never a spurious one. Two
-    snaps within 1e-3 mL are one (the path reports a snap that ends on a state lost at
-    once as two events at the same volume, to 1e-6 mL)."""
+def check_same_snaps(clean, got, tolerance_ml: float, resolvable: bool, unseen_kpa=0.0) -> None:
+    """``clean``: the clean path's snaps as (volume, pressure jump); ``got``: the volumes
+    of the measured path's. Every snap found is one of the clean ones, within the
+    tolerance (no spurious snap, ever). Every clean snap is found, except where a dip is
+    not resolvable at the table's resolution, and except a snap whose pressure jump is
+    at most ``unseen_kpa`` (the table's step or noise: a jump of 0.001 kPa at a valley,
+    which no table of that resolution shows). Two snaps within 1e-3 mL are one (the path
+    reports a snap that ends on a state lost at once as two events at the same volume,
+    to 1e-6 mL)."""
     got = [v for k, v in enumerate(got) if k == 0 or v - got[k - 1] > 1e-3]
+    unmatched = list(clean)
+    for v in got:
+        nearest = min(unmatched, key=lambda c: abs(c[0] - v), default=None)
+        assert nearest is not None and abs(nearest[0] - v) <= tolerance_ml, (clean, got)
+        unmatched.remove(nearest)
     if resolvable:
-        assert len(got) == len(clean), (clean, got)
-    else:
-        assert len(got) <= len(clean), (clean, got)
-        clean = [min(clean, key=lambda c, v=v: abs(c - v)) for v in got]
-    for want, have in zip(clean, got, strict=True):
-        assert abs(have - want) <= tolerance_ml, (clean, got)
+        assert all(dp <= unseen_kpa for _, dp in unmatched), (clean, got)
+
+
+def widest_spacing(curves) -> float:
+    """The tables' largest gap between rows: the issue's "2 x spacing" for a snap's
+    volume, where rows are not evenly spaced (jittered by up to +-45 %), is the gap the
+    peak may fall into."""
+    return max(c.measured.resolution.spacing_max_ml for c in curves)
+
+
+def unseen(resolution_kpa: float) -> float:
+    """The largest pressure jump of a clean snap that a table of this resolution need
+    not show: its step or noise, and never less than 0.01 kPa (a snap of 0.004 kPa at
+    a valley is below any measurement)."""
+    return max(resolution_kpa, 0.01)
 
 
 # --- the issue's failing tables, kept as regression tests -------------------------------
@@ -202,6 +222,17 @@ def library_actuators():
 spacings = st.floats(np.log10(0.0005), np.log10(0.5)).map(lambda x: 10.0**x)
 
 
+# found by this property with more examples: a sparse table rounded to 0.1 kPa, used
+# as tabulated, had slopes off by up to 70 % on its falling branch (5 snaps for 2); the
+# clean path's snap of 0.004 kPa; a jittered sparse table's peak in a 0.46 mL gap
+@example(names=("B44-T22", "B46-T28", "B42-T30"), spacing_ml=10.0**-0.5, uniform=True,
+         round_to_kpa=0.1, seed=962)  # fmt: skip
+@example(names=("B40-T20", "B42-T20"), spacing_ml=10.0**-2.5, uniform=False,
+         round_to_kpa=0.1, seed=0)  # fmt: skip
+@example(names=("B40-T28", "B50-T28", "B42-T20"), spacing_ml=10.0**-0.5, uniform=False,
+         round_to_kpa=None, seed=0)  # fmt: skip
+@example(names=("B42-T20", "B40-T20"), spacing_ml=10.0**-0.5, uniform=False,
+         round_to_kpa=None, seed=0)  # fmt: skip
 @PROPERTY
 @given(
     names=library_actuators(),
@@ -218,9 +249,9 @@ def test_clean_and_quantised_library_tables_snap_like_the_clean_curves(
     got = snap_volumes(curves)
     step = round_to_kpa or 0.0
     exact = step <= 1e-6
-    tolerance = max(0.05, 2 * spacing_ml) if exact else 0.5
+    tolerance = max(0.05, 2 * widest_spacing(curves)) if exact else 0.5
     resolvable = all(dip_kpa(c) > 10 * step or c.peak is None for c in clean)
-    check_same_snaps(list(clean_snaps(names)), got, tolerance, resolvable)
+    check_same_snaps(clean_snaps(names), got, tolerance, resolvable, unseen_kpa=unseen(step))
 
 
 @PROPERTY
@@ -244,7 +275,9 @@ def test_noisy_library_tables_snap_like_the_clean_curves(
     got = snap_volumes(curves)
     dithered = round_to_kpa is None or noise_kpa >= 0.5 * round_to_kpa
     if noise_kpa * np.sqrt(spacing_ml) <= 0.02 and dithered:
-        check_same_snaps(list(clean_snaps(names)), got, 1.0, resolvable=True)
+        check_same_snaps(
+            clean_snaps(names), got, 1.0, resolvable=True, unseen_kpa=unseen(noise_kpa)
+        )
 
 
 synthetic_shapes = st.fixed_dictionaries(
@@ -288,7 +321,7 @@ def test_random_rise_fall_rise_shapes_snap_like_their_clean_curves(
     assume(abs(a.peak.p_kpa - b.peak.p_kpa) >= 0.4)
     if noise_kpa:  # rows dense enough for the noise to average out (see above)
         spacing_ml = max(min(spacing_ml, (0.02 / noise_kpa) ** 2), 0.0005)
-    clean = snap_volumes([a, b])
+    clean = snaps([a, b])
     curves = measured(
         [a, b],
         spacing_ml,
@@ -300,14 +333,35 @@ def test_random_rise_fall_rise_shapes_snap_like_their_clean_curves(
     got = snap_volumes(curves)
     step = round_to_kpa or 0.0
     if noise_kpa:
-        # noisy synthetic tables: only no exception. Measured on this branch (70 random
-        # cases): 6 still show spurious snaps where the valley's rise is gentle
-        # (docs/model.md §9, open)
+        # noisy synthetic tables: only no exception here. Spurious fold pairs remain in
+        # 4 of 115 random noisy pairs (tests/bench/bench_measured_curves.py; the cases
+        # that had them before the fit's flat-tangent fix are checked below)
         return
     exact = step <= 1e-6
-    tolerance = max(0.05, 2 * spacing_ml) if exact else 0.5
+    tolerance = max(0.05, 2 * widest_spacing(curves)) if exact else 0.5
     resolvable = all(dip_kpa(c) > 10 * max(step, noise_kpa) for c in (a, b))
-    check_same_snaps(clean, got, tolerance, resolvable)
+    check_same_snaps(clean, got, tolerance, resolvable, unseen_kpa=unseen(step))
+
+
+@pytest.mark.parametrize("case", [5, 6, 10, 28, 30, 39])
+def test_noisy_synthetic_pairs_that_had_spurious_snaps(case):
+    """Pairs whose fit took the isotonic blocks (their slopes flicker from bin to bin)
+    because a tangent clamped flat repeated a value, and showed 2 to 16 spurious snaps:
+    now smooth, with the clean snaps."""
+    shapes, noise, spacing, rounding, seed = noisy_synthetic_pair(1, case)
+    curves = measured(shapes, spacing, round_to_kpa=rounding, noise_kpa=noise, seed=seed)
+    assert all(len(c.v_ml) >= 200 for c in curves)  # the smooth fit on the bins, not blocks
+    check_same_snaps(snaps(shapes), snap_volumes(curves), 0.5, resolvable=True, unseen_kpa=0.01)
+
+
+@pytest.mark.xfail(strict=True, reason="a spurious fold pair where the clean path is "
+                   "marginally stable (docs/model.md, measured curves: what is left)")  # fmt: skip
+def test_a_marginal_noisy_library_pair_known_to_show_a_spurious_fold_pair():
+    names = ("B42-T30", "B44-T24")
+    spacing_ml = (0.010472597057400279 / 0.21295878053605966) ** 2
+    clean = [analytical_segment(n) for n in names]
+    curves = measured(clean, spacing_ml, noise_kpa=0.21295878053605966, seed=796)
+    check_same_snaps(clean_snaps(names), snap_volumes(curves), 1.0, resolvable=True)
 
 
 # --- scans of measured libraries -----------------------------------------------------------

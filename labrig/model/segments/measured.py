@@ -55,6 +55,7 @@ OFFSET_BINS = 4  # bins through which the zero at v = 0 of a fitted curve is fou
 P_END_KPA = 300.0
 MIN_END_SLOPE_KPA_PER_ML = 1.0
 EXTENSION_SAMPLES = 8
+ROUNDING_SLOPE_FACTOR = 10.0  # slopes between rows known to 10 % (median)
 # Bore of the paper's latex tube: the enclosed volume at p = 0 is estimated as
 # pi R^2 l(0) when the caller does not know it (it only enters normalisations).
 TUBE_RADIUS_MM = 6.35
@@ -127,6 +128,25 @@ def _has_segment_shape(v, p, min_dip_kpa: float = 0.0) -> bool:
     return peak - valley > min_dip_kpa and p[-1] - valley > min_dip_kpa
 
 
+def rounding_resolves_slopes(v, p, step_kpa: float, spacing_ml: float) -> bool:
+    """Whether a table rounded to ``step_kpa`` (rows ``spacing_ml`` apart, plateaus
+    already collapsed to their centres) still tells the slope of its falling branch,
+    where an actuator's folds are decided (its slopes, -0.3 to -0.6 kPa/mL for the
+    library, are compared with the other segments'). Between two rows the slope is off
+    by about step / dp where each row is its own value (rounding moves p), or by
+    spacing / dv where rows are centres of plateaus (the centre moves v): the smaller
+    of the two, whose median over the branch must be at most 1 / ROUNDING_SLOPE_FACTOR.
+    A sparse table rounded to 0.1 kPa changes by about one step per row there, its
+    slopes off by up to 70 %: it is fitted; a dense staircase's plateau centres are
+    exact to a row in tens."""
+    bounds = SegmentCurve("raw", v, p, np.ones_like(v), V0_ml=1.0).branch_bounds
+    if step_kpa <= 0 or len(bounds) < 3:
+        return True
+    a, b = bounds[1]
+    error = np.minimum(step_kpa / np.abs(np.diff(p[a : b + 1])), spacing_ml / np.diff(v[a : b + 1]))
+    return float(np.median(error)) <= 1.0 / ROUNDING_SLOPE_FACTOR
+
+
 def collapse_plateaus(v, p, length):
     """Each run of rows with equal pressure (a quantised table's plateau) as one row at
     the run's centre, where a rounded monotone curve has the plateau's value; the first
@@ -181,7 +201,12 @@ def _fit_noisy(v, p, length, resolution: TableResolution):
     smooth = _smooth_parts(v_bin, p_bin, weights, branch_starts, sigma)
     if smooth is not None:
         values = keep_steep_means(p_bin, smooth, steep)
-        if monotone_pieces(values) == len(fit.branches):
+        # a spline smooth enough for the shape can still miss the data (a flat start
+        # before a stiff end: by 20 kPa); then the blocks, which follow it, are the fit
+        follows = np.all(np.abs(values - p_bin) <= FOLLOW_SIGMAS * sigma)
+        # a tangent clamped flat repeats a value: a plateau the caller collapses, no piece
+        distinct = values[np.r_[True, np.diff(values) != 0]]
+        if monotone_pieces(distinct) == len(fit.branches) and follows:
             return v_bin, values, l_bin, offset
     blocks = [block for branch in fit.branches for block in branch]
     v_fit = np.array([np.average(v_bin[a:b], weights=counts[a:b]) for a, b, _ in blocks])
@@ -330,7 +355,11 @@ def curve_from_table(
     resolution = resolution_of(v, p)
     notes = [resolution.describe()]
     v_c, p_c, l_c, merged = collapse_plateaus(v, p, length)
-    if len(v_c) >= 4 and _has_segment_shape(v_c, p_c, resolution.prominence_kpa):
+    if (
+        len(v_c) >= 4
+        and _has_segment_shape(v_c, p_c, resolution.prominence_kpa)
+        and rounding_resolves_slopes(v_c, p_c, resolution.step_kpa, resolution.spacing_ml)
+    ):
         route = ROUTE_TABULATED
         v, p, length = v_c, p_c, l_c
         notes.append("used as tabulated")
@@ -353,6 +382,11 @@ def curve_from_table(
         offset = p[0] - (p[1] - p[0]) / (v[1] - v[0]) * v[0]
     p = p - offset
     if v[0] > 0:
+        # the zero row starts the curve; fitted samples at or below it (the first bins'
+        # noise against the offset's quadratic) would make the curve fall first, a fold
+        # at v = 0. The first branch rises: those samples are a prefix
+        first = int(np.argmax(p > 0))
+        v, p, length = v[first:], p[first:], length[first:]
         v, p, length = np.r_[0.0, v], np.r_[0.0, p], np.r_[length[0], length]
     if offset != 0:
         notes.append(f"offset {offset:+.3f} kPa removed")
