@@ -132,12 +132,13 @@ def test_quantised_tables_give_the_librarys_snap(spacing_ml, round_to_kpa):
     assert snap == pytest.approx(25.600, abs=0.5)
 
 
-# What the fit reaches on this pair (measured on this branch over four noise seeds):
-# exactly the one snap (no spurious one, none missed, the issue's complaint), at 1,000
-# rows/mL within 0.19 mL of the clean 25.6 mL, at 50 rows/mL within 0.47 mL (0.2 kPa)
-# and 0.68 mL (0.3 kPa): there B50-T22's falling branch (-0.5 kPa/mL) turns every 0.1
-# kPa of error in B42-T24's fitted valley into 0.2 mL (docs/model.md)
-NOISY_TOLERANCE_ML = {50: 0.75, 1000: 0.5}
+# What the fit reaches on this pair (measured over ten noise seeds): exactly the one
+# snap (no spurious one, none missed, the issue's complaint), within 0.46 mL of the
+# clean 25.6 mL at 50 rows/mL and 0.3 kPa (rms 0.23 mL), 0.40 mL at 0.2 kPa, 0.19 mL
+# at 1,000 rows/mL. B50-T22's falling branch (-0.5 kPa/mL) turns every 0.1 kPa of
+# error in B42-T24's fitted valley into 0.2 mL (docs/model.md); the offset at v = 0
+# is removed only where it stands out of its own uncertainty, which halved these errors
+NOISY_TOLERANCE_ML = {50: 0.5, 1000: 0.5}
 
 
 @pytest.mark.parametrize(

@@ -52,6 +52,7 @@ STEEP_WEIGHT_GAIN = 100.0
 FOLLOW_SIGMAS = 6.0  # how far a joined peak may stray from the bins' means
 JOIN_BINS = 5  # bins a rising branch may give to the falling one next to it
 OFFSET_BINS = 4  # bins through which the zero at v = 0 of a fitted curve is found
+OFFSET_SIGMAS = 3.0  # an offset is removed when it stands out of its uncertainty so far
 P_END_KPA = 300.0
 MIN_END_SLOPE_KPA_PER_ML = 1.0
 EXTENSION_SAMPLES = 8
@@ -174,7 +175,7 @@ def _fit_noisy(v, p, length, resolution: TableResolution):
     (by 0.2 kPa for B42-T24 at 0.25 kPa noise, and an actuator's snap moves with it).
     Each part is the least-smoothed spline of its shape (``smooth_with_shape``), with
     the bins' own means kept where the curve is steep; if no smoothing gives the shape,
-    the isotonic fit's block centres. The offset at v = 0 is the quadratic through the
+    the isotonic fit's block centres. The offset at v = 0 is ``zero_offset`` of the
     first bins' means (the smoothed values there are the least certain)."""
     v_bin, (p_bin, l_bin), counts = binned_trimmed_means(v, [p, length], min(MAX_BINS, len(v)))
     min_dip = STEP_PROMINENCE * resolution.step_kpa
@@ -183,8 +184,6 @@ def _fit_noisy(v, p, length, resolution: TableResolution):
         valley = min(fit.branches[1][-1][2], fit.branches[2][0][2])
         if fit.branches[2][-1][2] - valley <= max(DIP_NOISE_FACTOR * fit.noise_kpa, min_dip):
             return None
-    first = min(OFFSET_BINS, len(v_bin))
-    offset = float(np.polyval(np.polyfit(v_bin[:first], p_bin[:first], 2, w=counts[:first]), 0))
     steep = steep_weight(p_bin, fit.noise_kpa)
     # the noise of each bin's mean: the rows' noise over the square root of the bin's
     # rows; with less noise than quantisation step the rounding errors of neighbouring
@@ -195,6 +194,7 @@ def _fit_noisy(v, p, length, resolution: TableResolution):
         / np.sqrt(12)
         / np.sqrt(counts if resolution.noise_kpa >= resolution.step_kpa else 1),
     )
+    offset = zero_offset(v_bin[:OFFSET_BINS], p_bin[:OFFSET_BINS], sigma[:OFFSET_BINS])
     branch_starts = [branch[0][0] for branch in fit.branches]
     # steep bins weigh more: the spline follows them there and smooths the flat rest
     weights = counts * (1.0 + STEEP_WEIGHT_GAIN * steep)
@@ -212,6 +212,21 @@ def _fit_noisy(v, p, length, resolution: TableResolution):
     v_fit = np.array([np.average(v_bin[a:b], weights=counts[a:b]) for a, b, _ in blocks])
     p_fit = np.array([value for _, _, value in blocks])
     return v_fit, p_fit, np.interp(v_fit, v_bin, l_bin), offset
+
+
+def zero_offset(v, p, sigma) -> float:
+    """The sensor's offset: the quadratic through the first bins' means (``sigma``
+    their standard errors) at v = 0, or 0 where it does not stand out of its own
+    uncertainty (``OFFSET_SIGMAS``). Extrapolated from a few noisy bins it is uncertain
+    by 2-3 bins' errors (0.3 kPa at 50 rows/mL and 0.3 kPa noise), and removing it
+    would shift the whole curve, peak and valley, by that much: an actuator's snap
+    moves by 0.2 mL per 0.1 kPa of a library valley. A real offset (the MPX5100's is
+    up to 2.5 kPa) stands out and is removed."""
+    if len(v) < 3:
+        return 0.0
+    coefficients, cov = np.polyfit(v, p, 2, w=1.0 / np.asarray(sigma), cov="unscaled")
+    offset = float(coefficients[-1])
+    return offset if abs(offset) > OFFSET_SIGMAS * math.sqrt(cov[-1, -1]) else 0.0
 
 
 def _smooth_parts(v, p, weights, branch_starts: list[int], sigma) -> np.ndarray | None:
