@@ -110,7 +110,11 @@ GOOD_ROWS = [f"{0.1 * k:.1f},{2.0 * k:.1f},20.0" for k in range(12)]
         (HEADER + "\n" + "\n".join([*GOOD_ROWS[:3], "0.3,abc,20"]), "line 5, column pressure_kpa"),
         (HEADER + "\n" + "\n".join([*GOOD_ROWS[:3], "0.3,nan,20"]), "not a finite number"),
         (HEADER + "\n" + "\n".join([*GOOD_ROWS[:3], "0.3,1,20,4"]), "line 5: expected 3 values"),
-        (HEADER + "\n" + "\n".join([*GOOD_ROWS[:3], "0.2,6,20"]), "line 5: volume_ml 0.2 does not"),
+        (HEADER + "\n" + "\n".join([*GOOD_ROWS[:3], "0.1,6,20"]), "line 5: volume_ml 0.1 does not"),
+        (
+            HEADER + "\n" + "\n".join(f"{k // 2 * 0.1:.1f},{k},20" for k in range(12)),
+            "6 distinct volumes; a curve needs at least 10",
+        ),
         (HEADER + "\n3.0,0,20\n" + "\n".join(GOOD_ROWS[4:]), "first volume_ml must be"),
         (HEADER + "\n" + "\n".join([*GOOD_ROWS[:3], "0.3,6,-1"]), "column length_mm: must be > 0"),
     ],
@@ -121,6 +125,21 @@ def test_bad_files_are_refused_with_one_line(tmp_path, text, message):
     with pytest.raises(InputError, match=message) as info:
         load_csv(path)
     assert str(info.value).startswith(str(path)) and "\n" not in str(info.value)
+
+
+def test_rows_at_a_repeated_volume_are_averaged(tmp_path):
+    """A 1 kHz-like log whose volume was written to two decimals: each volume ten times,
+    the pressures of one volume averaged into one row (their mean, checked here)."""
+    clean = analytical_segment("B46-T22")
+    v = np.round(np.arange(0.0, clean.v_max_ml, 0.001), 2)
+    rng = np.random.default_rng(7)
+    p = clean.pressure_kpa(v) + rng.normal(0.0, 0.3, len(v))
+    table = np.column_stack([v, p, clean.length_mm(v)])
+    curve = load_csv(write_table(tmp_path / "run.csv", table, fmt="%.2f"))
+    assert "rows at a repeated volume averaged" in curve.source
+    assert len(curve.branch_bounds) == 3
+    assert curve.valley.p_kpa == pytest.approx(clean.valley.p_kpa, abs=0.25)
+    assert curve.peak.v_ml == pytest.approx(clean.peak.v_ml, abs=0.6)
 
 
 def test_missing_file_is_an_input_error(tmp_path):

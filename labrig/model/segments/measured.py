@@ -103,10 +103,11 @@ def read_csv_table(path: Path) -> np.ndarray:
                 f"{where}: line {line}: the first volume_ml must be the unpressurised state "
                 f"(0 to {MAX_FIRST_VOLUME_ML} mL), got {values[0, 0]:g}"
             )
-        if k > 0 and values[k, 0] <= values[k - 1, 0]:
+        if k > 0 and values[k, 0] < values[k - 1, 0]:
             raise InputError(
                 f"{where}: line {line}: volume_ml {values[k, 0]:g} does not increase "
-                f"(previous row {values[k - 1, 0]:g}); rows must be in order of supplied volume"
+                f"(previous row {values[k - 1, 0]:g}); rows must be in order of supplied "
+                "volume (rows at one volume, written to few decimals, are averaged)"
             )
         if values[k, 2] <= 0:
             raise InputError(
@@ -129,23 +130,44 @@ def _has_segment_shape(v, p, min_dip_kpa: float = 0.0) -> bool:
     return peak - valley > min_dip_kpa and p[-1] - valley > min_dip_kpa
 
 
-def rounding_resolves_slopes(v, p, step_kpa: float, spacing_ml: float) -> bool:
-    """Whether a table rounded to ``step_kpa`` (rows ``spacing_ml`` apart, plateaus
-    already collapsed to their centres) still tells the slope of its falling branch,
-    where an actuator's folds are decided (its slopes, -0.3 to -0.6 kPa/mL for the
-    library, are compared with the other segments'). Between two rows the slope is off
-    by about step / dp where each row is its own value (rounding moves p), or by
-    spacing / dv where rows are centres of plateaus (the centre moves v): the smaller
-    of the two, whose median over the branch must be at most 1 / ROUNDING_SLOPE_FACTOR.
-    A sparse table rounded to 0.1 kPa changes by about one step per row there, its
-    slopes off by up to 70 %: it is fitted; a dense staircase's plateau centres are
-    exact to a row in tens."""
+def slopes_resolved(v, p, resolution: TableResolution) -> bool:
+    """Whether a rounded table's rows (plateaus already collapsed to their centres)
+    still tell the slope of its falling branch, where an actuator's folds are decided
+    (its slopes, -0.3 to -0.6 kPa/mL for the library, are compared with the other
+    segments'). Each row's pressure is uncertain by its step or its noise, whichever is
+    larger (rows averaged at a repeated volume are off the lattice by more than its
+    step). Between two rows the slope is off by about that over dp where each row is
+    its own value, or by spacing / dv where rows are centres of plateaus (the centre
+    moves v): the smaller of the two, whose median over the branch must be at most
+    1 / ROUNDING_SLOPE_FACTOR. A sparse table rounded to 0.1 kPa changes by about one
+    step per row there, its slopes off by up to 70 %: it is fitted; a dense staircase's
+    plateau centres are exact to a row in tens. Full-precision values are not rounded:
+    their noise estimate is the interpolation's own residual (7e-5 kPa at a library
+    curve's 0.007 kPa dip), and a noisy table is fitted for its dips anyway."""
     bounds = SegmentCurve("raw", v, p, np.ones_like(v), V0_ml=1.0).branch_bounds
-    if step_kpa <= 0 or len(bounds) < 3:
+    if resolution.step_kpa <= 0 or len(bounds) < 3:
         return True
+    error_kpa = max(resolution.step_kpa, resolution.noise_kpa)
     a, b = bounds[1]
-    error = np.minimum(step_kpa / np.abs(np.diff(p[a : b + 1])), spacing_ml / np.diff(v[a : b + 1]))
+    dv, dp = np.diff(v[a : b + 1]), np.abs(np.diff(p[a : b + 1]))
+    error = np.minimum(error_kpa / dp, resolution.spacing_ml / dv)
     return float(np.median(error)) <= 1.0 / ROUNDING_SLOPE_FACTOR
+
+
+def average_repeated_volumes(v, p, length):
+    """Rows at one volume as one row, their mean: a log at 1,000 rows/mL whose volume
+    was written to two decimals repeats each volume ten times. Returns (v, p, l, rows
+    averaged away)."""
+    starts = np.flatnonzero(np.r_[True, np.diff(v) > 0])
+    if len(starts) == len(v):
+        return v, p, length, 0
+    counts = np.diff(np.r_[starts, len(v)])
+    return (
+        v[starts],
+        np.add.reduceat(p, starts) / counts,
+        np.add.reduceat(length, starts) / counts,
+        len(v) - len(starts),
+    )
 
 
 def collapse_plateaus(v, p, length):
@@ -361,19 +383,29 @@ def curve_from_table(
     table: np.ndarray, *, name: str, where: str, V0_ml: float | None = None
 ) -> SegmentCurve:
     """The one route from a valid table (rows of volume_ml, pressure_kpa, length_mm,
-    volume strictly increasing) to a ``SegmentCurve``: used as tabulated when it is
-    clean at its own resolution (only plateaus of equal values, which are collapsed,
-    and no dip smaller than ``TableResolution.prominence_kpa``), else fitted. ``where``
+    volume increasing; rows at a repeated volume are averaged) to a ``SegmentCurve``:
+    used as tabulated when it is clean at its own resolution (only plateaus of equal
+    values, which are collapsed, no dip smaller than ``TableResolution.prominence_kpa``
+    and slopes the rounding does not hide), else fitted. ``where``
     names the data's origin in errors and in the curve's source."""
     raw = np.array(table, dtype=float)
-    v, p, length = raw.T
+    v, p, length, repeated = average_repeated_volumes(*raw.T)
+    if len(v) < MIN_ROWS:
+        raise InputError(
+            f"{where}: {len(v)} distinct volumes; a curve needs at least {MIN_ROWS} "
+            "(write volume_ml with more decimals)"
+        )
     resolution = resolution_of(v, p)
     notes = [resolution.describe()]
+    if repeated:
+        notes.append(f"{repeated} rows at a repeated volume averaged")
     v_c, p_c, l_c, merged = collapse_plateaus(v, p, length)
+    # rows at a repeated volume mark a raw acquisition log, not a curve: always fitted
     if (
-        len(v_c) >= 4
+        not repeated
+        and len(v_c) >= 4
         and _has_segment_shape(v_c, p_c, resolution.prominence_kpa)
-        and rounding_resolves_slopes(v_c, p_c, resolution.step_kpa, resolution.spacing_ml)
+        and slopes_resolved(v_c, p_c, resolution)
     ):
         route = ROUTE_TABULATED
         v, p, length = v_c, p_c, l_c

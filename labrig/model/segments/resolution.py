@@ -35,6 +35,7 @@ NOISE_PROMINENCE = 4.0
 _FLOAT_FLOOR = 1e-12
 _MAX_DECIMALS = 10
 _LATTICE_DIVISORS = 16
+_LATTICE_OVER_DECIMALS = 10  # a lattice must be this much coarser than the decimals
 ROUTE_TABULATED = "tabulated"
 ROUTE_FITTED = "fitted"
 
@@ -108,23 +109,33 @@ def resolution_of(v_ml, p_kpa) -> TableResolution:
 
 
 def quantisation_step(p_kpa) -> float:
-    """The pressure lattice of the table (see the module docstring); 0 if none."""
+    """The pressure lattice of the table (see the module docstring); 0 if none. The
+    lattice is found through the decimals the values were written with: an ADC's counts
+    printed to 5 decimals are multiples of 0.0271 kPa only to within 1e-5 kPa."""
     p = np.asarray(p_kpa, dtype=float)
     scale = max(float(np.max(np.abs(p))), 1.0)
     floor = _FLOAT_FLOOR * scale
+    decimal = _decimal_step(p, floor)
     d = np.abs(np.diff(p))
-    d = d[d > floor]
+    d = d[d > max(floor, 0.5 * decimal)]
     lattice = 0.0
     if len(d) >= 8:
         smallest = float(d.min())
+        written = decimal + 4 * floor  # how far a difference may be off its multiple
         for divisor in range(1, _LATTICE_DIVISORS + 1):
             q = smallest / divisor
+            if decimal and q <= _LATTICE_OVER_DECIMALS * decimal:
+                break  # a lattice not coarser than the decimals is the decimals
+            # refine q on the small differences (the smallest one carries the decimals'
+            # rounding), then test every difference against it
+            small = d <= 20 * q
+            q = float(np.sum(d[small]) / np.sum(np.round(d[small] / q)))
             ratio = d / q
             whole = np.round(ratio)
-            if np.all(np.abs(ratio - whole) <= 1e-3 + 4 * floor / q):
+            if np.all(np.abs(ratio - whole) <= 1e-3 + written / q):
                 lattice = float(np.median(d / whole))
                 break
-    return max(lattice, _decimal_step(p, floor))
+    return max(lattice, decimal)
 
 
 def _decimal_step(p: np.ndarray, floor: float) -> float:
