@@ -70,7 +70,8 @@ def test_a_failing_actuator_folds_on_a_pair_of_folds_below_the_flows_resolution(
     actuator = Actuator([analytical_segment(n) for n in names])
     with pytest.raises(FlowError, match="no state to snap to from the fold") as failed:
         quasi_static_path(actuator)
-    v_failed_ml = float(re.search(r"v = ([0-9.]+) mL", str(failed.value)).group(1))
+    # the one-line PathError quotes the flow's own message, with the fold's volume
+    v_failed_ml = float(re.search(r"fold at v = ([0-9.]+) mL", str(failed.value)).group(1))
 
     p = p_near_kpa + np.linspace(-window_kpa, window_kpa, 4001)
     v, inverse_sum = _along(actuator, branches, p)
