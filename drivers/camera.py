@@ -6,7 +6,11 @@ from them: the labrig LengthSource.
 driver buffers (V4L2: 4) and ``read()`` hands back the oldest, so a program that reads
 more slowly than the camera streams gets frames up to 4 periods old. ``FrameSource``
 therefore reads every frame in a reader thread (started through the shared clock) and
-keeps only the latest; ``read()`` returns the newest frame not yet returned.
+keeps only the latest; ``read()`` returns the newest frame not yet returned. Given a
+``measure`` function, the reader applies it to every frame as it comes and keeps every
+result for ``take_measured()``: a run's camera loop then wakes a few times a second for
+a batch instead of once per frame, and on the simulated rig's virtual clock the reader
+goes from frame to frame without handing time to another thread in between.
 
 What a frame's time is, per backend (``stamp``):
 - V4L2 (Linux): ``CAP_PROP_POS_MSEC`` is the buffer's capture time that the kernel
@@ -34,6 +38,7 @@ from __future__ import annotations
 
 import re
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -44,7 +49,7 @@ import numpy as np
 from labrig.clock import Clock, ClockThread
 from labrig.devices import LengthSample
 from labrig.drivers.markers import MarkerTracker, mm_per_px_from_reference
-from labrig.errors import DeviceError, InputError
+from labrig.errors import DeviceError, InputError, LabrigError
 
 DEVICE_PATH = re.compile(r"^/dev/video\d+$")
 # V4L2 exposure modes as OpenCV passes them (CAP_PROP_AUTO_EXPOSURE)
@@ -81,6 +86,9 @@ class FrameSource:
 
     ``stamp="capture"``: the capture's ``CAP_PROP_POS_MSEC`` is the capture time on the
     shared clock (V4L2, SimCamera); ``"host"``: the clock read when the grab returns.
+
+    ``measure``: applied to every frame in the reader thread (live sources only); its
+    results are taken with ``take_measured()``, and ``read()`` is not used then.
     """
 
     def __init__(
@@ -107,6 +115,9 @@ class FrameSource:
         self._stopping = False
         self._reader: ClockThread | None = None
         self._last_read_s = float("-inf")
+        self._last_grab_s = float("-inf")
+        self.measure: Callable[[Frame], Any] | None = None
+        self._measured: list[Any] = []
 
     @classmethod
     def open(
@@ -201,11 +212,7 @@ class FrameSource:
         the newest frame not returned before, waiting on the clock for one."""
         if self.clock is None:
             return self._read_file()
-        self._last_read_s = self.clock.now()
-        if self._reader is None or self._reader.done:
-            self._reader = self.clock.start_thread(self._read_frames, f"{self.name} reader")
-        fps = float(self.capture.get(cv2.CAP_PROP_FPS) or 0.0)
-        timeout_s = max(FRAME_TIMEOUT_S, 3.0 / fps) if fps > 0 else FRAME_TIMEOUT_S
+        timeout_s = self._start_reading()
         while True:
             grabbed = self.n_grabbed
             self.clock.wait_for(
@@ -223,12 +230,44 @@ class FrameSource:
             if self.n_grabbed == grabbed:  # not even a warm-up frame came meanwhile
                 raise DeviceError(f"{self.name} sent no frame for {timeout_s:g} s")
 
+    def take_measured(self) -> list[Any]:
+        """What ``measure`` made of every frame since the last call, oldest first (an
+        empty list when no new frame came); never waits. Raises what stopped the reader,
+        or a DeviceError when the camera sent nothing, not even a warm-up frame, for the
+        frame timeout."""
+        if self.clock is None or self.measure is None:
+            raise RuntimeError("take_measured: a live source with a measure function only")
+        timeout_s = self._start_reading()
+        with self._lock:
+            measured, self._measured = self._measured, []
+            error = self._error
+        if measured:
+            return measured
+        if error is not None:
+            raise error
+        if self.clock.now() - self._last_grab_s > timeout_s:
+            raise DeviceError(f"{self.name} sent no frame for {timeout_s:g} s")
+        return []
+
+    def _start_reading(self) -> float:
+        """(Re)start the reader if it is not running; the frame timeout (clock s)."""
+        now_s = self.clock.now()
+        self._last_read_s = now_s
+        if self._reader is None or self._reader.done:
+            self._last_grab_s = now_s
+            self._reader = self.clock.start_thread(self._read_frames, f"{self.name} reader")
+        fps = float(self.capture.get(cv2.CAP_PROP_FPS) or 0.0)
+        return max(FRAME_TIMEOUT_S, 3.0 / fps) if fps > 0 else FRAME_TIMEOUT_S
+
     def _read_frames(self) -> None:
         """The reader thread: every frame the camera streams, the latest kept. Whatever
         ends it early is kept for ``read()`` to raise: a reader that died quietly would
         look like a camera that stopped sending."""
         try:
             self._read_every_frame()
+        except LabrigError as exc:  # a measurement's own one-line error (a calibration)
+            with self._lock:
+                self._error = exc
         except Exception as exc:
             with self._lock:
                 self._error = DeviceError(f"{self.name} reader failed: {exc!r}")
@@ -244,14 +283,22 @@ class FrameSource:
                     )
                 return
             self.n_grabbed += 1
+            self._last_grab_s = t_host_s
             if self.n_grabbed <= self.warmup_frames:
                 continue  # the exposure is still settling
             t_s = t_host_s
             if self.stamp == "capture":
                 t_capture_s = self.capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
                 t_s = t_capture_s if t_capture_s > 0 else t_host_s
+            frame = Frame(t_s=t_s, image=image)
+            if self.measure is not None:
+                result = self.measure(frame)
+                with self._lock:
+                    self._measured.append(result)
+                    self.n_frames += 1
+                continue
             with self._lock:
-                self._latest = Frame(t_s=t_s, image=image)
+                self._latest = frame
                 self._latest_seq += 1
 
     def _read_file(self) -> Frame | None:
@@ -303,8 +350,16 @@ class CameraLength:
 
     def read(self) -> LengthSample | None:
         frame = self.frames.read()
-        if frame is None:
-            return None
+        return None if frame is None else self._measure(frame)
+
+    def read_new(self) -> list[LengthSample]:
+        """Every frame of a live camera since the last call, measured in its reader
+        thread as it came (the first call starts that); never waits."""
+        if self.frames.measure is None:
+            self.frames.measure = self._measure
+        return self.frames.take_measured()
+
+    def _measure(self, frame: Frame) -> LengthSample:
         fix = self.tracker.track(frame.image)
         if self.mm_per_px is None:
             # The first frame is the reference frame.

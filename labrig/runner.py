@@ -30,7 +30,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from labrig.clock import Clock, ClockThread
-from labrig.devices import LengthSource, PressureBlock, PressureSource, Pump, PumpState
+from labrig.devices import (
+    LengthSample,
+    LengthSource,
+    PressureBlock,
+    PressureSource,
+    Pump,
+    PumpState,
+)
 from labrig.errors import LabrigError
 from labrig.interlocks import InterlockMonitor, PressureCeiling, PumpStall, VolumeCeiling
 from labrig.protocol import (
@@ -90,6 +97,9 @@ class Timing:
 
     pressure_period_s: float = 0.2
     pump_period_s: float = 0.2
+    # a live camera's frames are measured as they come (its reader thread) and recorded
+    # in batches this often
+    camera_period_s: float = 0.2
     progress_period_s: float = 0.5
     max_marker_loss_s: float = 10.0
     target_grace_s: float = 5.0
@@ -388,12 +398,18 @@ class Runner:
         )
 
     def _camera_loop(self) -> None:
-        # a live camera's read waits for its next frame: no period of its own, so every
-        # frame it streams (at the protocol's camera_fps) is tracked; a video file
-        # standing in for the camera is read at camera_fps
-        waits = getattr(self.rig.length, "waits_for_frames", False)
-        period_s = None if waits else 1.0 / self.protocol.acquisition.camera_fps
-        self._device_loop("camera", period_s, self._read_length)
+        # a live camera's reader thread measures every frame it streams (at the
+        # protocol's camera_fps) and the loop records them in batches; a video file
+        # standing in for the camera is read and measured at camera_fps
+        if getattr(self.rig.length, "waits_for_frames", False):
+            since_s = self.clock.now()
+            self._device_loop(
+                "camera", self.timing.camera_period_s, lambda: self._read_lengths(since_s)
+            )
+        else:
+            self._device_loop(
+                "camera", 1.0 / self.protocol.acquisition.camera_fps, self._read_length
+            )
 
     def _device_loop(
         self,
@@ -466,8 +482,18 @@ class Runner:
 
     def _read_length(self) -> None:
         sample = self.rig.length.read()
-        if sample is None or self._stop_loops.is_set():
-            return  # a frame that came after the loops were told to stop is not recorded
+        if sample is not None and not self._stop_loops.is_set():
+            # a frame that came after the loops were told to stop is not recorded
+            self._record_length(sample)
+
+    def _read_lengths(self, since_s: float) -> None:
+        """Record the frames measured since the last batch; frames from before this
+        loop started (the camera streams on while acquisition pauses) are not."""
+        for sample in self.rig.length.read_new():
+            if sample.t_s >= since_s:
+                self._record_length(sample)
+
+    def _record_length(self, sample: LengthSample) -> None:
         self.writer.append_length(
             self._current_repetition(),
             sample.t_s,
