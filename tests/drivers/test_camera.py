@@ -131,21 +131,11 @@ def test_every_frame_is_measured_in_the_reader_and_taken_in_batches():
         frames.close()
 
 
-def test_a_batched_camera_raises_what_stopped_its_reader():
+def test_a_batched_camera_that_is_unplugged_is_a_device_error():
     clock = VirtualClock()
     # the test takes part in the clock's time: the camera streams only while it waits
     with clock.participate():
-        scene = dict(size=(640, 360), mm_per_px=MM_PER_PX, fps=30.0)
-        cam = SimCamera(clock, lambda t: 35.0, **scene)
-        frames = FrameSource.live(cam, clock, "simulated camera", warmup_frames=0)
-        frames.configure(CameraSettings(width=640, height=360))
-        length = CameraLength(frames, reference_distance_mm=35.0)
-        length.read_new()
-        clock.sleep(0.2)
-        # the dark first frame: the calibration's own error, not a wrapped one
-        with pytest.raises(InputError, match="reference frame: both markers must be visible"):
-            length.read_new()
-        cam = SimCamera(clock, lambda t: 35.0, **scene)
+        cam = SimCamera(clock, lambda t: 35.0, size=(640, 360), mm_per_px=MM_PER_PX, fps=30.0)
         length = CameraLength(live_source(clock, cam, width=640, height=360), mm_per_px=MM_PER_PX)
         length.read_new()
         clock.sleep(0.5)
@@ -173,7 +163,18 @@ def test_a_size_rate_or_exposure_the_camera_cannot_do_is_refused_in_one_line():
         assert np.asarray(frames.read().image).shape == (720, 1280, 3)
 
 
-def test_a_dark_first_frame_fails_the_reference_calibration_unless_dropped():
+def first_sample(length, clock, batched):
+    """One frame read and measured (``batched``: in the reader thread, as a run does)."""
+    if not batched:
+        return length.read()
+    length.read_new()
+    clock.sleep(0.2)
+    return length.read_new()[0]
+
+
+@pytest.mark.parametrize("batched", [False, True])
+def test_a_dark_first_frame_fails_the_reference_calibration_unless_dropped(batched):
+    # batched: the calibration's own one-line error comes through the reader thread
     clock = VirtualClock()
     # the test takes part in the clock's time: the camera streams only while it waits
     with clock.participate():
@@ -182,12 +183,13 @@ def test_a_dark_first_frame_fails_the_reference_calibration_unless_dropped():
         frames = FrameSource.live(cam, clock, "simulated camera", warmup_frames=0)
         frames.configure(CameraSettings(width=640, height=360))
         with pytest.raises(InputError, match="reference frame: both markers must be visible"):
-            CameraLength(frames, reference_distance_mm=35.0).read()
+            first_sample(CameraLength(frames, reference_distance_mm=35.0), clock, batched)
         cam = SimCamera(clock, lambda t: 35.0, **scene)
         length = CameraLength(
             live_source(clock, cam, width=640, height=360), reference_distance_mm=35.0
         )
-        assert length.read().ok and length.mm_per_px == pytest.approx(MM_PER_PX, rel=1e-3)
+        assert first_sample(length, clock, batched).ok
+        assert length.mm_per_px == pytest.approx(MM_PER_PX, rel=1e-3)
 
 
 def test_other_backends_are_stamped_when_the_grab_returns():
