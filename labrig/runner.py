@@ -22,6 +22,7 @@ volume it reports.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import signal
 import threading
@@ -152,6 +153,7 @@ class Runner:
         self._repetition = 1
         self._volume_lock = threading.Lock()
         self._stop_loops = threading.Event()
+        self._stopped_at_s = math.inf  # when the loops were last told to stop
         self._threads: list[ClockThread] = []
         self._acquiring = False
         self._t_start = 0.0
@@ -368,6 +370,7 @@ class Runner:
             )
 
     def _stop_acquisition(self) -> None:
+        self._stopped_at_s = self.clock.now()
         self._stop_loops.set()
         threads = self._threads
         # a second Ctrl-C waits for nothing: the loops stop at their next wake-up
@@ -406,6 +409,11 @@ class Runner:
             self._device_loop(
                 "camera", self.timing.camera_period_s, lambda: self._read_lengths(since_s)
             )
+            if self._stop_loops.is_set() and not self._hurry:
+                # the frames measured since the last batch, up to the stop (a loop that
+                # ended on a camera fault has already reported it)
+                with contextlib.suppress(LabrigError, OSError):
+                    self._read_lengths(since_s, self._stopped_at_s)
         else:
             self._device_loop(
                 "camera", 1.0 / self.protocol.acquisition.camera_fps, self._read_length
@@ -486,11 +494,11 @@ class Runner:
             # a frame that came after the loops were told to stop is not recorded
             self._record_length(sample)
 
-    def _read_lengths(self, since_s: float) -> None:
+    def _read_lengths(self, since_s: float, until_s: float = math.inf) -> None:
         """Record the frames measured since the last batch; frames from before this
         loop started (the camera streams on while acquisition pauses) are not."""
         for sample in self.rig.length.read_new():
-            if sample.t_s >= since_s:
+            if since_s <= sample.t_s <= until_s:
                 self._record_length(sample)
 
     def _record_length(self, sample: LengthSample) -> None:
