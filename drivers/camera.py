@@ -6,11 +6,11 @@ from them: the labrig LengthSource.
 driver buffers (V4L2: 4) and ``read()`` hands back the oldest, so a program that reads
 more slowly than the camera streams gets frames up to 4 periods old. ``FrameSource``
 therefore reads every frame in a reader thread (started through the shared clock) and
-keeps only the latest; ``read()`` returns the newest frame not yet returned. Given a
-``measure`` function, the reader applies it to every frame as it comes and keeps every
-result for ``take_measured()``: a run's camera loop then wakes a few times a second for
-a batch instead of once per frame, and on the simulated rig's virtual clock the reader
-goes from frame to frame without handing time to another thread in between.
+keeps only the latest; ``read()`` returns the newest frame not yet returned. Once
+``take_frames()`` is used instead, the reader keeps every frame until it is taken: a
+run's camera loop then wakes a few times a second for a batch instead of once per frame,
+and on the simulated rig's virtual clock the reader goes from frame to frame without
+handing time to another thread in between.
 
 What a frame's time is, per backend (``stamp``):
 - V4L2 (Linux): ``CAP_PROP_POS_MSEC`` is the buffer's capture time that the kernel
@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import re
 import threading
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -49,7 +48,7 @@ import numpy as np
 from labrig.clock import Clock, ClockThread
 from labrig.devices import LengthSample
 from labrig.drivers.markers import MarkerTracker, mm_per_px_from_reference
-from labrig.errors import DeviceError, InputError, LabrigError
+from labrig.errors import DeviceError, InputError
 
 DEVICE_PATH = re.compile(r"^/dev/video\d+$")
 # V4L2 exposure modes as OpenCV passes them (CAP_PROP_AUTO_EXPOSURE)
@@ -86,9 +85,6 @@ class FrameSource:
 
     ``stamp="capture"``: the capture's ``CAP_PROP_POS_MSEC`` is the capture time on the
     shared clock (V4L2, SimCamera); ``"host"``: the clock read when the grab returns.
-
-    ``measure``: applied to every frame in the reader thread (live sources only); its
-    results are taken with ``take_measured()``, and ``read()`` is not used then.
     """
 
     def __init__(
@@ -116,8 +112,8 @@ class FrameSource:
         self._reader: ClockThread | None = None
         self._last_read_s = float("-inf")
         self._last_grab_s = float("-inf")
-        self.measure: Callable[[Frame], Any] | None = None
-        self._measured: list[Any] = []
+        self._keep_all = False  # take_frames() in use: every frame kept until taken
+        self._kept: list[Frame] = []
 
     @classmethod
     def open(
@@ -230,19 +226,20 @@ class FrameSource:
             if self.n_grabbed == grabbed:  # not even a warm-up frame came meanwhile
                 raise DeviceError(f"{self.name} sent no frame for {timeout_s:g} s")
 
-    def take_measured(self) -> list[Any]:
-        """What ``measure`` made of every frame since the last call, oldest first (an
-        empty list when no new frame came); never waits. Raises what stopped the reader,
-        or a DeviceError when the camera sent nothing, not even a warm-up frame, for the
-        frame timeout."""
-        if self.clock is None or self.measure is None:
-            raise RuntimeError("take_measured: a live source with a measure function only")
+    def take_frames(self) -> list[Frame]:
+        """Every frame of a live camera since the last call, oldest first (an empty list
+        when no new frame came; the first call starts the reader); never waits. Raises
+        what stopped the reader, or a DeviceError when the camera sent nothing, not even
+        a warm-up frame, for the frame timeout."""
+        if self.clock is None:
+            raise RuntimeError("take_frames: a live source only (a file is read())")
+        self._keep_all = True
         timeout_s = self._start_reading()
         with self._lock:
-            measured, self._measured = self._measured, []
+            frames, self._kept = self._kept, []
             error = self._error
-        if measured:
-            return measured
+        if frames:
+            return frames
         if error is not None:
             raise error
         if self.clock.now() - self._last_grab_s > timeout_s:
@@ -265,9 +262,6 @@ class FrameSource:
         look like a camera that stopped sending."""
         try:
             self._read_every_frame()
-        except LabrigError as exc:  # a measurement's own one-line error (a calibration)
-            with self._lock:
-                self._error = exc
         except Exception as exc:
             with self._lock:
                 self._error = DeviceError(f"{self.name} reader failed: {exc!r}")
@@ -291,15 +285,13 @@ class FrameSource:
                 t_capture_s = self.capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
                 t_s = t_capture_s if t_capture_s > 0 else t_host_s
             frame = Frame(t_s=t_s, image=image)
-            if self.measure is not None:
-                result = self.measure(frame)
-                with self._lock:
-                    self._measured.append(result)
-                    self.n_frames += 1
-                continue
             with self._lock:
-                self._latest = frame
-                self._latest_seq += 1
+                if self._keep_all:
+                    self._kept.append(frame)
+                    self.n_frames += 1
+                else:
+                    self._latest = frame
+                    self._latest_seq += 1
 
     def _read_file(self) -> Frame | None:
         ok, image = self.capture.read()
@@ -353,11 +345,9 @@ class CameraLength:
         return None if frame is None else self._measure(frame)
 
     def read_new(self) -> list[LengthSample]:
-        """Every frame of a live camera since the last call, measured in its reader
-        thread as it came (the first call starts that); never waits."""
-        if self.frames.measure is None:
-            self.frames.measure = self._measure
-        return self.frames.take_measured()
+        """Every frame of a live camera since the last call, measured now, oldest first
+        (``FrameSource.take_frames``); never waits."""
+        return [self._measure(frame) for frame in self.frames.take_frames()]
 
     def _measure(self, frame: Frame) -> LengthSample:
         fix = self.tracker.track(frame.image)

@@ -163,8 +163,8 @@ class SimCamera:
             noise = (k, dy, dx)
         return SimFrame(
             self,
+            t_s=t_s,
             gain=self.light_gain(t_s) * exposure,
-            centres=self.marker_centres_px(t_s),
             hidden=frozenset(self.hidden_markers),
             noise=noise,
         )
@@ -381,10 +381,11 @@ class SimFrame:
 
     dtype = np.dtype(np.uint8)
 
-    def __init__(self, camera: SimCamera, *, gain, centres, hidden, noise) -> None:
+    def __init__(self, camera: SimCamera, *, t_s, gain, hidden, noise) -> None:
         self.camera = camera
+        self.t_s = t_s
         self.gain = gain
-        self.centres = centres
+        self._centres = None
         self.hidden = hidden
         self.noise = noise
         self._palette = None
@@ -404,6 +405,16 @@ class SimFrame:
         self.shape = (size[1], size[0], channels)[: 2 if channels == 1 else 3]
         self.ndim = len(self.shape)
         self.size = size[0] * size[1] * channels
+
+    @property
+    def centres(self) -> np.ndarray:
+        """Where the markers are, asked of the length source when first rendered: a
+        frame measured a little after it was taken (a run measures its frames in
+        batches) reads the simulated specimen's recorded past instead of making it take
+        a step to the frame's time."""
+        if self._centres is None:
+            self._centres = self.camera.marker_centres_px(self.t_s)
+        return self._centres
 
     def palette(self):
         """The frame's colours under its light (``SimCamera._palette``), made once."""

@@ -107,8 +107,8 @@ def test_a_slow_reader_gets_the_newest_frame_not_the_oldest_buffered():
         assert not cam.isOpened()
 
 
-def test_every_frame_is_measured_in_the_reader_and_taken_in_batches():
-    """``read_new``: the reader thread tracks each frame as it comes; a caller polling
+def test_every_frame_is_kept_by_the_reader_and_measured_in_batches():
+    """``read_new``: the reader thread keeps every frame until taken; a caller polling
     every 0.2 s gets every frame once, in order, none lost between batches."""
     clock = VirtualClock()
     # the test takes part in the clock's time: the camera streams only while it waits
