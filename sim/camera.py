@@ -236,7 +236,9 @@ class SimCamera:
         blended = view.astype(np.float32) * (1 - c) + marker * c + 0.5
         view[:] = np.clip(blended, 0, 255).astype(np.uint8)
 
-    @functools.lru_cache(maxsize=8)  # noqa: B019 - a frame's dots are read several times
+    # a frame's dots are read by the tracker and again, up to a video queue's length of
+    # frames later, when the video renders the frame whole
+    @functools.lru_cache(maxsize=96)  # noqa: B019
     def _dot_coverage(self, x: float, y: float) -> tuple[int, int, np.ndarray]:
         """(x0, y0, coverage) of the dot centred at (x, y): its box's top-left pixel and
         the blurred coverage over the box, cut to the frame."""
