@@ -6,7 +6,11 @@ from them: the labrig LengthSource.
 driver buffers (V4L2: 4) and ``read()`` hands back the oldest, so a program that reads
 more slowly than the camera streams gets frames up to 4 periods old. ``FrameSource``
 therefore reads every frame in a reader thread (started through the shared clock) and
-keeps only the latest; ``read()`` returns the newest frame not yet returned.
+keeps only the latest; ``read()`` returns the newest frame not yet returned. Once
+``take_frames()`` is used instead, the reader keeps every frame until it is taken: a
+run's camera loop then wakes a few times a second for a batch instead of once per frame,
+and on the simulated rig's virtual clock the reader goes from frame to frame without
+handing time to another thread in between.
 
 What a frame's time is, per backend (``stamp``):
 - V4L2 (Linux): ``CAP_PROP_POS_MSEC`` is the buffer's capture time that the kernel
@@ -107,6 +111,9 @@ class FrameSource:
         self._stopping = False
         self._reader: ClockThread | None = None
         self._last_read_s = float("-inf")
+        self._last_grab_s = float("-inf")
+        self._keep_all = False  # take_frames() in use: every frame kept until taken
+        self._kept: list[Frame] = []
 
     @classmethod
     def open(
@@ -201,11 +208,7 @@ class FrameSource:
         the newest frame not returned before, waiting on the clock for one."""
         if self.clock is None:
             return self._read_file()
-        self._last_read_s = self.clock.now()
-        if self._reader is None or self._reader.done:
-            self._reader = self.clock.start_thread(self._read_frames, f"{self.name} reader")
-        fps = float(self.capture.get(cv2.CAP_PROP_FPS) or 0.0)
-        timeout_s = max(FRAME_TIMEOUT_S, 3.0 / fps) if fps > 0 else FRAME_TIMEOUT_S
+        timeout_s = self._start_reading()
         while True:
             grabbed = self.n_grabbed
             self.clock.wait_for(
@@ -222,6 +225,36 @@ class FrameSource:
                 raise error
             if self.n_grabbed == grabbed:  # not even a warm-up frame came meanwhile
                 raise DeviceError(f"{self.name} sent no frame for {timeout_s:g} s")
+
+    def take_frames(self) -> list[Frame]:
+        """Every frame of a live camera since the last call, oldest first (an empty list
+        when no new frame came; the first call starts the reader); never waits. Raises
+        what stopped the reader, or a DeviceError when the camera sent nothing, not even
+        a warm-up frame, for the frame timeout."""
+        if self.clock is None:
+            raise RuntimeError("take_frames: a live source only (a file is read())")
+        self._keep_all = True
+        timeout_s = self._start_reading()
+        with self._lock:
+            frames, self._kept = self._kept, []
+            error = self._error
+        if frames:
+            return frames
+        if error is not None:
+            raise error
+        if self.clock.now() - self._last_grab_s > timeout_s:
+            raise DeviceError(f"{self.name} sent no frame for {timeout_s:g} s")
+        return []
+
+    def _start_reading(self) -> float:
+        """(Re)start the reader if it is not running; the frame timeout (clock s)."""
+        now_s = self.clock.now()
+        self._last_read_s = now_s
+        if self._reader is None or self._reader.done:
+            self._last_grab_s = now_s
+            self._reader = self.clock.start_thread(self._read_frames, f"{self.name} reader")
+        fps = float(self.capture.get(cv2.CAP_PROP_FPS) or 0.0)
+        return max(FRAME_TIMEOUT_S, 3.0 / fps) if fps > 0 else FRAME_TIMEOUT_S
 
     def _read_frames(self) -> None:
         """The reader thread: every frame the camera streams, the latest kept. Whatever
@@ -244,15 +277,21 @@ class FrameSource:
                     )
                 return
             self.n_grabbed += 1
+            self._last_grab_s = t_host_s
             if self.n_grabbed <= self.warmup_frames:
                 continue  # the exposure is still settling
             t_s = t_host_s
             if self.stamp == "capture":
                 t_capture_s = self.capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
                 t_s = t_capture_s if t_capture_s > 0 else t_host_s
+            frame = Frame(t_s=t_s, image=image)
             with self._lock:
-                self._latest = Frame(t_s=t_s, image=image)
-                self._latest_seq += 1
+                if self._keep_all:
+                    self._kept.append(frame)
+                    self.n_frames += 1
+                else:
+                    self._latest = frame
+                    self._latest_seq += 1
 
     def _read_file(self) -> Frame | None:
         ok, image = self.capture.read()
@@ -303,8 +342,14 @@ class CameraLength:
 
     def read(self) -> LengthSample | None:
         frame = self.frames.read()
-        if frame is None:
-            return None
+        return None if frame is None else self._measure(frame)
+
+    def read_new(self) -> list[LengthSample]:
+        """Every frame of a live camera since the last call, measured now, oldest first
+        (``FrameSource.take_frames``); never waits."""
+        return [self._measure(frame) for frame in self.frames.take_frames()]
+
+    def _measure(self, frame: Frame) -> LengthSample:
         fix = self.tracker.track(frame.image)
         if self.mm_per_px is None:
             # The first frame is the reference frame.

@@ -16,6 +16,7 @@ This module knows nothing of cameras, files or clocks (``labrig.drivers.camera``
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -174,7 +175,8 @@ class MarkerTracker:
             return cv2.threshold(grey, self.threshold, 255, cv2.THRESH_BINARY_INV)[1]
         _, mask = cv2.threshold(grey, 0, 255, cv2.THRESH_BINARY_INV | cv2.THRESH_OTSU)
         # Otsu always splits, even a region of plain specimen: demand real contrast.
-        if float(np.max(grey)) - float(np.min(grey)) < self.min_contrast:
+        darkest, brightest, _, _ = cv2.minMaxLoc(grey)
+        if brightest - darkest < self.min_contrast:
             mask[:] = 0
         return mask
 
@@ -255,10 +257,9 @@ class MarkerTracker:
         if x0 < 0 or y0 < 0 or x1 > w or y1 > h:
             return (float("nan"), float("nan"))  # cut by the frame edge: not measurable
         signal = self._signal(frame[y0:y1, x0:x1])
-        yy, xx = np.ogrid[-half : half + 1, -half : half + 1]
-        r2 = xx * xx + yy * yy
+        r2 = _squared_radii(half)
         inside = r2 <= r_in * r_in
-        background = float(np.median(signal[~inside & (r2 <= r_out * r_out)]))
+        background = _median(signal[~inside & (r2 <= r_out * r_out)])
         weights = np.where(inside, signal - background, 0.0).astype(np.float32)
         m = cv2.moments(weights)
         if m["m00"] <= 0:
@@ -270,6 +271,25 @@ class MarkerTracker:
         if self._hsv is not None:
             return cv2.cvtColor(patch, cv2.COLOR_BGR2HSV)[:, :, 1].astype(np.float32)
         return 255.0 - _grey(patch).astype(np.float32)
+
+
+@functools.cache
+def _squared_radii(half: int) -> np.ndarray:
+    """Squared distance of each pixel of a (2 half + 1)^2 window from its centre."""
+    offsets = np.arange(-half, half + 1)
+    return offsets[None, :] ** 2 + offsets[:, None] ** 2
+
+
+def _median(values: np.ndarray) -> float:
+    """``np.median`` of a small 1-d array, without its generic machinery's cost."""
+    n = values.size
+    k = n // 2
+    if n == 0:
+        return float("nan")
+    if n % 2:
+        return float(np.partition(values, k)[k])
+    low, high = np.partition(values, [k - 1, k])[k - 1 : k + 1]
+    return 0.5 * (float(low) + float(high))
 
 
 def _window_radius_px(blob: _Blob) -> float:

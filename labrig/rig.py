@@ -33,7 +33,11 @@ PHD_ULTRA_RATED_FORCE_N = 75 * 4.4482216
 # The simulated pump's reply deadline in host seconds. The emulator answers at once in
 # virtual time; this only bounds how long a starved host thread may take to do it.
 SIM_REPLY_TIMEOUT_S = 10.0
-SIM_CAMERA_SIZE = (1280, 720)  # the simulated camera's sensor (px)
+# The simulated camera's sensor (px) when the rig file has no camera section: a small
+# monochrome camera, so a simulated run's video (every frame rendered whole and encoded)
+# costs a fraction of a 1280x720 colour one; tracking reads only the markers' windows
+# at any size.
+SIM_CAMERA_SIZE = (640, 360)
 
 
 class SyringeConfig(Strict):
@@ -325,17 +329,24 @@ def _build_sim_rig(protocol: Protocol, config: RigConfig) -> Rig:
         pressure = _pressure_driver(NiDaqPressure, clock, config, protocol, factories)
         length = camera = None
         if protocol.acquisition.camera_fps > 0:
-            mm_per_px = sim.mm_per_px or _fitting_scale_mm_per_px(segments, protocol)
+            size = SIM_CAMERA_SIZE
+            if config.camera is not None and config.camera.width and config.camera.height:
+                size = (config.camera.width, config.camera.height)  # the sensor asked for
+            mm_per_px = sim.mm_per_px or _fitting_scale_mm_per_px(segments, protocol, size[0])
             camera = SimCamera(
                 clock,
                 plant.length_mm_at,
                 mm_per_px=mm_per_px,
-                size=SIM_CAMERA_SIZE,
+                size=size,
                 seed=sim.seed,
+                # a grey sensor: a third of the pixels to render, track and encode
+                monochrome=True,
             )
             # the camera is set up through the driver as on the bench: from the rig's
             # camera section if it has one (its scale too), else at the sensor's size
-            wanted = config.camera or CameraConfig(mm_per_px=mm_per_px)
+            wanted = config.camera or CameraConfig(
+                mm_per_px=mm_per_px, width=size[0], height=size[1]
+            )
             frames = FrameSource.live(
                 camera, clock, "simulated camera", warmup_frames=wanted.warmup_frames
             )
@@ -361,8 +372,8 @@ class SimulatedParts:
     daq_tasks: list  # every SimDaqTask made so far; the last one is acquiring
 
 
-def _fitting_scale_mm_per_px(segments, protocol: Protocol) -> float:
-    """A scale at which the longest specimen fills at most 80 % of a 1280 px frame."""
+def _fitting_scale_mm_per_px(segments, protocol: Protocol, width_px: int) -> float:
+    """A scale at which the longest specimen fills at most 80 % of the frame's width."""
     longest_mm = sum(float(s.l_mm.max()) for s in segments)
     longest_mm += protocol.specimen.fittings_length_mm
-    return max(0.02, math.ceil(longest_mm / (0.8 * 1280) * 1000) / 1000)
+    return max(0.02, math.ceil(longest_mm / (0.8 * width_px) * 1000) / 1000)

@@ -22,6 +22,7 @@ volume it reports.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import signal
 import threading
@@ -30,7 +31,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from labrig.clock import Clock, ClockThread
-from labrig.devices import LengthSource, PressureBlock, PressureSource, Pump, PumpState
+from labrig.devices import (
+    LengthSample,
+    LengthSource,
+    PressureBlock,
+    PressureSource,
+    Pump,
+    PumpState,
+)
 from labrig.errors import LabrigError
 from labrig.interlocks import InterlockMonitor, PressureCeiling, PumpStall, VolumeCeiling
 from labrig.protocol import (
@@ -90,6 +98,9 @@ class Timing:
 
     pressure_period_s: float = 0.2
     pump_period_s: float = 0.2
+    # a live camera's frames are measured as they come (its reader thread) and recorded
+    # in batches this often
+    camera_period_s: float = 0.2
     progress_period_s: float = 0.5
     max_marker_loss_s: float = 10.0
     target_grace_s: float = 5.0
@@ -142,6 +153,7 @@ class Runner:
         self._repetition = 1
         self._volume_lock = threading.Lock()
         self._stop_loops = threading.Event()
+        self._stopped_at_s = math.inf  # when the loops were last told to stop
         self._threads: list[ClockThread] = []
         self._acquiring = False
         self._t_start = 0.0
@@ -358,6 +370,7 @@ class Runner:
             )
 
     def _stop_acquisition(self) -> None:
+        self._stopped_at_s = self.clock.now()
         self._stop_loops.set()
         threads = self._threads
         # a second Ctrl-C waits for nothing: the loops stop at their next wake-up
@@ -388,12 +401,23 @@ class Runner:
         )
 
     def _camera_loop(self) -> None:
-        # a live camera's read waits for its next frame: no period of its own, so every
-        # frame it streams (at the protocol's camera_fps) is tracked; a video file
-        # standing in for the camera is read at camera_fps
-        waits = getattr(self.rig.length, "waits_for_frames", False)
-        period_s = None if waits else 1.0 / self.protocol.acquisition.camera_fps
-        self._device_loop("camera", period_s, self._read_length)
+        # a live camera's reader thread measures every frame it streams (at the
+        # protocol's camera_fps) and the loop records them in batches; a video file
+        # standing in for the camera is read and measured at camera_fps
+        if getattr(self.rig.length, "waits_for_frames", False):
+            since_s = self.clock.now()
+            self._device_loop(
+                "camera", self.timing.camera_period_s, lambda: self._read_lengths(since_s)
+            )
+            if self._stop_loops.is_set() and not self._hurry:
+                # the frames measured since the last batch, up to the stop (a loop that
+                # ended on a camera fault has already reported it)
+                with contextlib.suppress(LabrigError, OSError):
+                    self._read_lengths(since_s, self._stopped_at_s)
+        else:
+            self._device_loop(
+                "camera", 1.0 / self.protocol.acquisition.camera_fps, self._read_length
+            )
 
     def _device_loop(
         self,
@@ -466,8 +490,18 @@ class Runner:
 
     def _read_length(self) -> None:
         sample = self.rig.length.read()
-        if sample is None or self._stop_loops.is_set():
-            return  # a frame that came after the loops were told to stop is not recorded
+        if sample is not None and not self._stop_loops.is_set():
+            # a frame that came after the loops were told to stop is not recorded
+            self._record_length(sample)
+
+    def _read_lengths(self, since_s: float, until_s: float = math.inf) -> None:
+        """Record the frames measured since the last batch; frames from before this
+        loop started (the camera streams on while acquisition pauses) are not."""
+        for sample in self.rig.length.read_new():
+            if since_s <= sample.t_s <= until_s:
+                self._record_length(sample)
+
+    def _record_length(self, sample: LengthSample) -> None:
         self.writer.append_length(
             self._current_repetition(),
             sample.t_s,

@@ -1,9 +1,9 @@
 """A simulated camera looking at the specimen: two dark dots on a light band.
 
-``SimCamera`` renders 8-bit BGR frames (1280x720 by default) in which the two markers sit
-where a length source puts them, so the real tracker can be run and checked against
-the truth. The dots are anti-aliased from their exact sub-pixel centres, then blurred,
-lit by a slowly drifting light and overlaid with sensor noise.
+``SimCamera`` renders 8-bit BGR frames (1280x720 by default; grey with ``monochrome``) in
+which the two markers sit where a length source puts them, so the real tracker can be run
+and checked against the truth. The dots are anti-aliased from their exact sub-pixel
+centres, then blurred, lit by a slowly drifting light and overlaid with sensor noise.
 
 It is also a capture that behaves as a UVC webcam under OpenCV's V4L2 backend:
 ``read()`` returns ``(ok, frame)`` like ``cv2.VideoCapture``, paced by the shared clock
@@ -56,6 +56,8 @@ class SimCamera:
     "fixed-ish" as on a real rig. ``lighting_drift`` is the relative amplitude of a slow
     sinusoidal change of the light (period ``drift_period_s``); ``noise_grey`` is the
     sensor noise's standard deviation in grey levels; ``blur_px`` the Gaussian blur's sigma.
+    ``monochrome``: a grey sensor (as machine-vision cameras are): single-channel frames,
+    a third of the pixels to render, track and encode.
 
     As a capture it keeps the last ``queue_frames`` exposed frames, as a V4L2 camera
     under OpenCV does (4 buffers by default): a reader that falls behind by a few
@@ -84,10 +86,12 @@ class SimCamera:
         background_bgr: tuple[int, int, int] = (90, 90, 90),
         seed: int | None = 0,
         queue_frames: int = 4,
+        monochrome: bool = False,
     ) -> None:
         if not mm_per_px > 0 or not fps > 0 or queue_frames < 1:
             raise ValueError("SimCamera: mm_per_px and fps must be > 0, queue_frames >= 1")
         self.queue_frames = int(queue_frames)
+        self.channels = 1 if monochrome else 3
         self.clock = clock
         self.length_mm_at = length_mm_at
         self.mm_per_px = float(mm_per_px)
@@ -102,9 +106,11 @@ class SimCamera:
         self.lighting_drift = float(lighting_drift)
         self.drift_period_s = float(drift_period_s)
         self.sway_px = float(sway_px)
-        self.marker_bgr = np.array(marker_bgr, dtype=np.float32)
-        self.specimen_bgr = np.array(specimen_bgr, dtype=np.float32)
-        self.background_bgr = np.array(background_bgr, dtype=np.float32)
+        # a monochrome sensor sees the colours' grey levels (OpenCV's BGR-to-grey weights)
+        self.marker_bgr, self.specimen_bgr, self.background_bgr = (
+            np.array(bgr if not monochrome else [_grey_level(bgr)], dtype=np.float32)
+            for bgr in (marker_bgr, specimen_bgr, background_bgr)
+        )
         self._rng = np.random.default_rng(seed)
         self._noise = self._make_noise() if self.noise_grey > 0 else None
         self.hidden_markers: set[int] = set()  # fault injection: 0 and/or 1 not drawn
@@ -157,8 +163,8 @@ class SimCamera:
             noise = (k, dy, dx)
         return SimFrame(
             self,
+            t_s=t_s,
             gain=self.light_gain(t_s) * exposure,
-            centres=self.marker_centres_px(t_s),
             hidden=frozenset(self.hidden_markers),
             noise=noise,
         )
@@ -166,11 +172,13 @@ class SimCamera:
     def _render_box(self, frame: SimFrame, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
         """The sensor-size frame's pixels [y0:y1, x0:x1]: the same values whichever box
         is asked for, so a region read alone equals that region of the whole frame."""
-        out = np.empty((y1 - y0, x1 - x0, 3), dtype=np.uint8)
+        out = np.empty((y1 - y0, x1 - x0, self.channels)[: 2 if self.channels == 1 else 3],
+                       dtype=np.uint8)  # fmt: skip
         if out.size == 0:
             return out
-        gain, centres = frame.gain, frame.centres
-        _fill(out, 0, 0, x1 - x0, y1 - y0, self.background_bgr * gain)
+        centres = frame.centres
+        background, specimen, marker = frame.palette()
+        _fill(out, 0, 0, x1 - x0, y1 - y0, background)
         ends_px = 3 * self.radius_px + 40  # the band runs a little past the markers
         cy = 0.5 * (centres[0, 1] + centres[1, 1])
         band = (
@@ -180,18 +188,28 @@ class SimCamera:
             min(round(cy + self.band_half_px), self.height, y1),
         )
         if band[0] < band[2] and band[1] < band[3]:
-            _fill(out, band[0] - x0, band[1] - y0, band[2] - x0, band[3] - y0,
-                  self.specimen_bgr * gain)  # fmt: skip
+            _fill(out, band[0] - x0, band[1] - y0, band[2] - x0, band[3] - y0, specimen)
         for index, (x, y) in enumerate(centres):
             if index not in frame.hidden:
-                self._draw_dot(out, x0, y0, float(x), float(y), gain)
+                self._draw_dot(out, x0, y0, float(x), float(y), marker)
         if frame.noise is not None:
+            # the noise's positive and negative parts: one saturating add, in two
+            # uint8 passes (a pixel's noise is one or the other), bit for bit
             k, dy, dx = frame.noise
-            noise = self._noise[k, dy + y0 : dy + y1, dx + x0 : dx + x1]
-            out = cv2.add(out, noise, dtype=cv2.CV_8U)
+            rows, cols = slice(dy + y0, dy + y1), slice(dx + x0, dx + x1)
+            cv2.add(out, self._noise[0][k, rows, cols], dst=out)
+            cv2.subtract(out, self._noise[1][k, rows, cols], dst=out)
         return out
 
-    def _draw_dot(self, out: np.ndarray, ox: int, oy: int, x: float, y: float, gain) -> None:
+    def _palette(self, gain: float) -> tuple[tuple[float, ...], tuple[float, ...], np.ndarray]:
+        """Background and specimen fill colours, the markers' colour, under ``gain``."""
+        background, specimen = (
+            tuple(float(v) for v in np.clip(np.rint(bgr * gain), 0, 255))
+            for bgr in (self.background_bgr, self.specimen_bgr)
+        )
+        return background, specimen, np.clip(self.marker_bgr * gain, 0, 255)
+
+    def _draw_dot(self, out: np.ndarray, ox: int, oy: int, x: float, y: float, marker) -> None:
         """Blend one anti-aliased, blurred dot around frame point (x, y) into ``out``, the
         frame's region whose top-left pixel is (ox, oy).
 
@@ -209,13 +227,18 @@ class SimCamera:
         cx1, cy1 = min(x1, ox + w), min(y1, oy + h)
         if cx0 >= cx1 or cy0 >= cy1:
             return  # outside the region
-        c = coverage[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0, None]
+        c = coverage[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0]
+        if out.ndim == 3:
+            c = c[:, :, None]
+        else:
+            marker = marker[0]
         view = out[cy0 - oy : cy1 - oy, cx0 - ox : cx1 - ox]
-        marker = np.clip(self.marker_bgr * gain, 0, 255)
         blended = view.astype(np.float32) * (1 - c) + marker * c + 0.5
         view[:] = np.clip(blended, 0, 255).astype(np.uint8)
 
-    @functools.lru_cache(maxsize=8)  # noqa: B019 - a frame's dots are read several times
+    # a frame's dots are read by the tracker and again, up to a video queue's length of
+    # frames later, when the video renders the frame whole
+    @functools.lru_cache(maxsize=96)  # noqa: B019
     def _dot_coverage(self, x: float, y: float) -> tuple[int, int, np.ndarray]:
         """(x0, y0, coverage) of the dot centred at (x, y): its box's top-left pixel and
         the blurred coverage over the box, cut to the frame."""
@@ -225,18 +248,22 @@ class SimCamera:
         x1, y1 = min(ix + half + 1, self.width), min(iy + half + 1, self.height)
         if x0 >= x1 or y0 >= y1:
             return x0, y0, np.zeros((0, 0), dtype=np.float32)
-        yy, xx = np.ogrid[y0:y1, x0:x1]
-        distance = np.sqrt((xx - x) ** 2 + (yy - y) ** 2, dtype=np.float32)
+        xx = (np.arange(x0, x1) - x) ** 2
+        yy = (np.arange(y0, y1) - y) ** 2
+        distance = np.sqrt(xx[None, :] + yy[:, None], dtype=np.float32)
         coverage = np.clip(self.radius_px + 0.5 - distance, 0.0, 1.0).astype(np.float32)
         if self.blur_px > 0:
             coverage = cv2.GaussianBlur(coverage, (0, 0), self.blur_px)
         return x0, y0, coverage
 
-    def _make_noise(self) -> np.ndarray:
+    def _make_noise(self) -> tuple[np.ndarray, np.ndarray]:
         """Two frames of noise, made once (about 0.1 s at 1280x720); a frame reads one
-        of them at a random offset: fresh-looking noise for the cost of one addition."""
-        shape = (2, self.height + _NOISE_MARGIN_PX, self.width + _NOISE_MARGIN_PX, 3)
-        return np.rint(self._rng.normal(0.0, self.noise_grey, shape)).astype(np.int16)
+        of them at a random offset: fresh-looking noise for the cost of one addition.
+        Kept as its positive and its negative part, each uint8."""
+        shape = (2, self.height + _NOISE_MARGIN_PX, self.width + _NOISE_MARGIN_PX)
+        noise = np.rint(self._rng.normal(0.0, self.noise_grey, (*shape, self.channels)))
+        noise = np.clip(noise if self.channels == 3 else noise[..., 0], -255, 255)
+        return np.maximum(noise, 0).astype(np.uint8), np.maximum(-noise, 0).astype(np.uint8)
 
     # -- a capture --------------------------------------------------------------------------------
 
@@ -322,7 +349,11 @@ class SimCamera:
         """Render ``n_frames`` at t0 + k/fps into an MJPG AVI file; return what they show."""
         path = Path(path)
         writer = cv2.VideoWriter(
-            str(path), cv2.VideoWriter_fourcc(*"MJPG"), fps, (self.width, self.height)
+            str(path),
+            cv2.VideoWriter_fourcc(*"MJPG"),
+            fps,
+            (self.width, self.height),
+            self.channels == 3,
         )
         if not writer.isOpened():
             raise OSError(f"{path}: OpenCV cannot write an MJPG AVI here")
@@ -350,17 +381,17 @@ class SimFrame:
     the region's pixels are those of the full frame, bit for bit.
     """
 
-    ndim = 3
     dtype = np.dtype(np.uint8)
 
-    def __init__(self, camera: SimCamera, *, gain, centres, hidden, noise) -> None:
+    def __init__(self, camera: SimCamera, *, t_s, gain, hidden, noise) -> None:
         self.camera = camera
+        self.t_s = t_s
         self.gain = gain
-        self.centres = centres
+        self._centres = None
         self.hidden = hidden
         self.noise = noise
-        self.shape = (camera.height, camera.width, 3)
-        self.size = camera.height * camera.width * 3
+        self._palette = None
+        self._resize((camera.width, camera.height))
         self._resized_to: tuple[int, int] | None = None
         self._full: np.ndarray | None = None
         self._regions: list[tuple[int, int, int, int, np.ndarray]] = []  # last rendered
@@ -368,9 +399,30 @@ class SimFrame:
     def resized(self, size: tuple[int, int]) -> SimFrame:
         """This frame as the camera's scaler delivers it at another streaming size."""
         self._resized_to = size
-        self.shape = (size[1], size[0], 3)
-        self.size = size[0] * size[1] * 3
+        self._resize(size)
         return self
+
+    def _resize(self, size: tuple[int, int]) -> None:
+        channels = self.camera.channels
+        self.shape = (size[1], size[0], channels)[: 2 if channels == 1 else 3]
+        self.ndim = len(self.shape)
+        self.size = size[0] * size[1] * channels
+
+    @property
+    def centres(self) -> np.ndarray:
+        """Where the markers are, asked of the length source when first rendered: a
+        frame measured a little after it was taken (a run measures its frames in
+        batches) reads the simulated specimen's recorded past instead of making it take
+        a step to the frame's time."""
+        if self._centres is None:
+            self._centres = self.camera.marker_centres_px(self.t_s)
+        return self._centres
+
+    def palette(self):
+        """The frame's colours under its light (``SimCamera._palette``), made once."""
+        if self._palette is None:
+            self._palette = self.camera._palette(self.gain)
+        return self._palette
 
     def __getitem__(self, key):
         h, w = self.shape[:2]
@@ -404,7 +456,12 @@ class SimFrame:
         return self._full if dtype is None else self._full.astype(dtype)
 
 
-def _fill(frame: np.ndarray, x0: int, y0: int, x1: int, y1: int, bgr: np.ndarray) -> None:
+def _fill(frame: np.ndarray, x0: int, y0: int, x1: int, y1: int, colour: tuple) -> None:
     """Fill [x0, x1) x [y0, y1) with one colour (cv2 does it ~30x faster than numpy)."""
-    colour = tuple(float(v) for v in np.clip(np.rint(bgr), 0, 255))
     cv2.rectangle(frame, (x0, y0), (x1 - 1, y1 - 1), colour, thickness=cv2.FILLED)
+
+
+def _grey_level(bgr: tuple[int, int, int]) -> float:
+    """A colour's grey level as ``cv2.cvtColor(..., COLOR_BGR2GRAY)`` weighs it."""
+    b, g, r = bgr
+    return 0.114 * b + 0.587 * g + 0.299 * r

@@ -8,7 +8,9 @@ it changes with the host, the data do not.
 
 The camera's cost (issue 14): the demo run at the old 2 fps without video against the
 shipped 30 fps, without and with ``video: true``; the wall time of the whole process and
-of the run alone (the "simulated ... in X s" line), and the video's frames.
+of the run alone (the "simulated ... in X s" line), the process's CPU time (user + system,
+all threads: what the camera costs, whatever else the machine is running), the load
+average, and the video's frames.
 
 Run: python tests/bench/bench_sim_rig.py [--burners N] [--camera-only]
 (--burners 2 runs two CPU-burning processes alongside, as on a busy CI machine.)
@@ -16,7 +18,9 @@ Run: python tests/bench/bench_sim_rig.py [--burners N] [--camera-only]
 
 import argparse
 import json
+import os
 import re
+import resource
 import subprocess
 import sys
 import tempfile
@@ -50,9 +54,11 @@ def completeness(path: Path) -> tuple[float, int, int, int, int, int, int]:
     return rig_s, *counts["pressure"], *counts["pump"], *counts["length"]
 
 
-def run_protocol(protocol: Path, out: Path) -> tuple[float, float]:
-    """(wall time of the process, wall time of the run itself) of `labrig run --sim`."""
+def run_protocol(protocol: Path, out: Path) -> tuple[float, float, float]:
+    """(wall time of the process, wall time of the run itself, CPU time of the process)
+    of `labrig run --sim`."""
     wall0 = time.monotonic()
+    cpu0 = _children_cpu_s()
     done = subprocess.run(
         [sys.executable, "-m", "labrig", "run", str(protocol), "--sim", "--out", str(out)],
         check=True,
@@ -60,7 +66,12 @@ def run_protocol(protocol: Path, out: Path) -> tuple[float, float]:
         text=True,
     )
     run_s = float(re.search(r"rig\s+time\s+in\s+([0-9.]+)\s+s", done.stdout + done.stderr)[1])
-    return time.monotonic() - wall0, run_s
+    return time.monotonic() - wall0, run_s, _children_cpu_s() - cpu0
+
+
+def _children_cpu_s() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def camera_cost(tmp: Path, video: bool = True) -> None:
@@ -72,7 +83,8 @@ def camera_cost(tmp: Path, video: bool = True) -> None:
         "30 fps, video": demo.replace("camera_fps: 30}", "camera_fps: 30, video: true}"),
     }
     print(f"{'demo.yaml':<20} {'process s':>10} {'run s':>8} {'x process':>10} {'x run':>7} "
-          f"{'frames':>7} {'video frames':>13} {'video MB':>9}  snap (2,1)")  # fmt: skip
+          f"{'CPU s':>6} {'x CPU':>6} {'load':>5} {'frames':>7} {'video frames':>13} "
+          f"{'video MB':>9}  snap (2,1)")  # fmt: skip
     if not video:
         del variants["30 fps, video"]
     base = None
@@ -80,8 +92,9 @@ def camera_cost(tmp: Path, video: bool = True) -> None:
         protocol = tmp / f"demo_{k}.yaml"
         protocol.write_text(text)
         out = tmp / f"demo_{k}.h5"
-        wall_s, run_s = run_protocol(protocol, out)
-        base = base or (wall_s, run_s)
+        wall_s, run_s, cpu_s = run_protocol(protocol, out)
+        load = os.getloadavg()[0]
+        base = base or (wall_s, run_s, cpu_s)
         *_, frames, _ = completeness(out)
         video = out.with_suffix(".avi")
         n_video, size = "-", "-"
@@ -93,7 +106,8 @@ def camera_cost(tmp: Path, video: bool = True) -> None:
             size = f"{video.stat().st_size / 1e6:.0f}"
         print(
             f"{name:<20} {wall_s:10.1f} {run_s:8.1f} {wall_s / base[0]:10.2f} "
-            f"{run_s / base[1]:7.2f} {frames:7d} {n_video:>13} {size:>9}  {snap_dl(out)}"
+            f"{run_s / base[1]:7.2f} {cpu_s:6.1f} {cpu_s / base[2]:6.2f} {load:5.1f} "
+            f"{frames:7d} {n_video:>13} {size:>9}  {snap_dl(out)}"
         )
 
 

@@ -107,6 +107,45 @@ def test_a_slow_reader_gets_the_newest_frame_not_the_oldest_buffered():
         assert not cam.isOpened()
 
 
+def test_every_frame_is_kept_by_the_reader_and_measured_in_batches():
+    """``read_new``: the reader thread keeps every frame until taken; a caller polling
+    every 0.2 s gets every frame once, in order, none lost between batches."""
+    clock = VirtualClock()
+    # the test takes part in the clock's time: the camera streams only while it waits
+    with clock.participate():
+        cam = SimCamera(clock, lambda t: 30.0 + t, size=(640, 360), mm_per_px=MM_PER_PX, fps=30.0)
+        frames = live_source(clock, cam, width=640, height=360, fps=30.0)
+        length = CameraLength(frames, mm_per_px=MM_PER_PX)
+        assert length.read_new() == []  # starts the reader; nothing streamed yet
+        batches = []
+        for _ in range(10):
+            clock.sleep(0.2)
+            batches.append(length.read_new())
+        samples = [s for batch in batches for s in batch]
+        t_s = np.array([s.t_s for s in samples])
+        assert all(4 <= len(batch) <= 8 for batch in batches[1:])
+        np.testing.assert_allclose(np.diff(t_s), 1 / 30, atol=1e-9)  # every frame, once
+        assert t_s[-1] <= clock.now() and len(samples) == frames.n_frames
+        assert all(s.ok for s in samples)
+        np.testing.assert_allclose([s.length_mm for s in samples], 30.0 + t_s, atol=0.01)
+        frames.close()
+
+
+def test_a_batched_camera_that_is_unplugged_is_a_device_error():
+    clock = VirtualClock()
+    # the test takes part in the clock's time: the camera streams only while it waits
+    with clock.participate():
+        cam = SimCamera(clock, lambda t: 35.0, size=(640, 360), mm_per_px=MM_PER_PX, fps=30.0)
+        length = CameraLength(live_source(clock, cam, width=640, height=360), mm_per_px=MM_PER_PX)
+        length.read_new()
+        clock.sleep(0.5)
+        assert length.read_new()
+        cam.release()  # unplugged
+        clock.sleep(0.2)
+        with pytest.raises(DeviceError, match="returned no frame: is it still connected"):
+            length.read_new()
+
+
 def test_a_size_rate_or_exposure_the_camera_cannot_do_is_refused_in_one_line():
     clock = VirtualClock()
     # the test takes part in the clock's time: the camera streams only while it waits
@@ -124,7 +163,18 @@ def test_a_size_rate_or_exposure_the_camera_cannot_do_is_refused_in_one_line():
         assert np.asarray(frames.read().image).shape == (720, 1280, 3)
 
 
-def test_a_dark_first_frame_fails_the_reference_calibration_unless_dropped():
+def first_sample(length, clock, batched):
+    """One frame read and measured (``batched``: in the reader thread, as a run does)."""
+    if not batched:
+        return length.read()
+    length.read_new()
+    clock.sleep(0.2)
+    return length.read_new()[0]
+
+
+@pytest.mark.parametrize("batched", [False, True])
+def test_a_dark_first_frame_fails_the_reference_calibration_unless_dropped(batched):
+    # batched: the calibration's own one-line error comes through the reader thread
     clock = VirtualClock()
     # the test takes part in the clock's time: the camera streams only while it waits
     with clock.participate():
@@ -133,12 +183,13 @@ def test_a_dark_first_frame_fails_the_reference_calibration_unless_dropped():
         frames = FrameSource.live(cam, clock, "simulated camera", warmup_frames=0)
         frames.configure(CameraSettings(width=640, height=360))
         with pytest.raises(InputError, match="reference frame: both markers must be visible"):
-            CameraLength(frames, reference_distance_mm=35.0).read()
+            first_sample(CameraLength(frames, reference_distance_mm=35.0), clock, batched)
         cam = SimCamera(clock, lambda t: 35.0, **scene)
         length = CameraLength(
             live_source(clock, cam, width=640, height=360), reference_distance_mm=35.0
         )
-        assert length.read().ok and length.mm_per_px == pytest.approx(MM_PER_PX, rel=1e-3)
+        assert first_sample(length, clock, batched).ok
+        assert length.mm_per_px == pytest.approx(MM_PER_PX, rel=1e-3)
 
 
 def test_other_backends_are_stamped_when_the_grab_returns():

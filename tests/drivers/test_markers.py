@@ -5,8 +5,10 @@ import math
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from labrig.drivers.markers import MarkerFix, MarkerTracker, mm_per_px_from_reference
+from labrig.drivers.markers import MarkerFix, MarkerTracker, _median, mm_per_px_from_reference
 from labrig.errors import InputError
 from labrig.sim.camera import SimCamera
 from labrig.virtual_clock import VirtualClock
@@ -178,3 +180,11 @@ def test_a_frame_that_is_not_an_image_is_an_input_error():
         MarkerTracker().track(np.zeros((0, 0, 3), np.uint8))
     with pytest.raises(InputError, match="need colour frames"):
         MarkerTracker(hsv_range=((0, 80, 60), (10, 255, 255))).track(np.zeros((9, 9), np.uint8))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(-300.0, 300.0, width=32), min_size=1, max_size=400))
+def test_the_ring_median_is_numpys(values):
+    """The centroid window's background level: the fast median against np.median."""
+    ring = np.array(values, dtype=np.float32)
+    assert _median(ring) == pytest.approx(float(np.median(ring)), rel=1e-6, abs=1e-4)

@@ -36,7 +36,7 @@ def test_the_simulated_rig_passes(capsys):
     assert "syringe 27.60 mm, 50 mL" in lines["pump"] and "infuse" in lines["pump"]
     assert "supply 5.000 V on Dev1/ai1" in lines["pressure"]
     assert "+0.80 kPa" in lines["pressure"]  # the simulated sensor's offset error
-    assert "1280x720" in lines["camera"] and "both markers found" in lines["camera"]
+    assert "640x360" in lines["camera"] and "both markers found" in lines["camera"]
     assert lines["rig"] == "rig check: 3 of 3 devices ok"
 
 

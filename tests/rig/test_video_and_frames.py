@@ -18,7 +18,7 @@ from simrig import run_sim, short_protocol
 from labrig.analysis.strip import CAPTION_PX, TILE_WIDTH_PX
 from labrig.cli import main
 from labrig.drivers.markers import MarkerTracker
-from labrig.rig import CameraConfig, PumpConfig, RigConfig, SimConfig
+from labrig.rig import SIM_CAMERA_SIZE, CameraConfig, PumpConfig, RigConfig, SimConfig
 from labrig.storage import open_run, read_log
 
 VIDEO_DEMO = (
@@ -79,7 +79,8 @@ def test_one_video_frame_per_length_sample_with_its_time(video_run):
     assert count == len(video_t) == len(length) > 3000  # 30 fps over 124 s
     assert np.array_equal(video_t, length.time_s) and np.all(video_rep == 1)
     assert np.diff(video_t) == pytest.approx(np.full(len(video_t) - 1, 1 / 30), abs=1e-9)
-    assert frames[0].shape == (720, 1280, 3)
+    width, height = SIM_CAMERA_SIZE  # the simulated rig's monochrome sensor
+    assert frames[0].shape == (height, width, 3)  # decoded as BGR, as OpenCV does
     assert_frames_show_the_logged_markers(frames, length, checked)
 
 
@@ -113,7 +114,8 @@ def test_the_transition_strip_shows_the_frames_before_and_after(video_run, tmp_p
         main(["frames", str(video_run), "--at-transitions", "-o", str(out)])
     assert done.value.code == 0, capsys.readouterr()
     strip = cv2.imread(str(out))
-    tile_h = 360 + CAPTION_PX  # 1280x720 frames scaled to 640 px wide, caption under
+    scale = TILE_WIDTH_PX / SIM_CAMERA_SIZE[0]  # frames scaled to the tile's width
+    tile_h = round(SIM_CAMERA_SIZE[1] * scale) + CAPTION_PX  # caption under
     assert strip.shape == (tile_h, 2 * TILE_WIDTH_PX, 3)  # one snap: before, after
     length = length_rows(video_run)[0]
     from labrig.analysis.analyse import analyse
@@ -121,16 +123,16 @@ def test_the_transition_strip_shows_the_frames_before_and_after(video_run, tmp_p
     (snap,) = analyse(video_run).repetitions[0].transitions
     lengths = []
     for column in (0, 1):
-        tile = strip[:360, column * TILE_WIDTH_PX : (column + 1) * TILE_WIDTH_PX]
+        tile = strip[: tile_h - CAPTION_PX, column * TILE_WIDTH_PX : (column + 1) * TILE_WIDTH_PX]
         # the tile's markers: the darkest spots, at the logged positions of its frame
         grey = cv2.cvtColor(tile, cv2.COLOR_BGR2GRAY)
-        dark = np.argwhere(grey < 80)
-        left, right = dark[dark[:, 1] < 320], dark[dark[:, 1] >= 320]
+        dark = np.argwhere(grey < 60)  # the dots' cores (40); the background is 90 +- noise
+        left, right = dark[dark[:, 1] < TILE_WIDTH_PX / 2], dark[dark[:, 1] >= TILE_WIDTH_PX / 2]
         centres = [side.mean(axis=0)[::-1] for side in (left, right)]  # (x, y)
         k = int(np.argmin(np.abs(length.time_s - (snap.t_s - 1 if column == 0 else snap.t_s + 1))))
-        distance = np.hypot(*(centres[1] - centres[0])) * 2  # tile px -> frame px
+        distance = np.hypot(*(centres[1] - centres[0])) / scale  # tile px -> frame px
         lengths.append(distance)
-        assert centres[0][1] == pytest.approx(length.fields["y1"][k] / 2, abs=1.5)
+        assert centres[0][1] == pytest.approx(length.fields["y1"][k] * scale, abs=1.5)
     # before and after differ by the measured jump (in px of the frame)
     mm_per_px = length.fields["value"][0] / np.hypot(
         length.fields["x2"][0] - length.fields["x1"][0],

@@ -8,6 +8,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+from labrig.drivers.markers import MarkerTracker
 from labrig.sim.camera import SimCamera
 from labrig.virtual_clock import VirtualClock
 
@@ -16,6 +17,10 @@ def camera(**kwargs):
     kwargs.setdefault("clock", VirtualClock())
     kwargs.setdefault("length_mm_at", lambda t: 40.0)
     return SimCamera(**kwargs)
+
+
+def centres(fix):
+    return np.array([[fix.x1_px, fix.y1_px], [fix.x2_px, fix.y2_px]])
 
 
 def streaming_at_sensor_size(cam):
@@ -161,6 +166,39 @@ def test_a_lazy_frame_region_is_that_region_of_the_full_frame_bit_for_bit():
         np.testing.assert_array_equal(frame[10, 20], full[10, 20])  # any other index
 
 
+def test_a_monochrome_camera_sees_the_grey_levels_of_the_colour_scene():
+    """Independent of the grey renderer: OpenCV's BGR-to-grey of the colour frame."""
+    scene = dict(noise_grey=0.0, length_mm_at=lambda t: 40.0 + t, mm_per_px=0.05)
+    colour, grey = camera(**scene), camera(monochrome=True, **scene)
+    for t in (0.0, 1.3):
+        frame = grey.frame_at(t)
+        full = np.asarray(frame)
+        assert frame.shape == full.shape == (720, 1280) and frame.ndim == 2
+        expected = cv2.cvtColor(colour.render(t), cv2.COLOR_BGR2GRAY).astype(int)
+        assert np.max(np.abs(full.astype(int) - expected)) <= 1  # 8-bit rounding
+        fix = MarkerTracker().track(frame)
+        assert np.max(np.abs(centres(fix) - grey.marker_centres_px(t))) < 0.02
+
+
+@pytest.mark.parametrize("monochrome", [False, True])
+def test_the_noise_is_one_saturating_addition_of_the_noise_frame(monochrome):
+    """The two uint8 passes (positive part added, negative part subtracted) against a
+    direct signed addition, clipped once."""
+    cam = camera(monochrome=monochrome, noise_grey=40.0, specimen_bgr=(250, 250, 250),
+                 marker_bgr=(5, 5, 5))  # fmt: skip
+    frame = cam.frame_at(0.4)
+    noisy = np.asarray(frame).astype(int)
+    k, dy, dx = frame.noise
+    frame.noise, frame._full = None, None
+    clean = np.asarray(frame).astype(int)
+    plus, minus = cam._noise
+    signed = plus[k].astype(int) - minus[k].astype(int)
+    signed = signed[dy : dy + cam.height, dx : dx + cam.width]
+    assert np.all((plus == 0) | (minus == 0))  # each pixel's noise is one or the other
+    np.testing.assert_array_equal(noisy, np.clip(clean + signed, 0, 255))
+    assert np.any(clean + signed > 255) and np.any(clean + signed < 0)  # both clip
+
+
 def test_v4l2_streams_at_640x480_until_the_size_is_set_and_restarts_dark():
     clock = VirtualClock()
     cam = camera(clock=clock, fps=30.0, length_mm_at=lambda t: 40.0, mm_per_px=0.05)
@@ -196,7 +234,7 @@ def test_exposure_and_focus_are_kept_and_read_back():
     box=st.tuples(
         st.integers(-50, 700), st.integers(-50, 1300), st.integers(0, 300), st.integers(0, 300)
     ),
-    seed=st.integers(0, 3),
+    seed=st.integers(0, 5),
 )
 def test_any_region_a_tracker_reads_is_that_region_of_the_full_frame(t, box, seed):
     """Whatever box is read (cut by the edges, empty, across dots and band), the lazily
@@ -209,4 +247,7 @@ def test_any_region_a_tracker_reads_is_that_region_of_the_full_frame(t, box, see
     np.testing.assert_array_equal(frame[y0 : y0 + h, x0 : x0 + w], full[y0 : y0 + h, x0 : x0 + w])
 
 
-_SHARED = [camera(length_mm_at=lambda t: 40.0 + t, seed=s, mm_per_px=0.05) for s in range(4)]
+_SHARED = [camera(length_mm_at=lambda t: 40.0 + t, seed=s, mm_per_px=0.05) for s in range(4)] + [
+    camera(length_mm_at=lambda t: 40.0 + t, seed=s, mm_per_px=0.05, monochrome=True)
+    for s in range(2)
+]
