@@ -53,7 +53,11 @@ class Transition:
         return "inflate" if self.direction == INFLATE else "deflate"
 
 
-def transitions(path: Path, window_ml: float = 1e-4) -> list[Transition]:
+# the default distance between pre and post of a stable transition (module docstring)
+WINDOW_ML = 1e-4
+
+
+def transitions(path: Path, window_ml: float = WINDOW_ML) -> list[Transition]:
     """Every transition along ``path``, in order."""
     actuator = path.actuator
     out = []

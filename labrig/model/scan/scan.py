@@ -37,10 +37,12 @@ from pathlib import Path
 import numpy as np
 
 from labrig.errors import InputError
+from labrig.model.actuator import jit
+from labrig.model.actuator.descent import volume_unit_ml
 from labrig.model.actuator.equilibria import Actuator
 from labrig.model.actuator.kernel import kernel_of
 from labrig.model.actuator.path import quasi_static_path
-from labrig.model.actuator.transitions import transitions
+from labrig.model.actuator.transitions import WINDOW_ML, transitions
 from labrig.model.segments.curve import SegmentCurve
 
 ANALYTICAL = "analytical"
@@ -190,6 +192,60 @@ def scan_actuator(library: ScanLibrary, combo: tuple[int, ...], *, deflate: bool
     return transitions(quasi_static_path(actuator, deflate=deflate))
 
 
+def _reference_rows(library: ScanLibrary, combo: tuple[int, ...], deflate: bool) -> list[tuple]:
+    return [
+        (t.direction, t.v_ml, t.alpha, t.beta, t.stable, t.dE, t.dv, t.dl, t.dp)
+        for t in scan_actuator(library, combo, deflate=deflate)
+    ]
+
+
+class _CompiledRows:
+    """The rows of actuators by ``labrig.model.actuator.compiled_path`` (the same bits
+    as the reference, in one compiled call per actuator); an actuator it leaves to the
+    reference, or that fails there, goes through ``scan_actuator``, whose rows or error
+    are then the actuator's."""
+
+    def __init__(self, library: ScanLibrary) -> None:
+        from labrig.model.actuator import compiled_path
+        from labrig.model.actuator.descent import FLOW_TOL
+        from labrig.model.actuator.path import SCREEN_MARGIN
+
+        self.library = library
+        self.kernels = tuple(kernel_of(c) for c in library.curves)
+        self.tables = compiled_path.library_tables(self.kernels)
+        self.trace = compiled_path.trace_transitions
+        self.settings = (SCREEN_MARGIN, FLOW_TOL, WINDOW_ML)
+
+    def __call__(self, combo: tuple[int, ...], deflate: bool) -> list[tuple]:
+        unit = volume_unit_ml([self.kernels[i] for i in combo])
+        try:
+            ints, floats = self.trace(
+                *self.tables, np.array(combo, dtype=np.int64), deflate, unit, *self.settings
+            )
+        except Exception:  # a state the compiled path leaves to the reference
+            return _reference_rows(self.library, combo, deflate)
+        return [
+            (d, v, a, b, bool(s), de, dv, dl, dp)
+            for (d, a, b, s), (v, de, dv, dl, dp) in zip(
+                ints.tolist(), floats.tolist(), strict=True
+            )
+        ]
+
+
+def _rows_function(library: ScanLibrary) -> Callable[[tuple[int, ...], bool], list[tuple]]:
+    """How a chunk's actuators are solved: compiled whole (``_CompiledRows``) in a
+    process that compiles, else the reference (``LABRIG_JIT=python``)."""
+    if not jit.COMPILED:
+        return lambda combo, deflate: _reference_rows(library, combo, deflate)
+    rows = _ROWS.get(library)
+    if rows is None:
+        rows = _ROWS[library] = _CompiledRows(library)
+    return rows
+
+
+_ROWS: dict[ScanLibrary, _CompiledRows] = {}
+
+
 def run_chunk(library: ScanLibrary, chunk: Chunk) -> ChunkResult:
     """Every actuator of ``chunk``: chunk in, arrays out (see the module docstring)."""
     started = time.perf_counter()
@@ -198,18 +254,18 @@ def run_chunk(library: ScanLibrary, chunk: Chunk) -> ChunkResult:
     row_actuator: list[int] = []
     row_segments: list[tuple[int, ...]] = []
     failed: list[tuple[int, tuple[int, ...], str]] = []
+    solve = _rows_function(library)
     for rank, combo in enumerate(
         combinations_between(chunk.start, chunk.stop, n_items, chunk.n), chunk.start
     ):
         try:
-            found = scan_actuator(library, combo, deflate=chunk.deflate)
+            found = solve(combo, chunk.deflate)
         except Exception as exc:  # recorded in the file; one actuator never stops a scan
             failed.append((rank, combo, f"{type(exc).__name__}: {exc}"))
             continue
-        for t in found:
-            row_actuator.append(rank)
-            row_segments.append(combo)
-            rows.append((t.direction, t.v_ml, t.alpha, t.beta, t.stable, t.dE, t.dv, t.dl, t.dp))
+        row_actuator.extend([rank] * len(found))
+        row_segments.extend([combo] * len(found))
+        rows.extend(found)
     dtypes = (np.int8, np.float64, np.int8, np.int8, np.bool_, *(np.float64,) * 4)
     columns = {
         name: np.array([r[j] for r in rows], dtype=dtype)
