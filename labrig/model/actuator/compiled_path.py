@@ -36,7 +36,7 @@ from labrig.model.actuator.curve_tables import (
     LAST_PIECE,
     PAIR_IMBALANCE,
     SAMPLES,
-    excess_volume,
+    excess_volume_at,
     inverse_sum_of,
     pair_imbalance,
     piece_index,
@@ -50,7 +50,7 @@ from labrig.model.actuator.curve_tables import (
 )
 from labrig.model.actuator.equilibria import stable_slopes
 from labrig.model.actuator.fold_search import AT_PRESSURE, AT_VOLUME, START, at_volume_of, find_fold
-from labrig.model.actuator.jit import njit
+from labrig.model.actuator.jit import LEAF, njit
 from labrig.model.actuator.roots import XTOL, bracketed_root
 from labrig.model.actuator.ros2_flow import MAX_STEPS, SETTLED, settle_flow
 
@@ -62,7 +62,7 @@ SNAP, CROSSING = 0, 1
 CAUSE_FOLD, CAUSE_COINCIDENT, CAUSE_BRANCH_END, CAUSE_COINCIDENT_ENDS = range(4)
 INFLATE, DEFLATE = 1, -1
 # timeline items one direction may hold here (the reference allows 10,000 events)
-_CAPACITY = 1024
+_CAPACITY = 256
 _MAX_FLOW_STEPS = 200_000  # ``descent.settle``'s default
 
 
@@ -90,13 +90,13 @@ def branch_tables(kernels) -> tuple:
 
 
 # --- Python's arithmetic, exactly ------------------------------------------------------
-@njit(cache=True)
+@njit(**LEAF)
 def _max(a, b):
     """Python's ``max(a, b)``: the first unless the second is larger."""
     return b if b > a else a
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _min(a, b):
     """Python's ``min(a, b)``: the first unless the second is smaller."""
     return b if b < a else a
@@ -169,12 +169,12 @@ def _at(tables, b, p):
     return b.copy(), p, v, k
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _rising(tables, i, branch):
     return tables[BRANCH_RISING][i, branch]
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _branch_of(info, i, v):
     """``CurveKernel.branch_of``."""
     for index in range(info[N_BRANCHES][i] - 1):
@@ -183,7 +183,7 @@ def _branch_of(info, i, v):
     return info[N_BRANCHES][i] - 1
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _spacing_near(tables, i, v):
     j = piece_index(tables, i, v)
     return tables[BREAKPOINTS][i, j + 1] - tables[BREAKPOINTS][i, j]
@@ -234,7 +234,7 @@ def _reach(tables, info, state, v_target, has_end, end, s_p):
     if not has_end:
         step = _max(1.0, abs(p))
         p_far = p + s_p * step
-        while (excess_volume(p_far, (tables, b, v_target)) > 0) == (f_start > 0):
+        while (excess_volume_at(p_far, tables, b, v_target) > 0) == (f_start > 0):
             step *= 2.0
             p_far = p + s_p * step
         return _reach_between(tables, info, b, p, p_far, v_target, f_start, math.nan)
@@ -309,7 +309,7 @@ def _settle(tables, w0, tol, unit):
 def _settle_pair(tables, w):
     """``descent._settle_pair``."""
     v = w[0] + w[1]
-    g0 = pair_imbalance(w[0], (tables, v))
+    g0 = pair_imbalance(w[0], tables, v)
     if g0 == 0.0:
         return w
     direction = -1.0 if g0 > 0 else 1.0
@@ -324,12 +324,12 @@ def _settle_pair(tables, w):
         points = points[::-1]
     j = -1
     for index in range(len(points)):
-        if direction * pair_imbalance(points[index], (tables, v)) >= 0:
+        if direction * pair_imbalance(points[index], tables, v) >= 0:
             j = index
             break
     if j < 0:
         far = end + direction * _max(v, 1.0)
-        if direction * pair_imbalance(far, (tables, v)) < 0:
+        if direction * pair_imbalance(far, tables, v) < 0:
             raise RuntimeError("the flow between two segments never stops")
         a, b = end, far
     else:
@@ -367,12 +367,12 @@ def _equilibrium_on(tables, info, b, w, v):
         p = p - excess / slope if math.isfinite(slope) and slope != 0 else math.nan
         if not p_lo <= p <= p_hi:
             break
-    f0 = excess_volume(p0, (tables, b, v))
+    f0 = excess_volume_at(p0, tables, b, v)
     width = 1e-6 * _max(1.0, abs(p0))
     while True:
         for side in range(2):
             q = _max(p0 - width, p_lo) if side == 0 else _min(p0 + width, p_hi)
-            f = excess_volume(q, (tables, b, v))
+            f = excess_volume_at(q, tables, b, v)
             if (f > 0) != (f0 > 0):
                 root = bracketed_root(EXCESS_VOLUME, tables, b, v, p0, q, f0, f, XTOL)
                 return _with_volume(tables, info, _at(tables, b, root), v)
@@ -504,7 +504,7 @@ def _fold_snap(tables, info, fold, s_p, unit, flow_tol):
 
 
 # --- branch ends -------------------------------------------------------------------
-@njit(cache=True)
+@njit(**LEAF)
 def _switched(tables, info, i, branch, s_p):
     """``_Tracer._switched``; -1 for None."""
     forward = _rising(tables, i, branch) == (s_p > 0)
@@ -512,7 +512,7 @@ def _switched(tables, info, i, branch, s_p):
     return new if 0 <= new < info[N_BRANCHES][i] else -1
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _lexicographic_less(a, b):
     """Python's comparison of two tuples of ints, a < b."""
     for i in range(min(len(a), len(b))):
@@ -605,10 +605,10 @@ def _new_timeline(n):
     """Items: type, direction, event kind, cause (int64); pressures a, b and volumes
     a, b of a piece (float64, an event's are its states' pressures); branches a, b and
     an event's volumes and slopes before and after (rows of n)."""
-    ints = np.zeros((_CAPACITY, 4), dtype=np.int64)
-    floats = np.zeros((_CAPACITY, 4))
-    branches = np.zeros((_CAPACITY, 2, n), dtype=np.int64)
-    states = np.zeros((_CAPACITY, 4, n))
+    ints = np.empty((_CAPACITY, 4), dtype=np.int64)
+    floats = np.empty((_CAPACITY, 4))
+    branches = np.empty((_CAPACITY, 2, n), dtype=np.int64)
+    states = np.empty((_CAPACITY, 4, n))
     count = np.zeros(1, dtype=np.int64)  # the items so far
     return ints, floats, branches, states, count
 
@@ -647,12 +647,12 @@ def _event_state(timeline, t, side):
             states[t, 2 * side + 1].copy())  # fmt: skip
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _event_cause(timeline, t):
     return timeline[0][t, 3]
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _touched(timeline, first):
     """``path._touched`` on the items from ``first`` on (this direction's)."""
     ints, floats, _, _, counter = timeline
@@ -782,8 +782,8 @@ def _state_on_piece(tables, info, timeline, t, v_ml):
 @njit(cache=True)
 def _bracketed_or_nan(tables, b, v, p_a, p_b):
     """The root ``reach_between`` finds, NaN where it raises (no sign change)."""
-    f_a = excess_volume(p_a, (tables, b, v))
-    f_b = excess_volume(p_b, (tables, b, v))
+    f_a = excess_volume_at(p_a, tables, b, v)
+    f_b = excess_volume_at(p_b, tables, b, v)
     if f_a != 0.0 and f_b != 0.0 and (f_a > 0) == (f_b > 0):
         return math.nan
     return bracketed_root(EXCESS_VOLUME, tables, b, v, p_a, p_b, f_a, f_b, XTOL)
@@ -805,7 +805,7 @@ def _select(library, library_profiles, library_info, combo):
     return tables, profiles, info
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _alpha(info, branches):
     total = 0
     for i in range(len(branches)):

@@ -217,13 +217,17 @@ class _CompiledRows:
         self.settings = (SCREEN_MARGIN, FLOW_TOL, WINDOW_ML)
 
     def __call__(self, combo: tuple[int, ...], deflate: bool) -> list[tuple]:
-        unit = volume_unit_ml([self.kernels[i] for i in combo])
         try:
-            ints, floats = self.trace(
-                *self.tables, np.array(combo, dtype=np.int64), deflate, unit, *self.settings
-            )
+            return self.compiled(combo, deflate)
         except Exception:  # a state the compiled path leaves to the reference
             return _reference_rows(self.library, combo, deflate)
+
+    def compiled(self, combo: tuple[int, ...], deflate: bool) -> list[tuple]:
+        """The rows by the compiled path alone (raises where it gives up)."""
+        unit = volume_unit_ml([self.kernels[i] for i in combo])
+        ints, floats = self.trace(
+            *self.tables, np.array(combo, dtype=np.int64), deflate, unit, *self.settings
+        )
         return [
             (d, v, a, b, bool(s), de, dv, dl, dp)
             for (d, a, b, s), (v, de, dv, dl, dp) in zip(
