@@ -62,7 +62,7 @@ def test_library_chunks_are_compiled_whole_and_give_the_same_bits(n, start, stop
         for deflate in (False, True):
             assert assert_same_as_reference(library, combo, deflate), combo  # none left
         rows += len(scan._CompiledRows(library).compiled(combo, True))
-    assert rows > 5 * (stop - start)  # snaps and stable transitions both ways
+    assert rows >= 4 * (stop - start)  # snaps and stable transitions both ways
 
 
 @pytest.mark.slow
