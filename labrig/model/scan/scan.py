@@ -22,6 +22,7 @@ optionally followed by deflation back to zero, and its transitions
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import math
 import os
@@ -192,11 +193,18 @@ def scan_actuator(library: ScanLibrary, combo: tuple[int, ...], *, deflate: bool
     return transitions(quasi_static_path(actuator, deflate=deflate))
 
 
-def _reference_rows(library: ScanLibrary, combo: tuple[int, ...], deflate: bool) -> list[tuple]:
-    return [
-        (t.direction, t.v_ml, t.alpha, t.beta, t.stable, t.dE, t.dv, t.dl, t.dp)
-        for t in scan_actuator(library, combo, deflate=deflate)
-    ]
+# An actuator's rows as two arrays: (m, 4) int64 direction, alpha, beta, stable and
+# (m, 5) float64 v_ml, dE, dv, dl, dp (the layout ``compiled_path`` returns)
+Rows = tuple[np.ndarray, np.ndarray]
+_INT_FIELDS = ("direction", "alpha", "beta", "stable")
+_FLOAT_FIELDS = ("v_ml", "dE", "dv", "dl", "dp")
+
+
+def _reference_rows(library: ScanLibrary, combo: tuple[int, ...], deflate: bool) -> Rows:
+    found = scan_actuator(library, combo, deflate=deflate)
+    ints = np.array([[getattr(t, f) for f in _INT_FIELDS] for t in found], dtype=np.int64)
+    floats = np.array([[getattr(t, f) for f in _FLOAT_FIELDS] for t in found], dtype=float)
+    return ints.reshape(-1, len(_INT_FIELDS)), floats.reshape(-1, len(_FLOAT_FIELDS))
 
 
 class _CompiledRows:
@@ -216,27 +224,27 @@ class _CompiledRows:
         self.trace = compiled_path.trace_transitions
         self.settings = (SCREEN_MARGIN, FLOW_TOL, WINDOW_ML)
 
-    def __call__(self, combo: tuple[int, ...], deflate: bool) -> list[tuple]:
+    def __call__(self, combo: tuple[int, ...], deflate: bool) -> Rows:
         try:
             return self.compiled(combo, deflate)
         except Exception:  # a state the compiled path leaves to the reference
             return _reference_rows(self.library, combo, deflate)
 
-    def compiled(self, combo: tuple[int, ...], deflate: bool) -> list[tuple]:
+    def warm(self) -> None:
+        """Compile (or load from numba's cache) before the workers fork, so that they
+        inherit the machine code instead of each compiling it."""
+        with contextlib.suppress(Exception):  # a pair it leaves: compiled all the same
+            self.compiled((0, 1), False)
+
+    def compiled(self, combo: tuple[int, ...], deflate: bool) -> Rows:
         """The rows by the compiled path alone (raises where it gives up)."""
         unit = volume_unit_ml([self.kernels[i] for i in combo])
-        ints, floats = self.trace(
+        return self.trace(
             *self.tables, np.array(combo, dtype=np.int64), deflate, unit, *self.settings
         )
-        return [
-            (d, v, a, b, bool(s), de, dv, dl, dp)
-            for (d, a, b, s), (v, de, dv, dl, dp) in zip(
-                ints.tolist(), floats.tolist(), strict=True
-            )
-        ]
 
 
-def _rows_function(library: ScanLibrary) -> Callable[[tuple[int, ...], bool], list[tuple]]:
+def _rows_function(library: ScanLibrary) -> Callable[[tuple[int, ...], bool], Rows]:
     """How a chunk's actuators are solved: compiled whole (``_CompiledRows``) in a
     process that compiles, else the reference (``LABRIG_JIT=python``)."""
     if not jit.COMPILED:
@@ -254,33 +262,36 @@ def run_chunk(library: ScanLibrary, chunk: Chunk) -> ChunkResult:
     """Every actuator of ``chunk``: chunk in, arrays out (see the module docstring)."""
     started = time.perf_counter()
     n_items = len(library.curves)
-    rows: list[tuple] = []
-    row_actuator: list[int] = []
-    row_segments: list[tuple[int, ...]] = []
+    found_ints: list[np.ndarray] = [np.zeros((0, len(_INT_FIELDS)), dtype=np.int64)]
+    found_floats: list[np.ndarray] = [np.zeros((0, len(_FLOAT_FIELDS)))]
+    ranks: list[int] = []
+    combos: list[tuple[int, ...]] = []
+    counts: list[int] = []
     failed: list[tuple[int, tuple[int, ...], str]] = []
     solve = _rows_function(library)
     for rank, combo in enumerate(
         combinations_between(chunk.start, chunk.stop, n_items, chunk.n), chunk.start
     ):
         try:
-            found = solve(combo, chunk.deflate)
+            ints, floats = solve(combo, chunk.deflate)
         except Exception as exc:  # recorded in the file; one actuator never stops a scan
             failed.append((rank, combo, f"{type(exc).__name__}: {exc}"))
             continue
-        row_actuator.extend([rank] * len(found))
-        row_segments.extend([combo] * len(found))
-        rows.extend(found)
-    dtypes = (np.int8, np.float64, np.int8, np.int8, np.bool_, *(np.float64,) * 4)
-    columns = {
-        name: np.array([r[j] for r in rows], dtype=dtype)
-        for j, (name, dtype) in enumerate(zip(TRANSITION_FIELDS, dtypes, strict=True))
-    }
+        found_ints.append(ints)
+        found_floats.append(floats)
+        ranks.append(rank)
+        combos.append(combo)
+        counts.append(len(ints))
+    ints, floats = np.concatenate(found_ints), np.concatenate(found_floats)
+    dtypes = {"direction": np.int8, "alpha": np.int8, "beta": np.int8, "stable": np.bool_}
+    columns = {name: ints[:, j].astype(dtypes[name]) for j, name in enumerate(_INT_FIELDS)}
+    columns |= {name: floats[:, j].copy() for j, name in enumerate(_FLOAT_FIELDS)}
     return ChunkResult(
         index=chunk.index,
         n_actuators=chunk.stop - chunk.start,
-        actuator=np.array(row_actuator, dtype=np.int64),
-        segments=np.array(row_segments, dtype=np.int16).reshape(-1, chunk.n),
-        columns=columns,
+        actuator=np.repeat(np.array(ranks, dtype=np.int64), counts),
+        segments=np.repeat(np.array(combos, dtype=np.int16).reshape(-1, chunk.n), counts, axis=0),
+        columns={name: columns[name] for name in TRANSITION_FIELDS},
         failed_actuator=np.array([f[0] for f in failed], dtype=np.int64),
         failed_segments=np.array([f[1] for f in failed], dtype=np.int16).reshape(-1, chunk.n),
         failed_error=tuple(f[2] for f in failed),
@@ -358,6 +369,9 @@ def run_chunks(
         return
     import multiprocessing
 
+    solve = _rows_function(library)
+    if isinstance(solve, _CompiledRows):
+        solve.warm()
     methods = multiprocessing.get_all_start_methods()
     # fork: the workers inherit the imported modules and the curves (0.5 s saved per
     # worker); elsewhere the library is pickled to each worker once
