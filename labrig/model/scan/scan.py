@@ -258,6 +258,12 @@ def _rows_function(library: ScanLibrary) -> Callable[[tuple[int, ...], bool], Ro
 _ROWS: dict[ScanLibrary, _CompiledRows] = {}
 
 
+def solve_actuator(library: ScanLibrary, combo: tuple[int, ...], *, deflate: bool = False) -> Rows:
+    """What a chunk computes for one actuator: its rows, by the compiled path where the
+    process compiles (``_rows_function``)."""
+    return _rows_function(library)(combo, deflate)
+
+
 def run_chunk(library: ScanLibrary, chunk: Chunk) -> ChunkResult:
     """Every actuator of ``chunk``: chunk in, arrays out (see the module docstring)."""
     started = time.perf_counter()
