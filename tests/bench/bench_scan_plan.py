@@ -2,7 +2,7 @@
 numbers; asserts nothing.
 
 Two scans too large to run here are sampled: random actuators of each, solved on one
-core exactly as a scan's chunk solves them (``scan_actuator``), give the core time and
+core exactly as a scan's chunk solves them (``solve_actuator``), give the core time and
 the transitions per actuator; the whole scan's core time, its wall time on this
 machine's cores and on a 64-core cluster (both at the parallel efficiency measured for
 the n = 5 scan on this machine, given as an argument), and its file size (the bytes of
@@ -32,18 +32,18 @@ def _sample(library, n: int, count: int, *, repeat: bool) -> tuple[float, float,
     """(core seconds per actuator, transitions per actuator, failed actuators) on random
     combinations (with ``repeat``, a segment may be drawn more than once); a failure is
     counted as a scan records it."""
-    from labrig.model.scan.scan import scan_actuator
+    from labrig.model.scan.scan import solve_actuator
 
     rng = random.Random(2016)
     items = range(len(library.curves))
     draw = (lambda: rng.choices(items, k=n)) if repeat else (lambda: rng.sample(items, n))
     combos = [tuple(sorted(draw())) for _ in range(count)]
-    scan_actuator(library, combos[0])  # compiled code loaded before timing
+    solve_actuator(library, combos[0])  # compiled code loaded before timing
     found = failed = 0
     started = time.process_time()
     for combo in combos:
         try:
-            found += len(scan_actuator(library, combo))
+            found += len(solve_actuator(library, combo)[0])
         except Exception:
             failed += 1
     return (time.process_time() - started) / count, found / (count - failed), failed

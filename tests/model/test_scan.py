@@ -109,14 +109,19 @@ def test_a_chunk_holds_the_transitions_of_paths_computed_directly():
 
 
 def test_a_failing_actuator_is_recorded_and_the_chunk_goes_on(monkeypatch):
-    real = scan_module.quasi_static_path
+    real = scan_module._rows_function  # the solver a chunk uses (compiled or reference)
 
-    def failing_for_b40_t30(actuator, *args, **kwargs):
-        if "B40-T30" in actuator.names:
-            raise RuntimeError("no equilibrium (injected)")
-        return real(actuator, *args, **kwargs)
+    def failing_for_b40_t30(library):
+        solve = real(library)
 
-    monkeypatch.setattr(scan_module, "quasi_static_path", failing_for_b40_t30)
+        def solve_or_fail(combo, deflate):
+            if "B40-T30" in [library.curves[i].name for i in combo]:
+                raise RuntimeError("no equilibrium (injected)")
+            return solve(combo, deflate)
+
+        return solve_or_fail
+
+    monkeypatch.setattr(scan_module, "_rows_function", failing_for_b40_t30)
     result = run_chunk(small_library(), Chunk(3, 0, 28, 2))
     failed = [tuple(s) for s in result.failed_segments.tolist()]
     assert failed == [(0, 1), (1, 2), (1, 3), (1, 4), (1, 5), (1, 6), (1, 7)]

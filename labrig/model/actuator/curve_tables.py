@@ -24,7 +24,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from labrig.model.actuator.jit import njit
+from labrig.model.actuator.jit import LEAF, njit
 
 # Newton on a branch's cubic piece stops when the step is below this fraction of the
 # sample spacing (the interpolant itself is only defined to rounding, ~1e-16).
@@ -145,7 +145,7 @@ def profiles_of(kernels: tuple) -> tuple:
     return _stacked([k.profile_tables for k in kernels], {})
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def piece_index(tables, i, v):
     """The piece of segment i that holds v (bisect_right - 1, clamped to the pieces)."""
     x = tables[BREAKPOINTS]
@@ -159,7 +159,7 @@ def piece_index(tables, i, v):
     return min(max(lo - 1, 0), tables[LAST_PIECE][i])
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def piece_integral(c, i, j, t):
     """Integral of segment i's pressure over its piece j from its start to t in."""
     return (
@@ -180,7 +180,7 @@ def _energies(x, c, last_piece):
     return pieces, cumulative
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def energy(tables, i, v):
     """E(v) = integral of p from the first sample (Eq. 1), mJ."""
     ends = tables[ENDS]
@@ -200,7 +200,7 @@ def energy(tables, i, v):
     )
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def length(tables, i, v):
     """l(v) in mm; constant past the table's ends."""
     v = min(max(v, tables[ENDS][i, V_FIRST]), tables[ENDS][i, V_LAST])
@@ -210,7 +210,7 @@ def length(tables, i, v):
     return ((lc[i, 0, j] * t + lc[i, 1, j]) * t + lc[i, 2, j]) * t + lc[i, 3, j]
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def total_energy(tables, v):
     """Energy stored in all segments at volumes v (Eq. 3), mJ."""
     total = 0.0
@@ -219,7 +219,7 @@ def total_energy(tables, v):
     return total
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def total_length(tables, v):
     """Sum of the segments' lengths at volumes v, mm."""
     total = 0.0
@@ -228,7 +228,7 @@ def total_length(tables, v):
     return total
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def pressure_and_slope(tables, i, v):
     """(p, dp/dv) of segment i at volume v."""
     ends = tables[ENDS]
@@ -246,7 +246,7 @@ def pressure_and_slope(tables, i, v):
     return ((c3 * t + c2) * t + c1) * t + c[i, 3, j], (3.0 * c3 * t + 2.0 * c2) * t + c1
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def volume_on_branch(tables, i, branch, p):
     """(v, dp/dv) of segment i on ``branch`` at pressure ``p``; values outside the
     branch's pressure range are clamped to its ends (the caller keeps p inside), except
@@ -312,57 +312,85 @@ def volumes_on_branches(tables, branches, p):
     return v, k
 
 
-@njit(cache=True)
+@njit(**LEAF)
+def _neumaier_add(total, compensation, a):
+    """One term of Neumaier's compensated sum: (total, compensation) after adding a."""
+    t = total + a
+    if abs(total) >= abs(a):
+        compensation += (total - t) + a
+    else:
+        compensation += (a - t) + total
+    return t, compensation
+
+
+@njit(**LEAF)
 def compensated_sum(values):
     """Neumaier's compensated sum (``math.fsum`` to within an ulp for a few terms)."""
     total = 0.0
     compensation = 0.0
     for a in values:
-        t = total + a
-        if abs(total) >= abs(a):
-            compensation += (total - t) + a
-        else:
-            compensation += (a - t) + total
-        total = t
+        total, compensation = _neumaier_add(total, compensation, a)
     return total + compensation
 
 
-@njit(cache=True)
+# The objectives below are evaluated thousands of times per actuator inside root
+# searches. Each takes its arrays as separate arguments and sums term by term as it
+# inverts: packing the tables into a tuple per call (an atomic reference count per
+# array) and allocating the volumes took more time than the inversions themselves.
+# The terms and their order are those of ``compensated_sum`` and ``inverse_sum_of``.
+@njit(**LEAF)
+def excess_volume_at(p, tables, branches, v):
+    """sum_i v_i(p) - v on a branch combination."""
+    total = 0.0
+    compensation = 0.0
+    for i in range(len(branches)):
+        a = volume_on_branch(tables, i, branches[i], p)[0]
+        total, compensation = _neumaier_add(total, compensation, a)
+    return (total + compensation) - v
+
+
+@njit(**LEAF)
 def excess_volume(p, args):
-    """sum_i v_i(p) - v on a branch combination; args = (tables, branches, v)."""
+    """``excess_volume_at`` with args = (tables, branches, v)."""
     tables, branches, v = args
-    return compensated_sum(volumes_on_branches(tables, branches, p)[0]) - v
+    return excess_volume_at(p, tables, branches, v)
 
 
-@njit(cache=True)
+@njit(**LEAF)
+def _inverse_term(tables, i, branch, k):
+    """1/k of segment i, +-inf at a branch end (k = 0) by the branch's side."""
+    if k == 0.0:
+        return math.inf if tables[BRANCH_RISING][i, branch] else -math.inf
+    return 1.0 / k
+
+
+@njit(**LEAF)
 def inverse_sum_of(tables, branches, k):
     """dv/dp = sum_i 1/k_i of a state on ``branches`` with slopes k; a branch end
     (k = 0) counts as +-inf by its side."""
     total = 0.0
     for i in range(len(branches)):
-        if k[i] == 0.0:
-            total += math.inf if tables[BRANCH_RISING][i, branches[i]] else -math.inf
-        else:
-            total += 1.0 / k[i]
+        total += _inverse_term(tables, i, branches[i], k[i])
     return total
 
 
-@njit(cache=True)
-def inverse_slope_sum(p, args):
-    """``inverse_sum_of`` the state at pressure p on a branch combination;
-    args = (tables, branches)."""
-    tables, branches = args
-    return inverse_sum_of(tables, branches, volumes_on_branches(tables, branches, p)[1])
+@njit(**LEAF)
+def inverse_slope_sum_at(p, tables, branches):
+    """``inverse_sum_of`` the state at pressure p on a branch combination."""
+    total = 0.0
+    for i in range(len(branches)):
+        k = volume_on_branch(tables, i, branches[i], p)[1]
+        total += _inverse_term(tables, i, branches[i], k)
+    return total
 
 
-@njit(cache=True)
-def pair_imbalance(w1, args):
-    """p_1(w1) - p_2(v - w1) of two segments holding v together; args = (tables, v)."""
-    tables, v = args
+@njit(**LEAF)
+def pair_imbalance(w1, tables, v):
+    """p_1(w1) - p_2(v - w1) of two segments holding v together."""
     return pressure_and_slope(tables, 0, w1)[0] - pressure_and_slope(tables, 1, v - w1)[0]
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def singular_distance(tables, i, branch, p):
     """Pressure distance from p to the nearer end of segment i's ``branch`` that is an
     extremum of the curve (where the slope is 0); 1.0 kPa if neither is."""
@@ -419,12 +447,12 @@ def fold_screen(tables, profiles, branches, p_from, p_to, margin):
 EXCESS_VOLUME, INVERSE_SLOPE_SUM, PAIR_IMBALANCE = range(3)
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def objective(kind, x, tables, branches, v):
-    """``excess_volume`` (x a pressure), ``inverse_slope_sum`` (x a pressure; v unused)
+    """``excess_volume_at`` (x a pressure), ``inverse_slope_sum_at`` (x a pressure; v unused)
     or ``pair_imbalance`` (x the first segment's volume; branches unused)."""
     if kind == EXCESS_VOLUME:
-        return excess_volume(x, (tables, branches, v))
+        return excess_volume_at(x, tables, branches, v)
     if kind == INVERSE_SLOPE_SUM:
-        return inverse_slope_sum(x, (tables, branches))
-    return pair_imbalance(x, (tables, v))
+        return inverse_slope_sum_at(x, tables, branches)
+    return pair_imbalance(x, tables, v)

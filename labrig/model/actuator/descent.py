@@ -110,7 +110,7 @@ def _settle_pair(kernels: Sequence[CurveKernel], w: list[float]) -> list[float]:
     args = (tables_of(tuple(kernels)), v)
 
     def imbalance(w1: float) -> float:  # p_1 - p_2; the flow moves w1 against its sign
-        return pair_imbalance(w1, args)
+        return pair_imbalance(w1, *args)
 
     g0 = imbalance(w[0])
     if g0 == 0.0:

@@ -36,7 +36,7 @@ from functools import cached_property
 import numpy as np
 
 from labrig.model.actuator.curve_tables import tables_of, total_energy, total_length
-from labrig.model.actuator.jit import njit
+from labrig.model.actuator.jit import LEAF, njit
 from labrig.model.actuator.kernel import CurveKernel, kernel_of
 from labrig.model.segments.curve import SegmentCurve
 
@@ -57,7 +57,7 @@ def stable_scalar(k: Sequence[float]) -> bool:
     return bool(stable_slopes(np.asarray(k, dtype=float)))
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def stable_slopes(k: np.ndarray) -> bool:
     """``is_stable`` for one state's slopes, compiled (the post-snap flow asks it at
     every step): all k_i > 0, or exactly one k_m <= 0 with k_m = 0 or sum 1/k_i < 0."""

@@ -24,13 +24,13 @@ from labrig.model.actuator.curve_tables import (
     INVERSE_SLOPE_SUM,
     compensated_sum,
     fold_screen,
-    inverse_slope_sum,
+    inverse_slope_sum_at,
     inverse_sum_of,
     piece_index,
     pressure_and_slope,
     volumes_on_branches,
 )
-from labrig.model.actuator.jit import njit
+from labrig.model.actuator.jit import LEAF, njit
 from labrig.model.actuator.roots import bracketed_root
 
 NOT_FOUND, AT_PRESSURE, AT_VOLUME, START = range(4)
@@ -51,14 +51,14 @@ def at_volume_of(tables, branches, m, v_m):
     return p, v, k
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _spacing_near(tables, i, v):
     """Width of segment i's table interval around v."""
     j = piece_index(tables, i, v)
     return tables[BREAKPOINTS][i, j + 1] - tables[BREAKPOINTS][i, j]
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def _fold_between(tables, branches, p_a, s_a, p_c, s_c):
     """The first root of sum 1/k between a (negative) and c (not): Brent's root, then a
     look at 16 points before it for an earlier sign change. Returns (found, p): found
@@ -75,7 +75,7 @@ def _fold_between(tables, branches, p_a, s_a, p_c, s_c):
         q_found, s_q_found = 0.0, 0.0
         for k in range(1, 16):
             q = lo + (root - lo) * k / 16
-            s_q = inverse_slope_sum(q, (tables, branches))
+            s_q = inverse_slope_sum_at(q, tables, branches)
             if s_q >= 0:
                 earlier = True
                 k_found, q_found, s_q_found = k, q, s_q

@@ -4,7 +4,7 @@ scipy's ``brentq`` does the same in C but needs finite values at both ends and c
 few tens of microseconds per call in overhead; here an infinite end value (the slope
 term 1/k at a branch end where k = 0) is allowed and only its sign is used. The
 function whose root is sought is one of the compiled ``labrig.model.actuator.curve_tables``
-objectives (``excess_volume``, ``inverse_slope_sum``, ``pair_imbalance``), named by
+objectives (``excess_volume_at``, ``inverse_slope_sum_at``, ``pair_imbalance``), named by
 its number, so a whole root search runs without returning to Python.
 """
 
@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 
 from labrig.model.actuator.curve_tables import objective
-from labrig.model.actuator.jit import njit
+from labrig.model.actuator.jit import LEAF, njit
 
 # absolute and relative tolerances on a root (added), and the most iterations
 XTOL = 1e-12
@@ -21,7 +21,7 @@ RTOL = 4e-16
 MAX_ITER = 200
 
 
-@njit(cache=True)
+@njit(**LEAF)
 def bracketed_root(kind, tables, branches, v, a, b, fa, fb, xtol):
     """A root of f(x) = ``objective(kind, x, tables, branches, v)`` between ``a`` and
     ``b``, where f changes sign (or is zero); ``fa``, ``fb`` are f at the ends, NaN to

@@ -61,6 +61,10 @@ class Transition:
         return "inflate" if self.direction == INFLATE else "deflate"
 
 
+# the default distance between pre and post of a stable transition (module docstring)
+WINDOW_ML = 1e-4
+
+
 def table_resolution(actuator) -> tuple[float, float]:
     """The pressure (kPa) and volume (mL) the segments' tables resolve: the largest step
     or noise, the largest gap between rows; (0, 0) for curves that are not tables."""
@@ -73,7 +77,7 @@ def table_resolution(actuator) -> tuple[float, float]:
     )
 
 
-def transitions(path: Path, window_ml: float = 1e-4) -> list[Transition]:
+def transitions(path: Path, window_ml: float = WINDOW_ML) -> list[Transition]:
     """Every transition along ``path``, in order (see the module docstring)."""
     actuator = path.actuator
     p_resolved_kpa, v_resolved_ml = table_resolution(actuator)

@@ -22,6 +22,7 @@ optionally followed by deflation back to zero, and its transitions
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import math
 import os
@@ -37,10 +38,12 @@ from pathlib import Path
 import numpy as np
 
 from labrig.errors import InputError
+from labrig.model.actuator import jit
+from labrig.model.actuator.descent import volume_unit_ml
 from labrig.model.actuator.equilibria import Actuator
 from labrig.model.actuator.kernel import kernel_of
 from labrig.model.actuator.path import quasi_static_path
-from labrig.model.actuator.transitions import transitions
+from labrig.model.actuator.transitions import WINDOW_ML, transitions
 from labrig.model.segments.curve import SegmentCurve
 
 ANALYTICAL = "analytical"
@@ -190,37 +193,113 @@ def scan_actuator(library: ScanLibrary, combo: tuple[int, ...], *, deflate: bool
     return transitions(quasi_static_path(actuator, deflate=deflate))
 
 
+# An actuator's rows as two arrays: (m, 4) int64 direction, alpha, beta, stable and
+# (m, 5) float64 v_ml, dE, dv, dl, dp (the layout ``compiled_path`` returns)
+Rows = tuple[np.ndarray, np.ndarray]
+_INT_FIELDS = ("direction", "alpha", "beta", "stable")
+_FLOAT_FIELDS = ("v_ml", "dE", "dv", "dl", "dp")
+
+
+def _reference_rows(library: ScanLibrary, combo: tuple[int, ...], deflate: bool) -> Rows:
+    found = scan_actuator(library, combo, deflate=deflate)
+    ints = np.array([[getattr(t, f) for f in _INT_FIELDS] for t in found], dtype=np.int64)
+    floats = np.array([[getattr(t, f) for f in _FLOAT_FIELDS] for t in found], dtype=float)
+    return ints.reshape(-1, len(_INT_FIELDS)), floats.reshape(-1, len(_FLOAT_FIELDS))
+
+
+class _CompiledRows:
+    """The rows of actuators by ``labrig.model.actuator.compiled_path`` (the same bits
+    as the reference, in one compiled call per actuator); an actuator it leaves to the
+    reference, or that fails there, goes through ``scan_actuator``, whose rows or error
+    are then the actuator's."""
+
+    def __init__(self, library: ScanLibrary) -> None:
+        from labrig.model.actuator import compiled_path
+        from labrig.model.actuator.descent import FLOW_TOL
+        from labrig.model.actuator.path import SCREEN_MARGIN
+
+        self.library = library
+        self.kernels = tuple(kernel_of(c) for c in library.curves)
+        self.tables = compiled_path.library_tables(self.kernels)
+        self.trace = compiled_path.trace_transitions
+        self.settings = (SCREEN_MARGIN, FLOW_TOL, WINDOW_ML)
+
+    def __call__(self, combo: tuple[int, ...], deflate: bool) -> Rows:
+        try:
+            return self.compiled(combo, deflate)
+        except Exception:  # a state the compiled path leaves to the reference
+            return _reference_rows(self.library, combo, deflate)
+
+    def warm(self) -> None:
+        """Compile (or load from numba's cache) before the workers fork, so that they
+        inherit the machine code instead of each compiling it."""
+        with contextlib.suppress(Exception):  # a pair it leaves: compiled all the same
+            self.compiled((0, 1), False)
+
+    def compiled(self, combo: tuple[int, ...], deflate: bool) -> Rows:
+        """The rows by the compiled path alone (raises where it gives up)."""
+        unit = volume_unit_ml([self.kernels[i] for i in combo])
+        return self.trace(
+            *self.tables, np.array(combo, dtype=np.int64), deflate, unit, *self.settings
+        )
+
+
+def _rows_function(library: ScanLibrary) -> Callable[[tuple[int, ...], bool], Rows]:
+    """How a chunk's actuators are solved: compiled whole (``_CompiledRows``) in a
+    process that compiles, else the reference (``LABRIG_JIT=python``). A library of
+    measured tables also takes the reference: its transitions leave out snaps below the
+    tables' resolution (``transitions``), which the compiled path does not know."""
+    if not jit.COMPILED or any(c.measured is not None for c in library.curves):
+        return lambda combo, deflate: _reference_rows(library, combo, deflate)
+    rows = _ROWS.get(library)
+    if rows is None:
+        rows = _ROWS[library] = _CompiledRows(library)
+    return rows
+
+
+_ROWS: dict[ScanLibrary, _CompiledRows] = {}
+
+
+def solve_actuator(library: ScanLibrary, combo: tuple[int, ...], *, deflate: bool = False) -> Rows:
+    """What a chunk computes for one actuator: its rows, by the compiled path where the
+    process compiles (``_rows_function``)."""
+    return _rows_function(library)(combo, deflate)
+
+
 def run_chunk(library: ScanLibrary, chunk: Chunk) -> ChunkResult:
     """Every actuator of ``chunk``: chunk in, arrays out (see the module docstring)."""
     started = time.perf_counter()
     n_items = len(library.curves)
-    rows: list[tuple] = []
-    row_actuator: list[int] = []
-    row_segments: list[tuple[int, ...]] = []
+    found_ints: list[np.ndarray] = [np.zeros((0, len(_INT_FIELDS)), dtype=np.int64)]
+    found_floats: list[np.ndarray] = [np.zeros((0, len(_FLOAT_FIELDS)))]
+    ranks: list[int] = []
+    combos: list[tuple[int, ...]] = []
+    counts: list[int] = []
     failed: list[tuple[int, tuple[int, ...], str]] = []
+    solve = _rows_function(library)
     for rank, combo in enumerate(
         combinations_between(chunk.start, chunk.stop, n_items, chunk.n), chunk.start
     ):
         try:
-            found = scan_actuator(library, combo, deflate=chunk.deflate)
+            ints, floats = solve(combo, chunk.deflate)
         except Exception as exc:  # recorded in the file; one actuator never stops a scan
             failed.append((rank, combo, f"{type(exc).__name__}: {exc}"))
             continue
-        for t in found:
-            row_actuator.append(rank)
-            row_segments.append(combo)
-            rows.append((t.direction, t.v_ml, t.alpha, t.beta, t.stable, t.dE, t.dv, t.dl, t.dp))
-    dtypes = (np.int8, np.float64, np.int8, np.int8, np.bool_, *(np.float64,) * 4)
-    columns = {
-        name: np.array([r[j] for r in rows], dtype=dtype)
-        for j, (name, dtype) in enumerate(zip(TRANSITION_FIELDS, dtypes, strict=True))
-    }
+        found_ints.append(ints)
+        found_floats.append(floats)
+        ranks.append(rank)
+        combos.append(combo)
+        counts.append(len(ints))
+    ints, floats = np.concatenate(found_ints), np.concatenate(found_floats)
+    dtypes = {"direction": np.int8, "alpha": np.int8, "beta": np.int8, "stable": np.bool_}
+    columns = {name: ints[:, j].astype(dtypes[name]) for j, name in enumerate(_INT_FIELDS)}
+    columns |= {name: floats[:, j].copy() for j, name in enumerate(_FLOAT_FIELDS)}
     return ChunkResult(
         index=chunk.index,
         n_actuators=chunk.stop - chunk.start,
-        actuator=np.array(row_actuator, dtype=np.int64),
-        segments=np.array(row_segments, dtype=np.int16).reshape(-1, chunk.n),
-        columns=columns,
+        actuator=np.repeat(np.array(ranks, dtype=np.int64), counts),
+        segments=np.repeat(np.array(combos, dtype=np.int16).reshape(-1, chunk.n), counts, axis=0),
+        columns={name: columns[name] for name in TRANSITION_FIELDS},
         failed_actuator=np.array([f[0] for f in failed], dtype=np.int64),
         failed_segments=np.array([f[1] for f in failed], dtype=np.int16).reshape(-1, chunk.n),
         failed_error=tuple(f[2] for f in failed),
@@ -298,6 +377,9 @@ def run_chunks(
         return
     import multiprocessing
 
+    solve = _rows_function(library)
+    if isinstance(solve, _CompiledRows):
+        solve.warm()
     methods = multiprocessing.get_all_start_methods()
     # fork: the workers inherit the imported modules and the curves (0.5 s saved per
     # worker); elsewhere the library is pickled to each worker once
