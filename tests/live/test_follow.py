@@ -6,6 +6,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
 from liverun import PROTOCOL
 
 from labrig.live.follow import FileFollower, open_growing, protocol_of
@@ -31,7 +32,7 @@ if stage == "between":
 writer.flush()
 print("written", flush=True)
 status, reason = sys.stdin.readline().split(maxsplit=1)
-writer.finalise(status, reason.strip())
+writer.finalise(status, "" if reason.strip() == "-" else reason.strip())  # "-": none
 """
 
 
@@ -55,24 +56,25 @@ def _follower(path) -> FileFollower:
     return FileFollower(run, LiveState(run_info(protocol, title)), protocol)
 
 
-def test_a_watcher_opening_the_file_between_repetitions_sees_the_run_running(tmp_path):
-    path = tmp_path / "between.h5"
-    writer = Writer(path, "between")
+@pytest.mark.parametrize(
+    ("stage", "seen", "repetition", "final", "reason"),
+    [
+        # opened between two repetitions: none running, yet the run is under way
+        ("between", "running", 1, "complete", "-"),
+        # opened before the first repetition: still starting
+        ("before", "starting", 0, "aborted", "stopped by the operator"),
+    ],
+)
+def test_a_watcher_sees_the_runs_status_from_the_file(
+    tmp_path, stage, seen, repetition, final, reason
+):
+    path = tmp_path / f"{stage}.h5"
+    writer = Writer(path, stage)
     follower = _follower(path)
     assert follower.poll() == "running"
-    assert follower.state.status == "running"
-    assert follower.state._step.repetition == 1
-    writer.finalise("complete")
-    assert follower.poll() == "complete"
-    assert follower.state.status == "complete"
-
-
-def test_a_watcher_of_a_file_before_its_first_repetition_sees_it_starting(tmp_path):
-    path = tmp_path / "before.h5"
-    writer = Writer(path, "before")
-    follower = _follower(path)
-    assert follower.poll() == "running"
-    assert follower.state.status == "starting"
-    writer.finalise("aborted", "stopped by the operator")
-    assert follower.poll() == "aborted"
-    assert follower.state.reason == "stopped by the operator"
+    assert follower.state.status == seen
+    assert follower.state._step.repetition == repetition
+    writer.finalise(final, reason)
+    assert follower.poll() == final
+    assert follower.state.status == final
+    assert follower.state.reason == ("" if reason == "-" else reason)
