@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
 import signal
 import threading
 from collections.abc import Callable
@@ -563,6 +564,11 @@ class Runner:
         previous = signal.getsignal(signal.SIGINT)
 
         def handler(signum, frame):
+            if not self.clock.interruptible():
+                # inside the virtual clock's hand-over: ask again in a moment (the
+                # clock's docstring says why it must not be cut short)
+                threading.Timer(0.001, os.kill, (os.getpid(), signal.SIGINT)).start()
+                return
             self._interrupts += 1
             if self._interrupts == 1:
                 threading.Thread(

@@ -165,3 +165,60 @@ def test_scaled_clock_runs_speed_times_faster_than_the_host():
     fired = []
     clock.call_at(clock.now() + 1.0, lambda: fired.append(clock.now()))
     assert clock.wait_for(lambda: bool(fired), timeout_s=100.0)
+
+
+def test_signals_raising_in_the_main_thread_never_break_the_hand_over():
+    """A second Ctrl-C raises in the main thread between any two bytecodes. Raised only
+    where the clock says it is ``interruptible`` (as the runner's handler does), 300
+    interrupts landing at random in a main thread that trades turns with a worker leave
+    the clock whole: both finish, and time is where their sleeps put it."""
+    import os
+    import random
+    import signal
+
+    class Interrupted(Exception):
+        pass
+
+    clock = VirtualClock()
+    armed = [False]  # raise only inside the test's own try (the runner's is the run)
+
+    def handler(signum, frame):
+        if armed[0] and clock.interruptible():
+            raise Interrupted
+
+    def worker():
+        for _ in range(2000):
+            clock.sleep(0.001)
+
+    previous = signal.signal(signal.SIGINT, handler)
+    stop = threading.Event()
+
+    def interrupter():
+        rng = random.Random(1)
+        for _ in range(300):
+            if stop.is_set():
+                return
+            time.sleep(rng.uniform(0, 0.002))
+            os.kill(os.getpid(), signal.SIGINT)
+
+    try:
+        with clock.participate():
+            thread = clock.start_thread(worker, "worker")
+            sender = threading.Thread(target=interrupter, daemon=True)
+            sender.start()
+            done = 0
+            while done < 2000:
+                try:
+                    armed[0] = True
+                    clock.sleep(0.001)
+                    armed[0] = False
+                    done += 1
+                except Interrupted:
+                    armed[0] = False
+            stop.set()
+            clock.wait_for(lambda: thread.done, 10.0)
+        sender.join(10)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert thread.done
+    assert clock.now() == pytest.approx(2.0, abs=0.01)
