@@ -118,10 +118,15 @@ def read_csv_table(path: Path) -> np.ndarray:
     return values
 
 
-def _has_segment_shape(v, p, min_dip_kpa: float = 0.0) -> bool:
+def _branch_bounds(v, p) -> list[tuple[int, int]]:
+    """The (first, last) rows of each monotone branch of the table (v, p)."""
+    return SegmentCurve("raw", v, p, np.ones_like(v), V0_ml=1.0).branch_bounds
+
+
+def _has_segment_shape(v, p, min_dip_kpa: float = 0.0, bounds=None) -> bool:
     """Rising, or rising to one peak, falling to one valley and rising again, with a dip
     (and a rise after the valley) larger than ``min_dip_kpa``."""
-    branches = SegmentCurve("raw", v, p, np.ones_like(v), V0_ml=1.0).branch_bounds
+    branches = _branch_bounds(v, p) if bounds is None else bounds
     if len(branches) not in (1, 3) or not p[branches[0][1]] > p[0]:
         return False
     if len(branches) == 1:
@@ -130,7 +135,7 @@ def _has_segment_shape(v, p, min_dip_kpa: float = 0.0) -> bool:
     return peak - valley > min_dip_kpa and p[-1] - valley > min_dip_kpa
 
 
-def slopes_resolved(v, p, resolution: TableResolution) -> bool:
+def slopes_resolved(v, p, resolution: TableResolution, bounds) -> bool:
     """Whether a rounded table's rows (plateaus already collapsed to their centres)
     still tell the slope of its falling branch, where an actuator's folds are decided
     (its slopes, -0.3 to -0.6 kPa/mL for the library, are compared with the other
@@ -144,7 +149,6 @@ def slopes_resolved(v, p, resolution: TableResolution) -> bool:
     plateau centres are exact to a row in tens. Full-precision values are not rounded:
     their noise estimate is the interpolation's own residual (7e-5 kPa at a library
     curve's 0.007 kPa dip), and a noisy table is fitted for its dips anyway."""
-    bounds = SegmentCurve("raw", v, p, np.ones_like(v), V0_ml=1.0).branch_bounds
     if resolution.step_kpa <= 0 or len(bounds) < 3:
         return True
     error_kpa = max(resolution.step_kpa, resolution.noise_kpa)
@@ -356,7 +360,7 @@ def _extend(v, p, length):
     (the secant over the last fifth of the final rising branch, at least 1 kPa/mL)."""
     if p[-1] >= P_END_KPA - 1.0:  # analytical tables end at P_END_KPA up to rounding
         return v, p, length, None
-    last_branch_start = SegmentCurve("fit", v, p, length, V0_ml=1.0).branch_bounds[-1][0]
+    last_branch_start = _branch_bounds(v, p)[-1][0]
     span = v[-1] - v[last_branch_start]
     k = min(int(np.searchsorted(v, v[-1] - 0.2 * span)), len(v) - 2)
     slope = max((p[-1] - p[k]) / (v[-1] - v[k]), MIN_END_SLOPE_KPA_PER_ML)
@@ -404,8 +408,10 @@ def curve_from_table(
     if (
         not repeated
         and len(v_c) >= 4
-        and _has_segment_shape(v_c, p_c, resolution.prominence_kpa)
-        and slopes_resolved(v_c, p_c, resolution)
+        and _has_segment_shape(
+            v_c, p_c, resolution.prominence_kpa, bounds := _branch_bounds(v_c, p_c)
+        )
+        and slopes_resolved(v_c, p_c, resolution, bounds)
     ):
         route = ROUTE_TABULATED
         v, p, length = v_c, p_c, l_c
