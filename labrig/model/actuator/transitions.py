@@ -15,7 +15,12 @@ pressure jump within that resolution (twice it: each side's pressure is known to
 and a flow between segments within a row spacing (a fold pair of
 0.007 kPa and 0.007 mL where a segment leaves its valley, from a table rounded to 0.01
 kPa every 0.05 mL), is not a prediction those tables can make: it is not reported, as
-a crossing of a valley is not. Analytical curves resolve everything: nothing is left out.
+a crossing of a valley is not. Nor is such a fold pair whose slope, its jump over its
+flow, does not stand out of the slope the rows resolve over that flow (where the clean
+path is marginally stable: a rising segment's lowest slope within the fit's error of a
+falling one's), nor one whose landing state the next snap leaves within a sample gap of
+the curves used (a fitted curve's bin: one snap in two steps, the second reported).
+Analytical curves resolve everything: nothing is left out.
 
 Definitions (pre/post: immediately before/after):
 - dE = (E_post - E_pre) / E_pre, E the total stored energy from the unpressurised state.

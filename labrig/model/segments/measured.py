@@ -201,8 +201,10 @@ def _fit_noisy(v, p, length, resolution: TableResolution):
     The curve up to the valley and the curve after it are smoothed apart: the valley is
     where the braids touch the tube, a corner, which a smoothing across it would raise
     (by 0.2 kPa for B42-T24 at 0.25 kPa noise, and an actuator's snap moves with it).
-    Each part is the least-smoothed spline of its shape (``smooth_with_shape``), with
-    the bins' own means kept where the curve is steep; if no smoothing gives the shape,
+    A rising part is the least-squares fit whose slope has one minimum
+    (``one_minimum_slope_rise``) where its residuals are noise, else the least-smoothed
+    spline of its shape (``smooth_with_shape``), with the bins' own means kept where the
+    curve is steep; if no smoothing gives the shape,
     the isotonic fit's block centres. The offset at v = 0 is ``zero_offset`` of the
     first bins' means (the smoothed values there are the least certain)."""
     v_bin, (p_bin, l_bin), counts = binned_trimmed_means(v, [p, length], min(MAX_BINS, len(v)))
@@ -261,14 +263,17 @@ def zero_offset(v, p, sigma) -> float:
 
 def _smooth_parts(v, p, weights, branch_starts: list[int], sigma):
     """The smooth curve on the bins, branch by branch (``branch_starts``: the first bin
-    of each): a rising branch is the smoothest spline the noise allows
-    (``smooth_with_shape``), a falling branch the weighted least-squares polynomial of
-    the lowest degree (cubic down to linear) that falls all along it, because what an
-    actuator's folds depend on there is the slope, which is small (-0.3 to -0.6 kPa/mL
-    for the library) and which a spline would let flicker by more than itself. The
-    branches are joined as the envelope of their continuations (the lower one at a
-    peak, the upper at a valley: a corner such as the braids' contact is kept, with no
-    undershoot or steep drop into it). None if a branch cannot be given its shape."""
+    of each): a rising branch is the fit whose slope has one minimum (concave up to a
+    peak, convex after a valley: ``one_minimum_slope_rise``) or, where the data resolve
+    more, the smoothest spline the noise allows (``smooth_with_shape``); a falling
+    branch the weighted least-squares polynomial of the lowest degree (cubic down to
+    linear) that falls all along it, because what an actuator's folds depend on there
+    is the slope, which is small (-0.3 to -0.6 kPa/mL for the library) and which a
+    spline would let flicker by more than itself. The branches are joined as the
+    envelope of their continuations (the lower one at a peak, the upper at a valley: a
+    corner such as the braids' contact is kept, with no undershoot or steep drop into
+    it). Returns (values on the bins, which bins a one-minimum-slope fit gave), or None
+    if a branch cannot be given its shape."""
     edges = [*branch_starts, len(v)]
     fits: list = [None] * len(branch_starts)
     constrained = np.zeros(len(v), dtype=bool)
