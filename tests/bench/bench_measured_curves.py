@@ -67,7 +67,7 @@ def row(folder, label, spacing_ml, round_to_kpa, noise_kpa, clean) -> str:
     results = [one(folder, spacing_ml, round_to_kpa, noise_kpa, s) for s in seeds]
     errors = [abs(r[4][0] - clean) for r in results if len(r[4]) == 1]
     counts = sorted({len(r[4]) for r in results})
-    error = f"{np.mean(errors):6.3f} {max(errors):6.3f}" if errors else "     -      -"
+    error = f"{np.mean(errors):6.3f} | {max(errors):6.3f}" if errors else "     - |      -"
     return (
         f"| {label:<34} | {results[0][0]:>6} | {results[0][1]:<3} | "
         f"{np.mean([r[2] for r in results]) * 1e3:7.0f} | "
@@ -141,6 +141,33 @@ def synthetic_rates(seeds=(1, 2, 3), cases=40) -> None:
     )
 
 
+def staircases() -> None:
+    """Undithered staircases coarser than 0.2 kPa every 0.1 mL (uniform rows and rows
+    jittered by +-45 %), on the library pairs where they are worst: the snap-volume
+    error against the clean curves (what is left of issue 12, docs/model.md)."""
+    for names, step in ((("B46-T20", "B42-T20"), 0.27), (("B46-T22", "B48-T20"), 0.5)):
+        clean = [analytical_segment(n) for n in names]
+        (want,) = snap_volumes(clean)
+        for uniform in (True, False):
+            curves = [
+                curve_from_table(
+                    sample_table(c, 0.1, uniform=uniform, round_to_kpa=step, seed=k),
+                    name=c.name,
+                    where=c.name,
+                )
+                for k, c in enumerate(clean)
+            ]
+            got = snap_volumes(curves)
+            error = max(abs(v - want) for v in got) if len(got) == 1 else float("nan")
+            route = "/".join(c.measured.route[0] for c in curves)
+            print(
+                f"{' + '.join(names)}, step {step} kPa every 0.1 mL, "
+                f"{'uniform' if uniform else 'jittered'}: route {route}, {len(got)} snap(s), "
+                f"error {error:.2f} mL"
+            )
+
+
 if __name__ == "__main__":
     main()
     synthetic_rates()
+    staircases()

@@ -78,8 +78,23 @@ def snap_volumes(curves) -> list[float]:
 
 def snaps(curves) -> list[tuple[float, float]]:
     """(volume, size of the pressure jump in kPa) of each snap on the inflation path."""
+    return [(v, dp) for v, dp, _, _ in snap_details(curves)]
+
+
+def snap_details(curves) -> list[tuple[float, float, float, bool]]:
+    """(volume, size of the pressure jump in kPa, internal flow in mL, whether it lands
+    on the branches it left) of each snap on the inflation path."""
     path = quasi_static_path(Actuator(list(curves)))
-    return [(t.v_ml, abs(t.post.p_kpa - t.pre.p_kpa)) for t in transitions(path) if not t.stable]
+    return [
+        (
+            t.v_ml,
+            abs(t.post.p_kpa - t.pre.p_kpa),
+            max(b - a for a, b in zip(t.pre.v_i_ml, t.post.v_i_ml, strict=True)),
+            t.pre.branches == t.post.branches,
+        )
+        for t in transitions(path)
+        if not t.stable
+    ]
 
 
 def noisy_synthetic_pair(seed: int, case: int):

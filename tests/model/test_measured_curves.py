@@ -19,11 +19,13 @@ from measured_tables import (
     noisy_synthetic_pair,
     rise_fall_rise,
     sample_table,
+    snap_details,
     snap_volumes,
-    snaps,
     write_table,
 )
 
+from labrig.model.actuator.equilibria import Actuator
+from labrig.model.actuator.transitions import table_resolution
 from labrig.model.scan.scan import ScanLibrary, load_library, scan_actuator
 from labrig.model.segments.library import BRAID_LENGTHS_MM, TUBE_LENGTHS_MM, analytical_segment
 from labrig.model.segments.measured import curve_from_table, load_csv
@@ -40,8 +42,8 @@ ROUNDINGS = [None, 1e-6, 1e-5, 1e-3, 0.01, ADC_STEP_KPA, 0.1, 0.27, 0.5]
 
 
 @functools.cache
-def clean_snaps(names: tuple[str, ...]) -> tuple[tuple[float, float], ...]:
-    return tuple(snaps([analytical_segment(n) for n in names]))
+def clean_snaps(names: tuple[str, ...]) -> tuple[tuple[float, float, float, bool], ...]:
+    return tuple(snap_details([analytical_segment(n) for n in names]))
 
 
 def measured(curves, spacing_ml, *, uniform=True, round_to_kpa=None, noise_kpa=0.0, seed=0):
@@ -66,15 +68,20 @@ def dip_kpa(curve) -> float:
     return 0.0 if curve.peak is None else curve.peak.p_kpa - curve.valley.p_kpa
 
 
-def check_same_snaps(clean, got, tolerance_ml: float, resolvable: bool, unseen_kpa=0.0) -> None:
-    """``clean``: the clean path's snaps as (volume, pressure jump); ``got``: the volumes
-    of the measured path's. Every snap found is one of the clean ones, within the
-    tolerance (no spurious snap, ever). Every clean snap is found, except where a dip is
-    not resolvable at the table's resolution, and except a snap whose pressure jump is
-    at most ``unseen_kpa`` (the table's step or noise: a jump of 0.001 kPa at a valley,
-    which no table of that resolution shows). Two snaps within 1e-3 mL are one (the path
-    reports a snap that ends on a state lost at once as two events at the same volume,
-    to 1e-6 mL)."""
+def check_same_snaps(
+    clean, got, tolerance_ml: float, resolvable: bool, unseen_kpa=0.0, curves=()
+) -> None:
+    """``clean``: the clean path's snaps as (volume, pressure jump, internal flow, lands
+    on the branches it left) (``snap_details``); ``got``: the volumes of the measured
+    path's. Every snap found is one of the clean ones, within the tolerance (no spurious
+    snap, ever). Every clean snap is found, except where a dip is not resolvable at the
+    table's resolution, except a snap whose pressure jump is at most ``unseen_kpa`` (the
+    table's step or noise: a jump of 0.001 kPa at a valley, which no table of that
+    resolution shows), and except a fold pair whose slope (jump over flow) the measured
+    ``curves``' rows do not resolve (the criterion of ``transitions``, applied to the
+    clean snap: where the clean path is marginally stable). Two snaps within 1e-3 mL are
+    one (the path reports a snap that ends on a state lost at once as two events at the
+    same volume, to 1e-6 mL)."""
     got = [v for k, v in enumerate(got) if k == 0 or v - got[k - 1] > 1e-3]
     unmatched = list(clean)
     for v in got:
@@ -82,7 +89,13 @@ def check_same_snaps(clean, got, tolerance_ml: float, resolvable: bool, unseen_k
         assert nearest is not None and abs(nearest[0] - v) <= tolerance_ml, (clean, got)
         unmatched.remove(nearest)
     if resolvable:
-        assert all(dp <= unseen_kpa for _, dp in unmatched), (clean, got)
+        tables = table_resolution(Actuator(list(curves))) if curves else None
+        missed = [
+            c
+            for c in unmatched
+            if not (tables is not None and c[3] and not tables.resolves_fold_pair(c[1], c[2]))
+        ]
+        assert all(c[1] <= unseen_kpa for c in missed), (clean, got)
 
 
 def issue_tolerance(step_kpa: float, curves) -> float:
@@ -99,8 +112,8 @@ def issue_tolerance(step_kpa: float, curves) -> float:
 # The issue asks 0.5 mL for quantised tables: met up to steps of 0.2 kPa. Where nothing
 # dithers a coarser staircase, a valley is known only to about a step, and a snap moves
 # by up to 2.5 mL per kPa of it (0.2 mL per 0.1 kPa on B50-T22's falling branch):
-# rounded to 0.27 kPa every 0.1 mL, B46-T20 + B42-T20 snap 0.61 mL off; to 0.5 kPa,
-# B46-T22 + B48-T20 0.73 mL (tabulated as is, worse)
+# rounded to 0.27 kPa every 0.1 mL (rows jittered), B46-T20 + B42-T20 snap 0.69 mL off;
+# to 0.5 kPa, B46-T22 + B48-T20 0.73 mL (tabulated as is; the benchmark's staircases)
 ML_PER_KPA_OF_STEP = 2.5
 
 
@@ -195,6 +208,43 @@ def test_the_step_is_found_on_an_offset_adc_lattice_and_plateaus_never_stay():
     assert curve.peak.v_ml == pytest.approx(clean.peak.v_ml, abs=0.2)
 
 
+@pytest.mark.parametrize("lowest", [0, 17, 38])
+def test_the_rise_of_one_minimum_slope_is_the_constrained_least_squares_solution(lowest):
+    """Against an independent solver of the same problem: the values written out row by
+    row as y0 + the integral of slopes that are the smallest plus non-negative
+    increments away from it, solved with the intercept free by scipy's bounded least
+    squares (BVLS; the code eliminates the intercept and uses NNLS)."""
+    from scipy.optimize import lsq_linear
+
+    from labrig.model.segments.shape_fit import curvature_constrained_rise
+
+    rng = np.random.default_rng(lowest)
+    n = 40
+    x = np.sort(rng.uniform(0.0, 10.0, n))
+    w = rng.uniform(0.5, 2.0, n)
+    y = np.where(x < 5, 30 * np.sqrt(x), 30 * np.sqrt(5) + (x - 5) ** 2) + rng.normal(0, 1, n)
+    got = curvature_constrained_rise(x, y, w, lowest)
+    # unknowns: y0, s_min, then one increment per interval other than the lowest
+    design = np.zeros((n, n))
+    design[:, 0] = 1.0
+    for i in range(n):
+        for k in range(i):  # interval k (x_k .. x_k+1) lies below x_i
+            h = x[k + 1] - x[k]
+            design[i, 1] += h
+            others = range(k, lowest) if k < lowest else range(lowest, k)
+            for j in others:  # increments between interval k and the lowest
+                design[i, 2 + j] += h
+    root_w = np.sqrt(w)
+    lower = np.r_[-np.inf, np.zeros(n - 1)]
+    want = lsq_linear(design * root_w[:, None], y * root_w, bounds=(lower, np.inf))
+    slopes = np.diff(got) / np.diff(x)
+    assert np.all(slopes >= -1e-9)
+    assert np.all(np.diff(slopes)[:lowest] <= 1e-9)
+    assert np.all(np.diff(slopes)[lowest:] >= -1e-9)
+    assert np.sum(w * (y - got) ** 2) == pytest.approx(np.sum(w * (y - design @ want.x) ** 2))
+    np.testing.assert_allclose(got, design @ want.x, atol=1e-6)
+
+
 def test_full_precision_values_have_no_step_and_a_sparse_table_no_noise():
     clean = analytical_segment("B44-T24")
     v = np.linspace(0.0, clean.v_max_ml, 40)
@@ -240,7 +290,11 @@ spacings = st.floats(np.log10(0.0005), np.log10(0.5)).map(lambda x: 10.0**x)
 
 # found by this property with more examples: a sparse table rounded to 0.1 kPa, used
 # as tabulated, had slopes off by up to 70 % on its falling branch (5 snaps for 2); the
-# clean path's snap of 0.004 kPa; a jittered sparse table's peak in a 0.46 mL gap
+# clean path's snap of 0.004 kPa; a jittered sparse table's peak in a 0.46 mL gap; a
+# 0.5 kPa staircase whose step, taken as 0.5 kPa, made B40-T22's 1.8 kPa dip no peak
+# (the snap moved by 3 mL: that step estimate is not used)
+@example(names=("B40-T22", "B42-T20"), spacing_ml=0.1, uniform=False, round_to_kpa=0.5,
+         seed=0)  # fmt: skip
 @example(names=("B44-T22", "B46-T28", "B42-T30"), spacing_ml=10.0**-0.5, uniform=True,
          round_to_kpa=0.1, seed=962)  # fmt: skip
 @example(names=("B40-T20", "B42-T20"), spacing_ml=10.0**-2.5, uniform=False,
@@ -266,9 +320,18 @@ def test_clean_and_quantised_library_tables_snap_like_the_clean_curves(
     step = round_to_kpa or 0.0
     tolerance = issue_tolerance(step, curves)
     resolvable = all(dip_kpa(c) > 10 * step or c.peak is None for c in clean)
-    check_same_snaps(clean_snaps(names), got, tolerance, resolvable, unseen(step, curves))
+    check_same_snaps(clean_snaps(names), got, tolerance, resolvable, unseen(step, curves), curves)
 
 
+# Above 0.3 kPa of noise the snaps are the clean ones (none spurious, none missed) but
+# a valley fitted from 0.5 kPa rows is off by up to ~0.5 kPa: B40-T20 + B42-T26 +
+# B44-T20 at 1,000 rows/mL and a 0.27 kPa step snap 1.17 mL off (found by this property
+# with 25 examples, kept below)
+NOISIEST_TOLERANCE_ML = 1.25
+
+
+@example(names=("B40-T20", "B42-T26", "B44-T20"), noise_kpa=0.5, averaging=0.015625,
+         round_to_kpa=0.27, seed=0)  # fmt: skip
 @PROPERTY
 @given(
     names=library_actuators(),
@@ -282,18 +345,19 @@ def test_noisy_library_tables_snap_like_the_clean_curves(
 ):
     """``averaging`` is the noise left in a 1 mL average (noise / sqrt(rows per mL)):
     up to 0.02 kPa, with noise enough to dither the quantisation (at least half a
-    step), the clean snaps are found, as many, within 1 mL; beyond, the fit still
-    gives a valid curve and the path no exception (docs/model.md, the benchmark)."""
+    step), the clean snaps are found, none spurious, at any noise of 0.05-0.5 kPa,
+    within the issue's 0.5 mL up to 0.3 kPa (``NOISIEST_TOLERANCE_ML`` above); beyond,
+    the fit still gives a valid curve and the path no exception (docs/model.md, the
+    benchmark)."""
     spacing_ml = max((averaging / noise_kpa) ** 2, 0.00053)
     clean = [analytical_segment(n) for n in names]
     curves = measured(clean, spacing_ml, round_to_kpa=round_to_kpa, noise_kpa=noise_kpa, seed=seed)
     got = snap_volumes(curves)
     dithered = round_to_kpa is None or noise_kpa >= 0.5 * round_to_kpa
-    # checked up to the issue's sensor noise (0.2-0.3 kPa); at 0.5 kPa a triple can
-    # show fold pairs (the strict xfail below)
-    if noise_kpa * np.sqrt(spacing_ml) <= 0.02 and dithered and noise_kpa <= 0.3:
+    if noise_kpa * np.sqrt(spacing_ml) <= 0.02 and dithered:
+        tolerance = 0.5 if noise_kpa <= 0.3 else NOISIEST_TOLERANCE_ML
         check_same_snaps(
-            clean_snaps(names), got, 1.0, resolvable=True, unseen_kpa=unseen(noise_kpa, curves)
+            clean_snaps(names), got, tolerance, True, unseen(noise_kpa, curves), curves
         )
 
 
@@ -338,7 +402,7 @@ def test_random_rise_fall_rise_shapes_snap_like_their_clean_curves(
     assume(abs(a.peak.p_kpa - b.peak.p_kpa) >= 0.4)
     if noise_kpa:  # rows dense enough for the noise to average out (see above)
         spacing_ml = max(min(spacing_ml, (0.02 / noise_kpa) ** 2), 0.0005)
-    clean = snaps([a, b])
+    clean = snap_details([a, b])
     curves = measured(
         [a, b],
         spacing_ml,
@@ -349,14 +413,11 @@ def test_random_rise_fall_rise_shapes_snap_like_their_clean_curves(
     )
     got = snap_volumes(curves)
     step = round_to_kpa or 0.0
-    if noise_kpa:
-        # noisy synthetic tables: only no exception here. Spurious fold pairs remain in
-        # 4 of 115 random noisy pairs (tests/bench/bench_measured_curves.py; the cases
-        # that had them before the fit's flat-tangent fix are checked below)
-        return
-    tolerance = issue_tolerance(step, curves)
+    tolerance = 0.5 if noise_kpa else issue_tolerance(step, curves)
     resolvable = all(dip_kpa(c) > 10 * max(step, noise_kpa) for c in (a, b))
-    check_same_snaps(clean, got, tolerance, resolvable, unseen(step, curves))
+    check_same_snaps(
+        clean, got, tolerance, resolvable, unseen(max(step, noise_kpa), curves), curves
+    )
 
 
 @pytest.mark.parametrize("case", [5, 6, 10, 28, 30, 39])
@@ -367,26 +428,55 @@ def test_noisy_synthetic_pairs_that_had_spurious_snaps(case):
     shapes, noise, spacing, rounding, seed = noisy_synthetic_pair(1, case)
     curves = measured(shapes, spacing, round_to_kpa=rounding, noise_kpa=noise, seed=seed)
     assert all(len(c.v_ml) >= 200 for c in curves)  # the smooth fit on the bins, not blocks
-    check_same_snaps(snaps(shapes), snap_volumes(curves), 0.5, resolvable=True, unseen_kpa=0.01)
+    check_same_snaps(snap_details(shapes), snap_volumes(curves), 0.5, True, 0.01, curves)
 
 
-@pytest.mark.xfail(strict=True, reason="fold pairs at 0.5 kPa noise, 1,000 rows/mL "
-                   "(docs/model.md, measured curves: what is left)")  # fmt: skip
-def test_a_noisy_library_triple_at_half_a_kpa_known_to_show_fold_pairs():
+def test_a_noisy_library_triple_at_half_a_kpa_has_no_fold_pairs():
+    """Was a strict xfail: the spline fitted to B40-T26's rising branch (no peak at 0.5
+    kPa noise) let its slope flicker by up to 1.5 kPa/mL from bin to bin, down to the
+    falling B42-T20's 0.44 kPa/mL: four fold pairs of 0.02-0.05 kPa. A rising branch
+    is now fitted with a slope of one minimum (``one_minimum_slope_rise``)."""
     names = ("B42-T20", "B44-T20", "B40-T26")
     clean = [analytical_segment(n) for n in names]
     curves = measured(clean, (0.015625 / 0.5) ** 2, noise_kpa=0.5, seed=0)
-    check_same_snaps(clean_snaps(names), snap_volumes(curves), 1.0, True, 0.5)
+    got = snap_volumes(curves)
+    assert len(got) == 3  # the clean path's three snaps, none spurious
+    check_same_snaps(clean_snaps(names), got, 0.5, True, 0.5, curves)
 
 
-@pytest.mark.xfail(strict=True, reason="a spurious fold pair where the clean path is "
-                   "marginally stable (docs/model.md, measured curves: what is left)")  # fmt: skip
-def test_a_marginal_noisy_library_pair_known_to_show_a_spurious_fold_pair():
+def test_a_marginal_noisy_library_pair_reports_no_fold_pair_its_rows_cannot_resolve():
+    """Was a strict xfail: B42-T30's smallest slope (0.5 kPa/mL just before its braids'
+    contact) is within a few hundredths of B44-T24's falling 0.44 kPa/mL: the clean path
+    is marginally stable, and at 0.21 kPa noise the fit's slope there dips below it, a
+    fold pair of 0.09 kPa over 0.22 mL of flow. Its slope, 0.42 kPa/mL, is within 1.2
+    standard errors of the slope that the rows over 0.22 mL resolve (0.35 kPa/mL): not a
+    snap those tables can show (``transitions``)."""
     names = ("B42-T30", "B44-T24")
-    spacing_ml = (0.010472597057400279 / 0.21295878053605966) ** 2
+    noise_kpa = 0.21295878053605966
+    spacing_ml = (0.010472597057400279 / noise_kpa) ** 2
     clean = [analytical_segment(n) for n in names]
-    curves = measured(clean, spacing_ml, noise_kpa=0.21295878053605966, seed=796)
-    check_same_snaps(clean_snaps(names), snap_volumes(curves), 1.0, resolvable=True)
+    curves = measured(clean, spacing_ml, noise_kpa=noise_kpa, seed=796)
+    assert clean_snaps(names) == ()
+    assert snap_volumes(curves) == []
+    tables = table_resolution(Actuator(curves))
+    slope_error = tables.slope_error_kpa_per_ml(0.22)  # independently: e sqrt(12 dv / W^3)
+    assert slope_error == pytest.approx(noise_kpa * np.sqrt(12 * spacing_ml / 0.22**3), rel=0.1)
+    assert not tables.resolves_fold_pair(0.092, 0.22)
+    assert tables.resolves_fold_pair(2.0, 4.0)  # a real snap: 0.5 kPa/mL over 4 mL
+
+
+@pytest.mark.parametrize(("seed", "case"), [(1, 11), (1, 13), (2, 21), (2, 30), (3, 33), (3, 37)])
+def test_noisy_synthetic_pairs_with_fold_pairs_below_their_resolution(seed, case):
+    """Found by the benchmark once rising branches were fitted with a slope of one
+    minimum: fold pairs of 0.03-0.3 kPa just before a real snap (the state they land on
+    lost again within 0.04 mL, less than the fitted curve's bin: one snap in two steps)
+    or with a slope the rows do not resolve. Now the clean snaps, within 0.5 mL."""
+    shapes, noise, spacing, rounding, table_seed = noisy_synthetic_pair(seed, case)
+    curves = measured(shapes, spacing, round_to_kpa=rounding, noise_kpa=noise, seed=table_seed)
+    clean = [c for c in snap_details(shapes) if c[1] > 0.01]
+    got = snap_volumes(curves)
+    assert len([v for k, v in enumerate(got) if k == 0 or v - got[k - 1] > 1e-3]) == len(clean)
+    check_same_snaps(clean, got, 0.5, True, 0.01, curves)
 
 
 # how other tools write numbers, with the rounding each means for pressures up to
@@ -449,7 +539,7 @@ def test_csvs_written_by_other_tools_through_model_path(
     step = max(FORMATS[fmt], ADC_STEP_KPA if adc else 0.0)
     tolerance = issue_tolerance(step, written)
     resolvable = all(dip_kpa(c) > 10 * step or c.peak is None for c in clean)
-    check_same_snaps(clean_snaps(names), got, tolerance, resolvable, unseen(step, written))
+    check_same_snaps(clean_snaps(names), got, tolerance, resolvable, unseen(step, written), written)
 
 
 # --- scans of measured libraries -----------------------------------------------------------

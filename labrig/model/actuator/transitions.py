@@ -15,7 +15,12 @@ pressure jump within that resolution (twice it: each side's pressure is known to
 and a flow between segments within a row spacing (a fold pair of
 0.007 kPa and 0.007 mL where a segment leaves its valley, from a table rounded to 0.01
 kPa every 0.05 mL), is not a prediction those tables can make: it is not reported, as
-a crossing of a valley is not. Analytical curves resolve everything: nothing is left out.
+a crossing of a valley is not. Nor is such a fold pair whose slope, its jump over its
+flow, does not stand out of the slope the rows resolve over that flow (where the clean
+path is marginally stable: a rising segment's lowest slope within the fit's error of a
+falling one's), nor one whose landing state the next snap leaves within a sample gap of
+the curves used (a fitted curve's bin: one snap in two steps, the second reported).
+Analytical curves resolve everything: nothing is left out.
 
 Definitions (pre/post: immediately before/after):
 - dE = (E_post - E_pre) / E_pre, E the total stored energy from the unpressurised state.
@@ -39,7 +44,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from labrig.model.actuator.path import INFLATE, Event, Path, State, state_on_piece
+from labrig.model.segments.resolution import NOISE_PROMINENCE
 
 
 @dataclass(frozen=True)
@@ -65,22 +73,85 @@ class Transition:
 WINDOW_ML = 1e-4
 
 
-def table_resolution(actuator) -> tuple[float, float]:
-    """The pressure (kPa) and volume (mL) the segments' tables resolve: the largest step
-    or noise, the largest gap between rows; (0, 0) for curves that are not tables."""
-    found = [s.measured.resolution for s in actuator.segments if s.measured is not None]
-    if not found:
-        return 0.0, 0.0
-    return (
-        max(max(r.step_kpa, r.noise_kpa) for r in found),
-        max(r.spacing_max_ml for r in found),
+# a fold pair's slope must stand out of the slope the rows resolve by this many standard
+# deviations, as a dip must stand out of their noise (``resolution.NOISE_PROMINENCE``)
+FOLD_SLOPE_SIGMAS = NOISE_PROMINENCE
+
+
+@dataclass(frozen=True)
+class TablesResolution:
+    """What the segments' tables resolve together (module docstring): ``p_kpa`` the
+    largest step or noise, ``v_ml`` the largest gap between rows, ``curve_gap_ml`` the
+    largest gap between the samples of the curves made of them (a fitted curve's bins),
+    and per table (error of a row in kPa, median row spacing in mL) for slopes."""
+
+    p_kpa: float = 0.0
+    v_ml: float = 0.0
+    curve_gap_ml: float = 0.0
+    rows: tuple[tuple[float, float], ...] = ()
+
+    def slope_error_kpa_per_ml(self, window_ml: float) -> float:
+        """The standard error of the slope of a least-squares line through a table's
+        rows over ``window_ml`` (N = window / spacing rows, each off by e: e sqrt(12 /
+        (N window^2))), the largest of the tables'; 0 for curves that are not tables."""
+        if not self.rows or window_ml <= 0:
+            return 0.0
+        return max(e * (12.0 * dv / window_ml**3) ** 0.5 for e, dv in self.rows)
+
+    def resolves_fold_pair(self, dp_kpa: float, flow_ml: float) -> bool:
+        """Whether a snap that lands on the branches it left, with a pressure jump
+        ``dp_kpa`` over an internal flow ``flow_ml``, is resolved: its slope dp / flow
+        (the stiffness by which the curves' sum falls below zero there) stands out of
+        the slope the tables resolve over that flow."""
+        error = self.slope_error_kpa_per_ml(flow_ml)
+        return flow_ml > 0 and abs(dp_kpa) / flow_ml > FOLD_SLOPE_SIGMAS * error
+
+
+def table_resolution(actuator) -> TablesResolution:
+    """The resolution of the segments' tables together; all 0 for curves that are not
+    tables."""
+    measured = [s for s in actuator.segments if s.measured is not None]
+    if not measured:
+        return TablesResolution()
+    found = [s.measured.resolution for s in measured]
+    return TablesResolution(
+        p_kpa=max(max(r.step_kpa, r.noise_kpa) for r in found),
+        v_ml=max(r.spacing_max_ml for r in found),
+        curve_gap_ml=max(float(np.max(np.diff(s.v_ml))) for s in measured),
+        rows=tuple((max(r.noise_kpa, r.step_kpa / 12**0.5), r.spacing_ml) for r in found),
+    )
+
+
+def _flow_ml(pre: State, post: State) -> float:
+    return max(b - a for a, b in zip(pre.v_i_ml, post.v_i_ml, strict=True))
+
+
+def below_resolution(timeline, t: int, resolution: TablesResolution) -> bool:
+    """Whether the snap ``timeline[t]`` is below the tables' resolution (module
+    docstring): it lands on the branches it left and its jump is within the pressure
+    and volume the rows resolve, or its slope is not resolved, or the state it lands on
+    is left by the next snap within the curves' sample gap (one snap in two steps)."""
+    item = timeline[t]
+    if item.pre.branches != item.post.branches:
+        return False
+    flow = _flow_ml(item.pre, item.post)
+    dp = item.post.p_kpa - item.pre.p_kpa
+    if abs(dp) <= 2 * resolution.p_kpa and flow <= resolution.v_ml:
+        return True
+    if not resolution.resolves_fold_pair(dp, flow):
+        return True
+    following = [x for x in timeline[t + 1 :] if isinstance(x, Event)]
+    return bool(
+        following
+        and following[0].kind == "snap"
+        and abs(following[0].pre.v_ml - item.post.v_ml) <= resolution.curve_gap_ml
     )
 
 
 def transitions(path: Path, window_ml: float = WINDOW_ML) -> list[Transition]:
     """Every transition along ``path``, in order (see the module docstring)."""
     actuator = path.actuator
-    p_resolved_kpa, v_resolved_ml = table_resolution(actuator)
+    resolution = table_resolution(actuator)
     out = []
     timeline = path.timeline
     for t, item in enumerate(timeline):
@@ -98,14 +169,9 @@ def transitions(path: Path, window_ml: float = WINDOW_ML) -> list[Transition]:
             stable = True
         else:
             continue
-        flow = max(b - a for a, b in zip(pre.v_i_ml, post.v_i_ml, strict=True))
-        if (
-            not stable
-            and pre.branches == post.branches
-            and abs(post.p_kpa - pre.p_kpa) <= 2 * p_resolved_kpa
-            and flow <= v_resolved_ml
-        ):
+        if not stable and below_resolution(timeline, t, resolution):
             continue  # below the tables' resolution (module docstring)
+        flow = _flow_ml(pre, post)
         e_pre, e_post = actuator.energy_mj(pre.v_i_ml), actuator.energy_mj(post.v_i_ml)
         l_pre, l_post = actuator.length_mm(pre.v_i_ml), actuator.length_mm(post.v_i_ml)
         out.append(

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import itertools
 import math
 from pathlib import Path
@@ -40,6 +41,7 @@ from labrig.model.segments.shape_fit import (
     binned_trimmed_means,
     fit_rise_fall_rise,
     monotone_pieces,
+    one_minimum_slope_rise,
     smooth_with_shape,
 )
 
@@ -199,8 +201,10 @@ def _fit_noisy(v, p, length, resolution: TableResolution):
     The curve up to the valley and the curve after it are smoothed apart: the valley is
     where the braids touch the tube, a corner, which a smoothing across it would raise
     (by 0.2 kPa for B42-T24 at 0.25 kPa noise, and an actuator's snap moves with it).
-    Each part is the least-smoothed spline of its shape (``smooth_with_shape``), with
-    the bins' own means kept where the curve is steep; if no smoothing gives the shape,
+    A rising part is the least-squares fit whose slope has one minimum
+    (``one_minimum_slope_rise``) where its residuals are noise, else the least-smoothed
+    spline of its shape (``smooth_with_shape``), with the bins' own means kept where the
+    curve is steep; if no smoothing gives the shape,
     the isotonic fit's block centres. The offset at v = 0 is ``zero_offset`` of the
     first bins' means (the smoothed values there are the least certain)."""
     v_bin, (p_bin, l_bin), counts = binned_trimmed_means(v, [p, length], min(MAX_BINS, len(v)))
@@ -226,7 +230,9 @@ def _fit_noisy(v, p, length, resolution: TableResolution):
     weights = counts * (1.0 + STEEP_WEIGHT_GAIN * steep)
     smooth = _smooth_parts(v_bin, p_bin, weights, branch_starts, sigma)
     if smooth is not None:
-        values = keep_steep_means(p_bin, smooth, steep)
+        smooth, constrained = smooth
+        # a branch fitted with its curvature constrained follows a steep part as it is
+        values = keep_steep_means(p_bin, smooth, np.where(constrained, 0.0, steep))
         # a spline smooth enough for the shape can still miss the data (a flat start
         # before a stiff end: by 20 kPa); then the blocks, which follow it, are the fit
         follows = np.all(np.abs(values - p_bin) <= FOLLOW_SIGMAS * sigma)
@@ -255,21 +261,33 @@ def zero_offset(v, p, sigma) -> float:
     return offset if abs(offset) > OFFSET_SIGMAS * math.sqrt(cov[-1, -1]) else 0.0
 
 
-def _smooth_parts(v, p, weights, branch_starts: list[int], sigma) -> np.ndarray | None:
+def _smooth_parts(v, p, weights, branch_starts: list[int], sigma):
     """The smooth curve on the bins, branch by branch (``branch_starts``: the first bin
-    of each): a rising branch is the smoothest spline the noise allows
-    (``smooth_with_shape``), a falling branch the weighted least-squares polynomial of
-    the lowest degree (cubic down to linear) that falls all along it, because what an
-    actuator's folds depend on there is the slope, which is small (-0.3 to -0.6 kPa/mL
-    for the library) and which a spline would let flicker by more than itself. The
-    branches are joined as the envelope of their continuations (the lower one at a
-    peak, the upper at a valley: a corner such as the braids' contact is kept, with no
-    undershoot or steep drop into it). None if a branch cannot be given its shape."""
+    of each): a rising branch is the fit whose slope has one minimum (concave up to a
+    peak, convex after a valley: ``one_minimum_slope_rise``) or, where the data resolve
+    more, the smoothest spline the noise allows (``smooth_with_shape``); a falling
+    branch the weighted least-squares polynomial of the lowest degree (cubic down to
+    linear) that falls all along it, because what an actuator's folds depend on there
+    is the slope, which is small (-0.3 to -0.6 kPa/mL for the library) and which a
+    spline would let flicker by more than itself. The branches are joined as the
+    envelope of their continuations (the lower one at a peak, the upper at a valley: a
+    corner such as the braids' contact is kept, with no undershoot or steep drop into
+    it). Returns (values on the bins, which bins a one-minimum-slope fit gave), or None
+    if a branch cannot be given its shape."""
     edges = [*branch_starts, len(v)]
     fits: list = [None] * len(branch_starts)
-    # a rising branch whose first (or, before a peak, last) bins are still flat within
-    # the noise gives them to the falling branch next to it, a few bins at most
+    constrained = np.zeros(len(v), dtype=bool)
     for k in range(0, len(branch_starts), 2):
+        a, b = edges[k], edges[k + 1]
+        values = one_minimum_slope_rise(
+            v[a:b], p[a:b], sigma[a:b], concave=len(edges) == 4 and k == 0, convex=k == 2
+        )
+        if values is not None:
+            fits[k] = functools.partial(np.interp, xp=v[a:b], fp=values)
+            constrained[a:b] = True
+            continue
+        # a rising branch whose first (or, before a peak, last) bins are still flat
+        # within the noise gives them to the falling branch next to it, a few bins at most
         for shift in range(JOIN_BINS + 1):
             a = edges[k] + (shift if k > 0 else 0)
             b = edges[k + 1] - (shift if k + 1 < len(branch_starts) else 0)
@@ -292,7 +310,7 @@ def _smooth_parts(v, p, weights, branch_starts: list[int], sigma) -> np.ndarray 
         for k, (fit, (a, b)) in enumerate(zip(fits, itertools.pairwise(edges), strict=True))
     ]
     if len(c) == 1:
-        return c[0]
+        return c[0], constrained
     peak = np.minimum(c[0], c[1])
     # tangents that meet far from the data (a falling cubic steep at its end) make a
     # spike: then the rise and fall up to the valley are one spline of that shape
@@ -302,8 +320,9 @@ def _smooth_parts(v, p, weights, branch_starts: list[int], sigma) -> np.ndarray 
         if both is None:
             return None
         peak = _continued(both, v, v[a], v[b - 1], rising=True)
+        constrained[a:b] = False
     # the last branch, continued back from its valley, only meets the falling one
-    return np.where(v >= v[edges[1]], np.maximum(peak, c[2]), peak)
+    return np.where(v >= v[edges[1]], np.maximum(peak, c[2]), peak), constrained
 
 
 def _continued(fit, x, lo: float, hi: float, *, rising: bool) -> np.ndarray:
