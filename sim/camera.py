@@ -90,6 +90,18 @@ class SimCamera:
     ) -> None:
         if not mm_per_px > 0 or not fps > 0 or queue_frames < 1:
             raise ValueError("SimCamera: mm_per_px and fps must be > 0, queue_frames >= 1")
+        if seed is None:  # a concrete seed: a renderer elsewhere makes the same noise
+            seed = int(np.random.SeedSequence().entropy % 2**63)
+        # what a renderer in another process needs to draw the same frames (``renderer``)
+        self._spec = dict(
+            mm_per_px=mm_per_px, size=size, marker_diameter_mm=marker_diameter_mm,
+            centre_px=centre_px, band_height_mm=band_height_mm, blur_px=blur_px,
+            noise_grey=noise_grey, lighting_drift=lighting_drift,
+            drift_period_s=drift_period_s, sway_px=sway_px, marker_bgr=marker_bgr,
+            specimen_bgr=specimen_bgr, background_bgr=background_bgr, seed=seed,
+            monochrome=monochrome,
+        )  # fmt: skip
+        self._renderer: SceneRenderer | None = None
         self.queue_frames = int(queue_frames)
         self.channels = 1 if monochrome else 3
         self.clock = clock
@@ -265,6 +277,22 @@ class SimCamera:
         noise = np.clip(noise if self.channels == 3 else noise[..., 0], -255, 255)
         return np.maximum(noise, 0).astype(np.uint8), np.maximum(-noise, 0).astype(np.uint8)
 
+    def renderer(self) -> SceneRenderer:
+        """A picklable stand-in for this camera's drawing: given a frame's ``scene``
+        it renders the same pixels in another process (the run's video encoder)."""
+        if self._renderer is None:
+            self._renderer = SceneRenderer(self._spec)
+        return self._renderer
+
+    def render_scene(self, scene: tuple) -> np.ndarray:
+        """The whole frame that ``SimFrame.scene`` describes."""
+        t_s, centres, gain, hidden, noise, resized_to = scene
+        frame = SimFrame(self, t_s=t_s, gain=gain, hidden=frozenset(hidden), noise=noise)
+        frame._centres = np.array(centres, dtype=float).reshape(2, 2)
+        if resized_to is not None:
+            frame.resized(resized_to)
+        return np.asarray(frame)
+
     # -- a capture --------------------------------------------------------------------------------
 
     def read(self) -> tuple[bool, SimFrame | None]:
@@ -424,6 +452,19 @@ class SimFrame:
             self._palette = self.camera._palette(self.gain)
         return self._palette
 
+    @property
+    def scene(self) -> tuple:
+        """The frame as a few numbers (time, marker centres, light, hidden markers, the
+        noise's pick, the streaming size): all ``SimCamera.render_scene`` needs."""
+        centres = tuple(float(v) for v in self.centres.ravel())
+        return (self.t_s, centres, self.gain, tuple(sorted(self.hidden)), self.noise,
+                self._resized_to)  # fmt: skip
+
+    def video_recipe(self) -> tuple[SceneRenderer, tuple]:
+        """(renderer, scene): how a video encoder draws this frame itself, in its own
+        process, instead of being handed its pixels (``labrig.video``)."""
+        return self.camera.renderer(), self.scene
+
     def __getitem__(self, key):
         h, w = self.shape[:2]
         if self._resized_to is None and isinstance(key, tuple) and len(key) >= 2:
@@ -454,6 +495,26 @@ class SimFrame:
                 full = cv2.resize(full, self._resized_to, interpolation=cv2.INTER_AREA)
             self._full = full
         return self._full if dtype is None else self._full.astype(dtype)
+
+
+class SceneRenderer:
+    """Draws a ``SimCamera``'s frames from their scenes, wherever it is unpickled: the
+    camera is rebuilt from its settings (the seed gives the same noise) on first use."""
+
+    def __init__(self, spec: dict) -> None:
+        self.spec = spec
+        self._camera: SimCamera | None = None
+
+    def __getstate__(self) -> dict:
+        return {"spec": self.spec}
+
+    def __setstate__(self, state: dict) -> None:
+        self.spec, self._camera = state["spec"], None
+
+    def __call__(self, scene: tuple) -> np.ndarray:
+        if self._camera is None:
+            self._camera = SimCamera(None, None, **self.spec)  # draws only: no clock
+        return self._camera.render_scene(scene)
 
 
 def _fill(frame: np.ndarray, x0: int, y0: int, x1: int, y1: int, colour: tuple) -> None:
