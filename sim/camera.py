@@ -118,6 +118,7 @@ class SimCamera:
         self.lighting_drift = float(lighting_drift)
         self.drift_period_s = float(drift_period_s)
         self.sway_px = float(sway_px)
+        self._dot_half_px = math.ceil(self.radius_px + 4 * self.blur_px + 2)
         # a monochrome sensor sees the colours' grey levels (OpenCV's BGR-to-grey weights)
         self.marker_bgr, self.specimen_bgr, self.background_bgr = (
             np.array(bgr if not monochrome else [_grey_level(bgr)], dtype=np.float32)
@@ -216,10 +217,10 @@ class SimCamera:
     def _palette(self, gain: float) -> tuple[tuple[float, ...], tuple[float, ...], np.ndarray]:
         """Background and specimen fill colours, the markers' colour, under ``gain``."""
         background, specimen = (
-            tuple(float(v) for v in np.clip(np.rint(bgr * gain), 0, 255))
+            tuple(min(max(float(v), 0.0), 255.0) for v in np.rint(bgr * gain))
             for bgr in (self.background_bgr, self.specimen_bgr)
         )
-        return background, specimen, np.clip(self.marker_bgr * gain, 0, 255)
+        return background, specimen, np.minimum(np.maximum(self.marker_bgr * gain, 0), 255)
 
     def _draw_dot(self, out: np.ndarray, ox: int, oy: int, x: float, y: float, marker) -> None:
         """Blend one anti-aliased, blurred dot around frame point (x, y) into ``out``, the
@@ -232,21 +233,21 @@ class SimCamera:
         the surroundings are flat. The coverage is always computed over the dot's whole
         box (then cut to the region), so every region sees the same values.
         """
-        x0, y0, coverage = self._dot_coverage(x, y)
-        y1, x1 = y0 + coverage.shape[0], x0 + coverage.shape[1]
+        x0, y0, x1, y1 = self._dot_box(x, y)
         h, w = out.shape[:2]
         cx0, cy0 = max(x0, ox), max(y0, oy)
         cx1, cy1 = min(x1, ox + w), min(y1, oy + h)
         if cx0 >= cx1 or cy0 >= cy1:
-            return  # outside the region
+            return  # outside the region: the tracker's window on the other marker
+        _, _, coverage = self._dot_coverage(x, y)
         c = coverage[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0]
         if out.ndim == 3:
             c = c[:, :, None]
         else:
             marker = marker[0]
         view = out[cy0 - oy : cy1 - oy, cx0 - ox : cx1 - ox]
-        blended = view.astype(np.float32) * (1 - c) + marker * c + 0.5
-        view[:] = np.clip(blended, 0, 255).astype(np.uint8)
+        # a blend of two grey levels in 0-255, + 0.5: truncating rounds it, no clip needed
+        view[:] = view.astype(np.float32) * (1 - c) + marker * c + 0.5
 
     # a frame's dots are read by the tracker and again, up to a video queue's length of
     # frames later, when the video renders the frame whole
@@ -254,19 +255,23 @@ class SimCamera:
     def _dot_coverage(self, x: float, y: float) -> tuple[int, int, np.ndarray]:
         """(x0, y0, coverage) of the dot centred at (x, y): its box's top-left pixel and
         the blurred coverage over the box, cut to the frame."""
-        half = math.ceil(self.radius_px + 4 * self.blur_px + 2)
-        ix, iy = round(x), round(y)
-        x0, y0 = max(ix - half, 0), max(iy - half, 0)
-        x1, y1 = min(ix + half + 1, self.width), min(iy + half + 1, self.height)
+        x0, y0, x1, y1 = self._dot_box(x, y)
         if x0 >= x1 or y0 >= y1:
             return x0, y0, np.zeros((0, 0), dtype=np.float32)
         xx = (np.arange(x0, x1) - x) ** 2
         yy = (np.arange(y0, y1) - y) ** 2
         distance = np.sqrt(xx[None, :] + yy[:, None], dtype=np.float32)
-        coverage = np.clip(self.radius_px + 0.5 - distance, 0.0, 1.0).astype(np.float32)
+        coverage = np.minimum(np.maximum(self.radius_px + 0.5 - distance, 0.0), 1.0)
         if self.blur_px > 0:
             coverage = cv2.GaussianBlur(coverage, (0, 0), self.blur_px)
         return x0, y0, coverage
+
+    def _dot_box(self, x: float, y: float) -> tuple[int, int, int, int]:
+        """The box [x0, x1) x [y0, y1) a dot centred at (x, y) covers, cut to the frame."""
+        half = self._dot_half_px
+        ix, iy = round(x), round(y)
+        x0, y0 = max(ix - half, 0), max(iy - half, 0)
+        return x0, y0, min(ix + half + 1, self.width), min(iy + half + 1, self.height)
 
     def _make_noise(self) -> tuple[np.ndarray, np.ndarray]:
         """Two frames of noise, made once (about 0.1 s at 1280x720); a frame reads one
