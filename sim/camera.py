@@ -15,7 +15,8 @@ exposure and focus. ``write_video`` writes frames to a real MJPG/AVI file.
 
 Frames are rendered where they are read (``SimFrame``): the tracker reads two small
 windows per frame, so a 30 fps run costs little more than a 2 fps one; a full frame
-(for a video) costs about 1 ms at 1280x720, most of it adding the noise.
+(for a video) costs about 1 ms at 1280x720, most of it adding the noise, and is drawn by
+the video's encoder process from the frame's ``scene`` (``SceneRenderer``).
 """
 
 from __future__ import annotations
@@ -249,9 +250,9 @@ class SimCamera:
         # a blend of two grey levels in 0-255, + 0.5: truncating rounds it, no clip needed
         view[:] = view.astype(np.float32) * (1 - c) + marker * c + 0.5
 
-    # a frame's dots are read by the tracker and again, up to a video queue's length of
-    # frames later, when the video renders the frame whole
-    @functools.lru_cache(maxsize=96)  # noqa: B019
+    # a frame's dots are drawn in both of the tracker's windows (the one on the other
+    # marker only when the two are close) and again when the frame is rendered whole
+    @functools.lru_cache(maxsize=16)  # noqa: B019
     def _dot_coverage(self, x: float, y: float) -> tuple[int, int, np.ndarray]:
         """(x0, y0, coverage) of the dot centred at (x, y): its box's top-left pixel and
         the blurred coverage over the box, cut to the frame."""
