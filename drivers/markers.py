@@ -257,10 +257,9 @@ class MarkerTracker:
         if x0 < 0 or y0 < 0 or x1 > w or y1 > h:
             return (float("nan"), float("nan"))  # cut by the frame edge: not measurable
         signal = self._signal(frame[y0:y1, x0:x1])
-        r2 = _squared_radii(half)
-        inside = r2 <= r_in * r_in
-        background = _median(signal[~inside & (r2 <= r_out * r_out)])
-        weights = np.where(inside, signal - background, 0.0).astype(np.float32)
+        inside, ring = _window_masks(half, r_in)
+        background = _median(signal[ring])
+        weights = np.where(inside, signal - background, np.float32(0.0))
         m = cv2.moments(weights)
         if m["m00"] <= 0:
             return (float("nan"), float("nan"))
@@ -273,11 +272,16 @@ class MarkerTracker:
         return 255.0 - _grey(patch).astype(np.float32)
 
 
-@functools.cache
-def _squared_radii(half: int) -> np.ndarray:
-    """Squared distance of each pixel of a (2 half + 1)^2 window from its centre."""
+@functools.lru_cache(maxsize=64)
+def _window_masks(half: int, r_in: float) -> tuple[np.ndarray, np.ndarray]:
+    """The centroid window (within ``r_in`` of the centre) and the background ring
+    (from there to ``r_in`` + 3) of a (2 half + 1)^2 patch; a held marker's blob keeps
+    a few areas, so these are made once each."""
     offsets = np.arange(-half, half + 1)
-    return offsets[None, :] ** 2 + offsets[:, None] ** 2
+    r2 = offsets[None, :] ** 2 + offsets[:, None] ** 2
+    inside = r2 <= r_in * r_in
+    r_out = r_in + 3.0
+    return inside, ~inside & (r2 <= r_out * r_out)
 
 
 def _median(values: np.ndarray) -> float:

@@ -31,6 +31,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from labrig.clock import Clock, ClockThread
 from labrig.devices import (
     LengthSample,
@@ -493,29 +495,36 @@ class Runner:
         sample = self.rig.length.read()
         if sample is not None and not self._stop_loops.is_set():
             # a frame that came after the loops were told to stop is not recorded
-            self._record_length(sample)
+            self._record_lengths([sample])
 
     def _read_lengths(self, since_s: float, until_s: float = math.inf) -> None:
         """Record the frames measured since the last batch; frames from before this
         loop started (the camera streams on while acquisition pauses) are not."""
-        for sample in self.rig.length.read_new():
-            if since_s <= sample.t_s <= until_s:
-                self._record_length(sample)
+        samples = [s for s in self.rig.length.read_new() if since_s <= s.t_s <= until_s]
+        if samples:
+            self._record_lengths(samples)
 
-    def _record_length(self, sample: LengthSample) -> None:
-        self.writer.append_length(
-            self._current_repetition(),
-            sample.t_s,
-            sample.length_mm,
-            sample.x1_px,
-            sample.y1_px,
-            sample.x2_px,
-            sample.y2_px,
-            sample.ok,
-        )
-        if self.video is not None and sample.image is not None:
-            self.video.add(sample.image)
-            self.writer.append_video_frame(self._current_repetition(), sample.t_s)
+    def _record_lengths(self, samples: list[LengthSample]) -> None:
+        """A batch of frames into the run file as one block (and the video), then the
+        markers-lost interlock over them in order."""
+        columns = np.array(
+            [(s.t_s, s.length_mm, s.x1_px, s.y1_px, s.x2_px, s.y2_px) for s in samples]
+        ).T
+        repetition = self._current_repetition()
+        self.writer.append_length(repetition, *columns, np.array([s.ok for s in samples]))
+        if self.video is not None:
+            shown = []  # the frames handed to the video, whose times the file keeps
+            try:
+                for sample in (s for s in samples if s.image is not None):
+                    self.video.add(sample.image)
+                    shown.append(sample.t_s)
+            finally:
+                if shown:
+                    self.writer.append_video_frame(repetition, np.array(shown))
+        for sample in samples:
+            self._check_markers(sample)
+
+    def _check_markers(self, sample: LengthSample) -> None:
         if sample.ok:
             self._marker_lost_since = None
             with self.latest.lock:

@@ -6,36 +6,45 @@ writer. Each frame's time on the run's clock is stored in the run file
 (``/entry/video/time``, ``labrig.storage``), in the same order, so frame i of the video
 is the frame measured at time i.
 
-Encoding runs in a thread of its own, fed through a bounded queue: the camera loop only
-hands a frame over (a simulated frame is rendered in full here, not in the loop), and
-when the encoder falls behind by the whole queue the hand-over waits. That thread never
-waits on the clock, so on the simulated rig's virtual clock it cannot move or hold time;
-a camera loop waiting for queue room holds time still and costs only wall time.
+Encoding runs in a process of its own (``python -c 'labrig.video._serve()'``), fed
+through a pipe: a frame costs the camera loop one pickled write, and the encoding
+(0.4-0.7 ms a frame for MJPG at 640x360) runs on another core instead of taking the
+run's interpreter lock. A frame that can describe itself (``video_recipe()``: a
+simulated frame, a few numbers) is sent as that description and drawn in the encoder
+process; any other frame (a real camera's) is sent as its pixels. When the encoder falls
+behind by the pipe's buffer the write waits: on the simulated rig's virtual clock the
+camera loop then holds time still and costs only wall time; the encoder process never
+waits on the clock, so it can neither move nor hold time.
 
 AVI and Matroska are written front to back with the frames in order, so a killed run's
-video opens and plays up to what the writer had passed to the file (FFmpeg's write
-buffer, a few hundred kB: well under a second of frames); an MP4 is unreadable until
-its index is written at the end, which is why it is not the default.
+video opens and plays up to what the writer had passed to the file. A run killed outright
+(SIGKILL) closes the encoder's pipe: the encoder writes every frame it was sent and
+closes the file. An MP4 is unreadable until its index is written at the end, which is
+why it is not the default.
 """
 
 from __future__ import annotations
 
-import queue
-import threading
+import contextlib
+import json
+import pickle
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
-import numpy as np
-
 FOURCC = {".avi": "MJPG", ".mkv": "MJPG", ".mp4": "mp4v"}
-QUEUE_FRAMES = 32
-_END = object()
+# the camera loop's writes are buffered up to this many bytes (a frame's description is
+# ~200 bytes: about a second of frames); pixels go through at once
+PIPE_BUFFER_BYTES = 8192
+_ENCODER = "from labrig.video import _serve; _serve()"
 
 
 class VideoRecorder:
     """Frames to ``path`` at ``fps`` (the nominal rate written into the file; the true
     times are in the run file). The size is taken from the first frame."""
 
-    def __init__(self, path: str | Path, fps: float, queue_frames: int = QUEUE_FRAMES) -> None:
+    def __init__(self, path: str | Path, fps: float) -> None:
         self.path = Path(path)
         if self.path.suffix not in FOURCC:
             raise ValueError(f"{self.path}: a video is .avi, .mkv or .mp4")
@@ -43,53 +52,105 @@ class VideoRecorder:
         self.n_frames = 0  # handed over
         self.n_written = 0
         self.error: OSError | None = None
-        self._queue: queue.Queue = queue.Queue(maxsize=queue_frames)
-        self._thread: threading.Thread | None = None
-        self._writer = None  # a cv2.VideoWriter once the first frame gives the size
+        self._encoder: subprocess.Popen | None = None
+        self._renderer = None  # the last renderer sent to the encoder
 
     def add(self, image) -> None:
-        """Hand one frame over (an array or an array-like that renders on access)."""
+        """Hand one frame over (an array, or a frame with a ``video_recipe()``)."""
         if self.error is not None:
             raise self.error
-        if self._thread is None:
-            self._thread = threading.Thread(target=self._encode, name="video", daemon=True)
-            self._thread.start()
-        self._queue.put(image)
+        if self._encoder is None:
+            self._encoder = subprocess.Popen(
+                [sys.executable, "-c", _ENCODER, str(self.path), repr(self.fps)],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                bufsize=PIPE_BUFFER_BYTES,
+            )
+        recipe = getattr(image, "video_recipe", None)
+        if recipe is not None:
+            renderer, item = recipe()
+            if renderer is not self._renderer:
+                self._send(("renderer", renderer))
+                self._renderer = renderer
+            self._send(("scene", item))
+        else:
+            self._send(("pixels", image))
         self.n_frames += 1
 
-    def _encode(self) -> None:
-        while (item := self._queue.get()) is not _END:
-            if self.error is not None:
-                continue  # drain: the camera loop learns of the error at its next frame
-            try:
-                self._write(np.asarray(item))
-            except OSError as exc:
-                self.error = exc
+    def _send(self, message: tuple) -> None:
+        try:
+            pickle.dump(message, self._encoder.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+        except (BrokenPipeError, OSError):
+            self._finish()  # the encoder stopped: its report says why
+            if self.error is None:
+                self.error = OSError(f"{self.path}: the video encoder stopped")
+            raise self.error from None
 
-    def _write(self, image: np.ndarray) -> None:
-        import cv2  # only a run with a video needs OpenCV's writer
-
-        if self._writer is None:
-            height, width = image.shape[:2]
-            self._writer = cv2.VideoWriter(
-                str(self.path),
-                cv2.VideoWriter_fourcc(*FOURCC[self.path.suffix]),
-                self.fps,
-                (width, height),
-                image.ndim == 3,
-            )
-            if not self._writer.isOpened():
-                raise OSError(f"{self.path}: OpenCV cannot write this video here")
-        self._writer.write(image)
-        self.n_written += 1
+    def _finish(self) -> None:
+        """Close the pipe, wait for the encoder to write what it was sent, read its
+        report: the frames written, or the error that stopped it."""
+        encoder, self._encoder = self._encoder, None
+        if encoder is None:
+            return
+        with contextlib.suppress(OSError):  # a broken pipe: the encoder's report says why
+            encoder.stdin.close()
+        report = encoder.stdout.read()
+        encoder.wait()
+        try:
+            done = json.loads(report)
+        except ValueError:
+            done = {
+                "written": 0,
+                "error": f"the video encoder ended with code {encoder.returncode}",
+            }
+        self.n_written = int(done["written"])
+        if done["error"] is not None and self.error is None:
+            self.error = OSError(done["error"])
 
     def close(self) -> int:
-        """Write what is queued and close the file; the number of frames written."""
-        if self._thread is not None:
-            self._queue.put(_END)
-            self._thread.join()
-            self._thread = None
-        if self._writer is not None:
-            self._writer.release()
-            self._writer = None
+        """Write what was handed over and close the file; the number of frames written."""
+        self._finish()
         return self.n_written
+
+
+def _serve() -> None:
+    """The encoder process: ``argv`` path and rate; pickled frames on stdin until it
+    closes; a JSON report (frames written, error or null) on stdout at the end."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the run's to handle
+    path, fps = Path(sys.argv[1]), float(sys.argv[2])
+    writer, renderer, written, error = None, None, 0, None
+    source = sys.stdin.buffer
+    try:
+        while True:
+            try:
+                kind, item = pickle.load(source)
+            except (EOFError, pickle.UnpicklingError):
+                break  # closed, or cut mid-frame by a killed run: what came is written
+            if kind == "renderer":
+                renderer = item
+                continue
+            image = renderer(item) if kind == "scene" else item
+            writer = writer or _open_writer(path, fps, image)
+            writer.write(image)
+            written += 1
+    except OSError as exc:
+        error = str(exc)
+    finally:
+        if writer is not None:
+            writer.release()
+    with contextlib.suppress(OSError):  # a killed run reads no report
+        sys.stdout.write(json.dumps({"written": written, "error": error}))
+        sys.stdout.flush()
+
+
+def _open_writer(path: Path, fps: float, image):
+    import cv2  # only a run with a video needs OpenCV's writer
+
+    height, width = image.shape[:2]
+    writer = cv2.VideoWriter(
+        str(path), cv2.VideoWriter_fourcc(*FOURCC[path.suffix]), fps, (width, height),
+        image.ndim == 3,
+    )  # fmt: skip
+    if not writer.isOpened():
+        raise OSError(f"{path}: OpenCV cannot write this video here")
+    return writer

@@ -15,7 +15,8 @@ exposure and focus. ``write_video`` writes frames to a real MJPG/AVI file.
 
 Frames are rendered where they are read (``SimFrame``): the tracker reads two small
 windows per frame, so a 30 fps run costs little more than a 2 fps one; a full frame
-(for a video) costs about 1 ms at 1280x720, most of it adding the noise.
+(for a video) costs about 1 ms at 1280x720, most of it adding the noise, and is drawn by
+the video's encoder process from the frame's ``scene`` (``SceneRenderer``).
 """
 
 from __future__ import annotations
@@ -90,6 +91,18 @@ class SimCamera:
     ) -> None:
         if not mm_per_px > 0 or not fps > 0 or queue_frames < 1:
             raise ValueError("SimCamera: mm_per_px and fps must be > 0, queue_frames >= 1")
+        if seed is None:  # a concrete seed: a renderer elsewhere makes the same noise
+            seed = int(np.random.SeedSequence().entropy % 2**63)
+        # what a renderer in another process needs to draw the same frames (``renderer``)
+        self._spec = dict(
+            mm_per_px=mm_per_px, size=size, marker_diameter_mm=marker_diameter_mm,
+            centre_px=centre_px, band_height_mm=band_height_mm, blur_px=blur_px,
+            noise_grey=noise_grey, lighting_drift=lighting_drift,
+            drift_period_s=drift_period_s, sway_px=sway_px, marker_bgr=marker_bgr,
+            specimen_bgr=specimen_bgr, background_bgr=background_bgr, seed=seed,
+            monochrome=monochrome,
+        )  # fmt: skip
+        self._renderer: SceneRenderer | None = None
         self.queue_frames = int(queue_frames)
         self.channels = 1 if monochrome else 3
         self.clock = clock
@@ -106,6 +119,7 @@ class SimCamera:
         self.lighting_drift = float(lighting_drift)
         self.drift_period_s = float(drift_period_s)
         self.sway_px = float(sway_px)
+        self._dot_half_px = math.ceil(self.radius_px + 4 * self.blur_px + 2)
         # a monochrome sensor sees the colours' grey levels (OpenCV's BGR-to-grey weights)
         self.marker_bgr, self.specimen_bgr, self.background_bgr = (
             np.array(bgr if not monochrome else [_grey_level(bgr)], dtype=np.float32)
@@ -204,10 +218,10 @@ class SimCamera:
     def _palette(self, gain: float) -> tuple[tuple[float, ...], tuple[float, ...], np.ndarray]:
         """Background and specimen fill colours, the markers' colour, under ``gain``."""
         background, specimen = (
-            tuple(float(v) for v in np.clip(np.rint(bgr * gain), 0, 255))
+            tuple(min(max(float(v), 0.0), 255.0) for v in np.rint(bgr * gain))
             for bgr in (self.background_bgr, self.specimen_bgr)
         )
-        return background, specimen, np.clip(self.marker_bgr * gain, 0, 255)
+        return background, specimen, np.minimum(np.maximum(self.marker_bgr * gain, 0), 255)
 
     def _draw_dot(self, out: np.ndarray, ox: int, oy: int, x: float, y: float, marker) -> None:
         """Blend one anti-aliased, blurred dot around frame point (x, y) into ``out``, the
@@ -220,41 +234,45 @@ class SimCamera:
         the surroundings are flat. The coverage is always computed over the dot's whole
         box (then cut to the region), so every region sees the same values.
         """
-        x0, y0, coverage = self._dot_coverage(x, y)
-        y1, x1 = y0 + coverage.shape[0], x0 + coverage.shape[1]
+        x0, y0, x1, y1 = self._dot_box(x, y)
         h, w = out.shape[:2]
         cx0, cy0 = max(x0, ox), max(y0, oy)
         cx1, cy1 = min(x1, ox + w), min(y1, oy + h)
         if cx0 >= cx1 or cy0 >= cy1:
-            return  # outside the region
+            return  # outside the region: the tracker's window on the other marker
+        _, _, coverage = self._dot_coverage(x, y)
         c = coverage[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0]
         if out.ndim == 3:
             c = c[:, :, None]
         else:
             marker = marker[0]
         view = out[cy0 - oy : cy1 - oy, cx0 - ox : cx1 - ox]
-        blended = view.astype(np.float32) * (1 - c) + marker * c + 0.5
-        view[:] = np.clip(blended, 0, 255).astype(np.uint8)
+        # a blend of two grey levels in 0-255, + 0.5: truncating rounds it, no clip needed
+        view[:] = view.astype(np.float32) * (1 - c) + marker * c + 0.5
 
-    # a frame's dots are read by the tracker and again, up to a video queue's length of
-    # frames later, when the video renders the frame whole
-    @functools.lru_cache(maxsize=96)  # noqa: B019
+    # a frame's dots are drawn in both of the tracker's windows (the one on the other
+    # marker only when the two are close) and again when the frame is rendered whole
+    @functools.lru_cache(maxsize=16)  # noqa: B019
     def _dot_coverage(self, x: float, y: float) -> tuple[int, int, np.ndarray]:
         """(x0, y0, coverage) of the dot centred at (x, y): its box's top-left pixel and
         the blurred coverage over the box, cut to the frame."""
-        half = math.ceil(self.radius_px + 4 * self.blur_px + 2)
-        ix, iy = round(x), round(y)
-        x0, y0 = max(ix - half, 0), max(iy - half, 0)
-        x1, y1 = min(ix + half + 1, self.width), min(iy + half + 1, self.height)
+        x0, y0, x1, y1 = self._dot_box(x, y)
         if x0 >= x1 or y0 >= y1:
             return x0, y0, np.zeros((0, 0), dtype=np.float32)
         xx = (np.arange(x0, x1) - x) ** 2
         yy = (np.arange(y0, y1) - y) ** 2
         distance = np.sqrt(xx[None, :] + yy[:, None], dtype=np.float32)
-        coverage = np.clip(self.radius_px + 0.5 - distance, 0.0, 1.0).astype(np.float32)
+        coverage = np.minimum(np.maximum(self.radius_px + 0.5 - distance, 0.0), 1.0)
         if self.blur_px > 0:
             coverage = cv2.GaussianBlur(coverage, (0, 0), self.blur_px)
         return x0, y0, coverage
+
+    def _dot_box(self, x: float, y: float) -> tuple[int, int, int, int]:
+        """The box [x0, x1) x [y0, y1) a dot centred at (x, y) covers, cut to the frame."""
+        half = self._dot_half_px
+        ix, iy = round(x), round(y)
+        x0, y0 = max(ix - half, 0), max(iy - half, 0)
+        return x0, y0, min(ix + half + 1, self.width), min(iy + half + 1, self.height)
 
     def _make_noise(self) -> tuple[np.ndarray, np.ndarray]:
         """Two frames of noise, made once (about 0.1 s at 1280x720); a frame reads one
@@ -264,6 +282,22 @@ class SimCamera:
         noise = np.rint(self._rng.normal(0.0, self.noise_grey, (*shape, self.channels)))
         noise = np.clip(noise if self.channels == 3 else noise[..., 0], -255, 255)
         return np.maximum(noise, 0).astype(np.uint8), np.maximum(-noise, 0).astype(np.uint8)
+
+    def renderer(self) -> SceneRenderer:
+        """A picklable stand-in for this camera's drawing: given a frame's ``scene``
+        it renders the same pixels in another process (the run's video encoder)."""
+        if self._renderer is None:
+            self._renderer = SceneRenderer(self._spec)
+        return self._renderer
+
+    def render_scene(self, scene: tuple) -> np.ndarray:
+        """The whole frame that ``SimFrame.scene`` describes."""
+        t_s, centres, gain, hidden, noise, resized_to = scene
+        frame = SimFrame(self, t_s=t_s, gain=gain, hidden=frozenset(hidden), noise=noise)
+        frame._centres = np.array(centres, dtype=float).reshape(2, 2)
+        if resized_to is not None:
+            frame.resized(resized_to)
+        return np.asarray(frame)
 
     # -- a capture --------------------------------------------------------------------------------
 
@@ -424,6 +458,19 @@ class SimFrame:
             self._palette = self.camera._palette(self.gain)
         return self._palette
 
+    @property
+    def scene(self) -> tuple:
+        """The frame as a few numbers (time, marker centres, light, hidden markers, the
+        noise's pick, the streaming size): all ``SimCamera.render_scene`` needs."""
+        centres = tuple(float(v) for v in self.centres.ravel())
+        return (self.t_s, centres, self.gain, tuple(sorted(self.hidden)), self.noise,
+                self._resized_to)  # fmt: skip
+
+    def video_recipe(self) -> tuple[SceneRenderer, tuple]:
+        """(renderer, scene): how a video encoder draws this frame itself, in its own
+        process, instead of being handed its pixels (``labrig.video``)."""
+        return self.camera.renderer(), self.scene
+
     def __getitem__(self, key):
         h, w = self.shape[:2]
         if self._resized_to is None and isinstance(key, tuple) and len(key) >= 2:
@@ -454,6 +501,26 @@ class SimFrame:
                 full = cv2.resize(full, self._resized_to, interpolation=cv2.INTER_AREA)
             self._full = full
         return self._full if dtype is None else self._full.astype(dtype)
+
+
+class SceneRenderer:
+    """Draws a ``SimCamera``'s frames from their scenes, wherever it is unpickled: the
+    camera is rebuilt from its settings (the seed gives the same noise) on first use."""
+
+    def __init__(self, spec: dict) -> None:
+        self.spec = spec
+        self._camera: SimCamera | None = None
+
+    def __getstate__(self) -> dict:
+        return {"spec": self.spec}
+
+    def __setstate__(self, state: dict) -> None:
+        self.spec, self._camera = state["spec"], None
+
+    def __call__(self, scene: tuple) -> np.ndarray:
+        if self._camera is None:
+            self._camera = SimCamera(None, None, **self.spec)  # draws only: no clock
+        return self._camera.render_scene(scene)
 
 
 def _fill(frame: np.ndarray, x0: int, y0: int, x1: int, y1: int, colour: tuple) -> None:

@@ -12,7 +12,10 @@ of the run alone (the "simulated ... in X s" line), the process's CPU time (user
 all threads: what the camera costs, whatever else the machine is running), the load
 average, and the video's frames.
 
-Run: python tests/bench/bench_sim_rig.py [--burners N] [--camera-only]
+Then the ratio issue 14 sets (<= 1.5): 30 fps with video over 2 fps without, in
+interleaved pairs (A/B/A/B), each pair's ratio and their range.
+
+Run: python tests/bench/bench_sim_rig.py [--burners N] [--camera-only] [--pairs N]
 (--burners 2 runs two CPU-burning processes alongside, as on a busy CI machine.)
 """
 
@@ -111,6 +114,27 @@ def camera_cost(tmp: Path, video: bool = True) -> None:
         )
 
 
+def video_ratio(tmp: Path, pairs: int) -> None:
+    """Issue 14's figure: the demo at 30 fps with video against 2 fps without, run
+    A/B/A/B (``pairs`` times each) so that the load from other work falls on both; each
+    pair's ratio of process wall time, run wall time and CPU time, then their ranges."""
+    demo = (ROOT / "protocols" / "demo.yaml").read_text()
+    a, b = tmp / "ratio_2fps.yaml", tmp / "ratio_30fps_video.yaml"
+    a.write_text(demo.replace("camera_fps: 30}", "camera_fps: 2}"))
+    b.write_text(demo.replace("camera_fps: 30}", "camera_fps: 30, video: true}"))
+    print(f"\n{'demo, A/B pair':<16} {'2 fps s':>8} {'30+video s':>11} {'x process':>10} "
+          f"{'x run':>6} {'x CPU':>6} {'load':>5}")  # fmt: skip
+    ratios = []
+    for k in range(pairs):
+        (wa, ra, ca), (wb, rb, cb) = (run_protocol(p, tmp / f"ratio_{k}.h5") for p in (a, b))
+        ratios.append((wb / wa, rb / ra, cb / ca))
+        print(f"{k + 1:<16} {wa:8.1f} {wb:11.1f} {wb / wa:10.2f} {rb / ra:6.2f} {cb / ca:6.2f} "
+              f"{os.getloadavg()[0]:5.1f}")  # fmt: skip
+    lo, hi = np.min(ratios, axis=0), np.max(ratios, axis=0)
+    print(f"{'range':<16} {'':8} {'':11} {lo[0]:4.2f}-{hi[0]:<5.2f} {lo[1]:.2f}-{hi[1]:.2f} "
+          f"{lo[2]:.2f}-{hi[2]:.2f}   (target: x process <= 1.5)")  # fmt: skip
+
+
 def snap_dl(path: Path) -> str:
     """The demo's snap (2,1): measured against the model's length change."""
     done = subprocess.run(
@@ -130,6 +154,9 @@ def main() -> None:
     parser.add_argument("--burners", type=int, default=0)
     parser.add_argument("--camera-only", action="store_true")
     parser.add_argument("--no-video", action="store_true", help="leave the video run out")
+    parser.add_argument(
+        "--pairs", type=int, default=3, help="A/B pairs of 2 fps against 30 fps with video"
+    )
     args = parser.parse_args()
     burners = [
         subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.burners)
@@ -142,6 +169,8 @@ def main() -> None:
     try:
         with tempfile.TemporaryDirectory() as tmp:
             camera_cost(Path(tmp), video=not args.no_video)
+            if not args.no_video and args.pairs > 0:
+                video_ratio(Path(tmp), args.pairs)
             for name in () if args.camera_only else PROTOCOLS:
                 out = Path(tmp) / f"{name}.h5"
                 wall0 = time.monotonic()

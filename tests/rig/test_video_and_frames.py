@@ -213,3 +213,25 @@ def test_a_video_file_standing_in_for_the_camera_is_read_at_camera_fps(tmp_path)
         length = read_log(run, 1, "length")
     assert len(length) == 40 and length.fields["ok"].all()  # every frame, then the end
     assert length.fields["value"] == pytest.approx(np.full(40, 50.0), abs=0.02)
+
+
+def test_a_real_cameras_frames_go_to_the_encoder_as_pixels(tmp_path):
+    """Frames without a scene (a real camera's arrays) are sent whole and written in
+    order; a directory that cannot hold the file is an OSError, not a hang."""
+    from labrig.video import VideoRecorder
+
+    recorder = VideoRecorder(tmp_path / "real.avi", fps=30)
+    images = [np.full((120, 160, 3), 30 * k + 20, dtype=np.uint8) for k in range(6)]
+    for image in images:
+        recorder.add(image)
+    assert recorder.close() == 6 and recorder.error is None
+    count, frames = decoded_frames(tmp_path / "real.avi")
+    assert count == 6
+    means = [float(frames[k].mean()) for k in range(6)]
+    assert means == pytest.approx([30 * k + 20 for k in range(6)], abs=3)
+
+    broken = VideoRecorder(tmp_path / "no-such-dir" / "x.avi", fps=30)
+    with pytest.raises(OSError):
+        for _ in range(2000):  # the encoder's failure reaches a later hand-over
+            broken.add(images[0])
+    assert broken.close() == 0 and "cannot write" in str(broken.error)
