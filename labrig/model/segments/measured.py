@@ -44,6 +44,7 @@ from labrig.model.segments.shape_fit import (
     one_minimum_slope_rise,
     smooth_with_shape,
 )
+from labrig.model.segments.stair_edges import refine_extrema
 
 HEADER = ("volume_ml", "pressure_kpa", "length_mm")
 MIN_ROWS = 10
@@ -450,6 +451,12 @@ def curve_from_table(
         v, p, length, _ = collapse_plateaus(*fitted[:3])
         offset = fitted[3]
         notes.append(f"fitted rise-fall-rise to {len(v)} samples")
+    if resolution.quantised and resolution.step_kpa > 0 and not repeated:
+        refined = refine_extrema(*raw[:, :2].T, v, p)
+        if refined is not None and _has_segment_shape(*refined):
+            length = np.interp(refined[0], v, length)
+            v, p = refined
+            notes.append("peak and valley estimated from the stair edges")
     if route == ROUTE_TABULATED:  # zero at v = 0: extrapolate the first two samples
         offset = p[0] - (p[1] - p[0]) / (v[1] - v[0]) * v[0]
     p = p - offset
