@@ -451,7 +451,7 @@ def curve_from_table(
         v, p, length, _ = collapse_plateaus(*fitted[:3])
         offset = fitted[3]
         notes.append(f"fitted rise-fall-rise to {len(v)} samples")
-    if resolution.quantised and resolution.step_kpa > 0 and not repeated:
+    if resolution.step_kpa > 0 and not repeated:
         refined = refine_extrema(*raw[:, :2].T, v, p)
         if refined is not None and _has_segment_shape(*refined):
             length = np.interp(refined[0], v, length)
