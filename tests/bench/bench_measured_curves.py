@@ -11,10 +11,12 @@ Asserts nothing.
 Run: python tests/bench/bench_measured_curves.py
 """
 
+import contextlib
 import sys
 import tempfile
 import time
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 
@@ -32,6 +34,7 @@ from measured_tables import (
 from labrig.model.actuator.equilibria import Actuator
 from labrig.model.actuator.path import quasi_static_path
 from labrig.model.actuator.transitions import transitions
+from labrig.model.segments import measured
 from labrig.model.segments.library import analytical_segment
 from labrig.model.segments.measured import curve_from_table, load_csv
 
@@ -144,26 +147,35 @@ def synthetic_rates(seeds=(1, 2, 3), cases=40) -> None:
 def staircases() -> None:
     """Undithered staircases coarser than 0.2 kPa every 0.1 mL (uniform rows and rows
     jittered by +-45 %), on the library pairs where they are worst: the snap-volume
-    error against the clean curves (what is left of issue 12, docs/model.md)."""
+    error against the clean curves, with the peak and valley from the stair edges and,
+    for comparison, with the stair values (the edge estimate switched off)."""
     for names, step in ((("B46-T20", "B42-T20"), 0.27), (("B46-T22", "B48-T20"), 0.5)):
         clean = [analytical_segment(n) for n in names]
         (want,) = snap_volumes(clean)
         for uniform in (True, False):
-            curves = [
-                curve_from_table(
-                    sample_table(c, 0.1, uniform=uniform, round_to_kpa=step, seed=k),
-                    name=c.name,
-                    where=c.name,
-                )
-                for k, c in enumerate(clean)
-            ]
-            got = snap_volumes(curves)
-            error = max(abs(v - want) for v in got) if len(got) == 1 else float("nan")
-            route = "/".join(c.measured.route[0] for c in curves)
+            results = []
+            for edges in (True, False):
+                with contextlib.ExitStack() as stack:
+                    if not edges:
+                        stack.enter_context(
+                            mock.patch.object(measured, "refine_extrema", lambda *_: None)
+                        )
+                    curves = [
+                        curve_from_table(
+                            sample_table(c, 0.1, uniform=uniform, round_to_kpa=step, seed=k),
+                            name=c.name,
+                            where=c.name,
+                        )
+                        for k, c in enumerate(clean)
+                    ]
+                    got = snap_volumes(curves)
+                error = max(abs(v - want) for v in got) if len(got) == 1 else float("nan")
+                route = "/".join(c.measured.route[0] for c in curves)
+                results.append(f"route {route}, {len(got)} snap(s), error {error:.2f} mL")
             print(
                 f"{' + '.join(names)}, step {step} kPa every 0.1 mL, "
-                f"{'uniform' if uniform else 'jittered'}: route {route}, {len(got)} snap(s), "
-                f"error {error:.2f} mL"
+                f"{'uniform' if uniform else 'jittered'}: stair edges {results[0]}; "
+                f"stair values {results[1]}"
             )
 
 

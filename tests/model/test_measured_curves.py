@@ -109,12 +109,13 @@ def issue_tolerance(step_kpa: float, curves) -> float:
     return max(0.05 if step_kpa <= 1e-6 else quantised, 2 * widest)
 
 
-# The issue asks 0.5 mL for quantised tables: met up to steps of 0.2 kPa. Where nothing
-# dithers a coarser staircase, a valley is known only to about a step, and a snap moves
-# by up to 2.5 mL per kPa of it (0.2 mL per 0.1 kPa on B50-T22's falling branch):
-# rounded to 0.27 kPa every 0.1 mL (rows jittered), B46-T20 + B42-T20 snap 0.69 mL off;
-# to 0.5 kPa, B46-T22 + B48-T20 0.73 mL (tabulated as is; the benchmark's staircases)
-ML_PER_KPA_OF_STEP = 2.5
+# The issue asks 0.5 mL for quantised tables: met up to steps of 0.33 kPa. Where nothing
+# dithers a coarser staircase, its peak and valley are estimated from the stair edges
+# (labrig.model.segments.stair_edges; before, the stair values, known to a step: the
+# benchmark's staircases snapped 0.24-0.73 mL off, now 0.05-0.42 mL), and a snap moves by
+# up to 2.5 mL per kPa of what is left: 1.5 mL per kPa of step (0.75 mL at 0.5 kPa) holds
+# for 74 of 80 random library draws at 0.1-0.5 kPa (1.0 for 72; before the edges, 62)
+ML_PER_KPA_OF_STEP = 1.5
 
 
 def unseen(step_kpa: float, curves) -> float:
@@ -292,9 +293,22 @@ spacings = st.floats(np.log10(0.0005), np.log10(0.5)).map(lambda x: 10.0**x)
 # as tabulated, had slopes off by up to 70 % on its falling branch (5 snaps for 2); the
 # clean path's snap of 0.004 kPa; a jittered sparse table's peak in a 0.46 mL gap; a
 # 0.5 kPa staircase whose step, taken as 0.5 kPa, made B40-T22's 1.8 kPa dip no peak
-# (the snap moved by 3 mL: that step estimate is not used)
+# (the snap moved by 3 mL: that step estimate is not used); staircases at 0.27-0.5 kPa
+# whose stair values put the snap beyond 1.5 mL per kPa of step or made a snap vanish
+# (found by a sweep of 80 random draws; within it with the stair-edge extrema); a
+# monotone segment beside a snapping one at 0.1 kPa, 0.51 mL off: a strict xfail below
 @example(names=("B40-T22", "B42-T20"), spacing_ml=0.1, uniform=False, round_to_kpa=0.5,
          seed=0)  # fmt: skip
+@example(names=("B44-T20", "B48-T20", "B46-T26"), spacing_ml=0.1, uniform=False,
+         round_to_kpa=0.27, seed=744)  # fmt: skip
+@example(names=("B40-T24", "B46-T26", "B42-T22"), spacing_ml=0.1, uniform=False,
+         round_to_kpa=0.27, seed=623)  # fmt: skip
+@example(names=("B50-T20", "B48-T20", "B44-T28"), spacing_ml=0.1, uniform=False,
+         round_to_kpa=0.5, seed=820)  # fmt: skip
+@example(names=("B44-T28", "B50-T20"), spacing_ml=0.003224633495381667, uniform=False,
+         round_to_kpa=0.27, seed=863)  # fmt: skip
+@example(names=("B42-T20", "B48-T20"), spacing_ml=0.15736293507864732, uniform=False,
+         round_to_kpa=0.5, seed=316)  # fmt: skip
 @example(names=("B44-T22", "B46-T28", "B42-T30"), spacing_ml=10.0**-0.5, uniform=True,
          round_to_kpa=0.1, seed=962)  # fmt: skip
 @example(names=("B40-T20", "B42-T20"), spacing_ml=10.0**-2.5, uniform=False,
@@ -314,6 +328,8 @@ spacings = st.floats(np.log10(0.0005), np.log10(0.5)).map(lambda x: 10.0**x)
 def test_clean_and_quantised_library_tables_snap_like_the_clean_curves(
     names, spacing_ml, uniform, round_to_kpa, seed
 ):
+    """The clean snaps, none spurious, within the issue's tolerance (``issue_tolerance``:
+    0.5 mL for a quantised table up to a 0.33 kPa step, 1.5 mL per kPa above)."""
     clean = [analytical_segment(n) for n in names]
     curves = measured(clean, spacing_ml, uniform=uniform, round_to_kpa=round_to_kpa, seed=seed)
     got = snap_volumes(curves)
@@ -321,6 +337,20 @@ def test_clean_and_quantised_library_tables_snap_like_the_clean_curves(
     tolerance = issue_tolerance(step, curves)
     resolvable = all(dip_kpa(c) > 10 * step or c.peak is None for c in clean)
     check_same_snaps(clean_snaps(names), got, tolerance, resolvable, unseen(step, curves), curves)
+
+
+@pytest.mark.xfail(strict=True, reason="0.51 mL off at 0.1 kPa (0.59 with the stair values)")
+def test_a_monotone_segment_rounded_to_a_tenth_beside_a_snapping_one():
+    """Found by the property above: B44-T30 (no peak) + B46-T20 every 0.1 mL (jittered),
+    rounded to 0.1 kPa, snap 0.51 mL off the clean 15.594 mL although B46-T20's peak and
+    valley from the stair edges are within 0.016 kPa (0.06 / 0.19 kPa from the stairs):
+    what is left is elsewhere on the curves (docs/model.md, section 9)."""
+    names = ("B44-T30", "B46-T20")
+    clean = [analytical_segment(n) for n in names]
+    curves = measured(clean, 0.1, uniform=False, round_to_kpa=0.1, seed=1)
+    tolerance = issue_tolerance(0.1, curves)
+    got = snap_volumes(curves)
+    check_same_snaps(clean_snaps(names), got, tolerance, True, unseen(0.1, curves), curves)
 
 
 # Above 0.3 kPa of noise the snaps are the clean ones (none spurious, none missed) but

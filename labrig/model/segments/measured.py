@@ -44,6 +44,7 @@ from labrig.model.segments.shape_fit import (
     one_minimum_slope_rise,
     smooth_with_shape,
 )
+from labrig.model.segments.stair_edges import refine_extrema
 
 HEADER = ("volume_ml", "pressure_kpa", "length_mm")
 MIN_ROWS = 10
@@ -56,6 +57,10 @@ JOIN_BINS = 5  # bins a rising branch may give to the falling one next to it
 OFFSET_BINS = 4  # bins through which the zero at v = 0 of a fitted curve is found
 OFFSET_SIGMAS = 3.0  # an offset is removed when it stands out of its uncertainty so far
 P_END_KPA = 300.0
+# steps from which a staircase's peak and valley come from its stair edges: below, the
+# stair values are within 0.025 kPa of them (a snap within ~0.06 mL), and the edges
+# were not checked on the 0.01-0.027 kPa tables other tools write (docs/model.md, 9)
+EDGE_MIN_STEP_KPA = 0.05
 MIN_END_SLOPE_KPA_PER_ML = 1.0
 EXTENSION_SAMPLES = 8
 ROUNDING_SLOPE_FACTOR = 10.0  # slopes between rows known to 10 % (median)
@@ -450,6 +455,12 @@ def curve_from_table(
         v, p, length, _ = collapse_plateaus(*fitted[:3])
         offset = fitted[3]
         notes.append(f"fitted rise-fall-rise to {len(v)} samples")
+    if resolution.step_kpa >= EDGE_MIN_STEP_KPA and not repeated:
+        refined = refine_extrema(*raw[:, :2].T, v, p)
+        if refined is not None and _has_segment_shape(*refined):
+            length = np.interp(refined[0], v, length)
+            v, p = refined
+            notes.append("peak and valley estimated from the stair edges")
     if route == ROUTE_TABULATED:  # zero at v = 0: extrapolate the first two samples
         offset = p[0] - (p[1] - p[0]) / (v[1] - v[0]) * v[0]
     p = p - offset
