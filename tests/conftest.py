@@ -1,9 +1,89 @@
-"""Shared fixtures: simulated run files, written once per session (see simulated_runs)."""
+"""Shared fixtures: simulated run files, written once per session (see simulated_runs);
+and the order of the suite on pytest-xdist's two workers (pyproject.toml's addopts).
+
+The order: the suite runs on two processes (``-n 2 --dist loadgroup``), which hand out
+tests in the order collected; the long ones (``LONG_FIRST``, the slowest measured on the
+2-core machine) are moved to the front so that neither worker is left with one of them
+at the end while the other idles. The tests of the compiled path (``COMPILED_PATH``:
+scans and the compiled path itself, in-process or through ``labrig model scan``) form
+one xdist group, run by one worker: on a fresh clone the first of them compiles
+``labrig.model.actuator.compiled_path`` (1.5-3 min of one core), and the fixture
+``compiled_path_cached`` does that once, in that worker, before any scan's own worker
+processes start (each would compile it at the same time, two cores for one result).
+"""
 
 import shutil
 
 import pytest
 from simulated_runs import killed_run, simulate_run, tiny_run
+
+# node ids (prefixes) of the slowest tests, slowest first (seconds on the idle 2-core
+# machine, warm numba cache, one process): these start first
+LONG_FIRST = (
+    "tests/rig/test_determinism.py::test_same_seed_same_data_beside_two_cpu_burners",  # 12
+    "tests/live/test_api_state.py::test_state_during_and_after_a_run",  # 23 before
+    "tests/live/test_watch.py::",  # 19 before
+    "tests/live/test_live_page.py::",  # 16
+    "tests/model/test_reference.py::test_the_papers_named_combinations",  # 12
+    "tests/rig/test_demo_run.py::",  # 8, the demo run made once
+    "tests/cli/test_model_scan.py::test_ctrl_c_keeps",  # 8
+    "tests/rig/test_determinism.py::",
+    "tests/rig/test_video_and_frames.py::",  # 5
+    "tests/rig/test_faults.py::",
+    "tests/model/test_reference.py::",
+)
+# tests that share something costly, each group run by one worker: the compiled path
+# (see the module docstring), the demo's run (a session fixture, rig/conftest.py) and
+# the browser (a module fixture)
+COMPILED_GROUP = "compiled_path"
+GROUPS = {
+    "tests/cli/test_bench.py::": COMPILED_GROUP,
+    "tests/model/test_compiled_path.py::": COMPILED_GROUP,
+    "tests/model/test_jit.py::": COMPILED_GROUP,
+    "tests/model/test_scan.py::": COMPILED_GROUP,
+    "tests/model/test_scan_distributed.py::": COMPILED_GROUP,
+    "tests/model/test_scan_failures.py::": COMPILED_GROUP,
+    "tests/model/test_stress.py::": COMPILED_GROUP,
+    "tests/rig/test_demo_run.py::": "demo_run",
+    "tests/rig/test_determinism.py::": "demo_run",
+    "tests/live/test_live_page.py::": "browser",
+}
+
+
+def _rank(nodeid: str) -> int:
+    return next((i for i, p in enumerate(LONG_FIRST) if nodeid.startswith(p)), len(LONG_FIRST))
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist reads the groups
+def pytest_collection_modifyitems(items):
+    """The long tests first (a stable sort: the rest keep their order), and the groups."""
+    items.sort(key=lambda item: _rank(item.nodeid))
+    for item in items:
+        group = next((g for p, g in GROUPS.items() if item.nodeid.startswith(p)), None)
+        if group is not None:
+            item.add_marker(pytest.mark.xdist_group(group))
+
+
+@pytest.fixture(scope="session")
+def compiled_path_cached():
+    """The compiled path compiled in this process for the scans' argument types, which
+    writes numba's cache for every process after it (a no-op when the cache is warm)."""
+    from labrig.model.actuator import jit
+
+    if not jit.COMPILED:
+        return
+    from labrig.model.scan.scan import ScanLibrary, solve_actuator
+    from labrig.model.segments.library import analytical_segment
+
+    names = ("B46-T20", "B46-T22")
+    solve_actuator(ScanLibrary("warm-up", tuple(analytical_segment(n) for n in names)), (0, 1))
+
+
+@pytest.fixture(autouse=True)
+def _compiled_path_first(request):
+    marker = request.node.get_closest_marker("xdist_group")
+    if marker is not None and COMPILED_GROUP in marker.args:
+        request.getfixturevalue("compiled_path_cached")
 
 
 @pytest.fixture(scope="session")
