@@ -2,14 +2,15 @@
 and the order of the suite on pytest-xdist's two workers (pyproject.toml's addopts).
 
 The order: the suite runs on two processes (``-n 2 --dist loadgroup``), which hand out
-tests in the order collected; the long ones (``LONG_FIRST``, the slowest measured on the
-2-core machine) are moved to the front so that neither worker is left with one of them
-at the end while the other idles. The tests of the compiled path (``COMPILED_PATH``:
-scans and the compiled path itself, in-process or through ``labrig model scan``) form
-one xdist group, run by one worker: on a fresh clone the first of them compiles
-``labrig.model.actuator.compiled_path`` (1.5-3 min of one core), and the fixture
-``compiled_path_cached`` does that once, in that worker, before any scan's own worker
-processes start (each would compile it at the same time, two cores for one result).
+work units (a test, or a group's tests together: ``GROUPS``) in the order collected; the
+long ones (``LONG_FIRST``, the slowest measured on the 2-core machine) are moved to the
+front so that neither worker is left with one of them at the end while the other idles.
+The tests of the compiled path (scans and the compiled path itself, in-process or
+through ``labrig model scan``) form one group: on a fresh clone the first of them
+compiles ``labrig.model.actuator.compiled_path`` (1.5-3 min of one core), and the
+fixture ``compiled_path_cached`` does that once, in that worker, before any scan's own
+worker processes start (each would compile it at the same time, two cores for one
+result; the cache written here is the one they load: measured, no new cache file).
 """
 
 import shutil
@@ -17,24 +18,26 @@ import shutil
 import pytest
 from simulated_runs import killed_run, simulate_run, tiny_run
 
-# node ids (prefixes) of the slowest tests, slowest first (seconds on the idle 2-core
-# machine, warm numba cache, one process): these start first
+# node ids (prefixes) of the longest work units, longest first (a group's tests count
+# together; seconds on the idle 2-core machine, warm numba cache, one process): these
+# start first, in this order (--no-loadscope-reorder: xdist would order by test count)
 LONG_FIRST = (
-    "tests/rig/test_determinism.py::test_same_seed_same_data_beside_two_cpu_burners",  # 12
-    "tests/live/test_api_state.py::test_state_during_and_after_a_run",  # 23 before
-    "tests/live/test_watch.py::",  # 19 before
+    "tests/cli/test_bench.py::",  # the compiled path's group: ~60, +100-170 cold
+    "tests/rig/test_determinism.py::test_same_seed_same_data_beside_two_cpu_burners",
+    "tests/rig/test_demo_run.py::",  # the demo's group: ~30 with the one above
+    "tests/live/test_watch.py::",  # 19
+    "tests/live/test_api_state.py::",  # 23 before, 15 now
     "tests/live/test_live_page.py::",  # 16
+    "tests/analysis/test_compare.py::",  # the simulated runs' group: ~25
     "tests/model/test_reference.py::test_the_papers_named_combinations",  # 12
-    "tests/rig/test_demo_run.py::",  # 8, the demo run made once
     "tests/cli/test_model_scan.py::test_ctrl_c_keeps",  # 8
-    "tests/rig/test_determinism.py::",
-    "tests/rig/test_video_and_frames.py::",  # 5
+    "tests/rig/test_video_and_frames.py::",  # 10
     "tests/rig/test_faults.py::",
     "tests/model/test_reference.py::",
 )
 # tests that share something costly, each group run by one worker: the compiled path
-# (see the module docstring), the demo's run (a session fixture, rig/conftest.py) and
-# the browser (a module fixture)
+# (see the module docstring), the demo's run (a session fixture, rig/conftest.py), the
+# browser (a module fixture) and the simulated runs of this file (session fixtures)
 COMPILED_GROUP = "compiled_path"
 GROUPS = {
     "tests/cli/test_bench.py::": COMPILED_GROUP,
@@ -47,6 +50,11 @@ GROUPS = {
     "tests/rig/test_demo_run.py::": "demo_run",
     "tests/rig/test_determinism.py::": "demo_run",
     "tests/live/test_live_page.py::": "browser",
+    "tests/analysis/test_compare.py::": "simulated_runs",
+    "tests/analysis/test_results.py::": "simulated_runs",
+    "tests/analysis/test_transitions.py::": "simulated_runs",
+    "tests/cli/test_review.py::": "simulated_runs",
+    "tests/cli/test_library_add.py::": "simulated_runs",
 }
 
 
