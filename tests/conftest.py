@@ -62,14 +62,30 @@ def _rank(nodeid: str) -> int:
     return next((i for i, p in enumerate(LONG_FIRST) if nodeid.startswith(p)), len(LONG_FIRST))
 
 
-@pytest.hookimpl(tryfirst=True)  # before xdist reads the groups
+def _group(nodeid: str) -> str | None:
+    return next((g for p, g in GROUPS.items() if nodeid.startswith(p)), None)
+
+
 def pytest_collection_modifyitems(items):
-    """The long tests first (a stable sort: the rest keep their order), and the groups."""
+    """The long tests first (a stable sort: the rest keep their order)."""
     items.sort(key=lambda item: _rank(item.nodeid))
-    for item in items:
-        group = next((g for p, g in GROUPS.items() if item.nodeid.startswith(p)), None)
-        if group is not None:
-            item.add_marker(pytest.mark.xdist_group(group))
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """``--dist loadgroup`` with ``GROUPS`` as the groups. xdist's own marks the groups
+    by a suffix to each test's node id, which pytest 9.2 no longer takes (its node ids
+    are not strings set on the item): the marked tests were spread over both workers.
+    Its scheduler is kept; only the grouping is this file's."""
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadGroupScheduling
+
+    class Groups(LoadGroupScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return _group(nodeid) or nodeid
+
+    return Groups(config, log)
 
 
 @pytest.fixture(scope="session")
@@ -89,8 +105,7 @@ def compiled_path_cached():
 
 @pytest.fixture(autouse=True)
 def _compiled_path_first(request):
-    marker = request.node.get_closest_marker("xdist_group")
-    if marker is not None and COMPILED_GROUP in marker.args:
+    if _group(request.node.nodeid) == COMPILED_GROUP:
         request.getfixturevalue("compiled_path_cached")
 
 
