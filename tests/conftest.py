@@ -46,7 +46,6 @@ GROUPS = {
     "tests/model/test_scan.py::": COMPILED_GROUP,
     "tests/model/test_scan_distributed.py::": COMPILED_GROUP,
     "tests/model/test_scan_failures.py::": COMPILED_GROUP,
-    "tests/model/test_stress.py::": COMPILED_GROUP,
     "tests/rig/test_demo_run.py::": "demo_run",
     "tests/rig/test_determinism.py::": "demo_run",
     "tests/live/test_live_page.py::": "browser",
