@@ -92,10 +92,15 @@ def pump_address_on_line(port: str, baud: int, timeout_s: float) -> int | None:
 
 
 def check_pump(
-    config: PumpConfig, clock: Clock, port: str | None = None, timeout_s: float = PUMP_TIMEOUT_S
+    config: PumpConfig,
+    clock: Clock,
+    port: str | None = None,
+    timeout_s: float = PUMP_TIMEOUT_S,
+    search_timeout_s: float | None = None,
 ) -> DeviceCheck:
     """The pump at ``config.address`` on ``port`` (default: the configured port), each
-    reply awaited ``timeout_s`` (host time)."""
+    reply awaited ``timeout_s`` (host time); with no reply, a pump at another address
+    awaited ``search_timeout_s`` (default ``timeout_s``)."""
     from labrig.drivers.phd_ultra import PhdUltra
     from labrig.drivers.phd_ultra_errors import PumpPortError, PumpTimeout
 
@@ -120,7 +125,8 @@ def check_pump(
             "open it (the dialout group), and that no other program holds it",
         )
     except PumpTimeout:
-        answering = pump_address_on_line(port, config.baud, timeout_s)
+        search_s = timeout_s if search_timeout_s is None else search_timeout_s
+        answering = pump_address_on_line(port, config.baud, search_s)
         if answering is not None and answering != config.address:
             return DeviceCheck(
                 "pump",

@@ -19,8 +19,11 @@ from labrig.rig_check import DeviceCheck, check_camera, check_pressure, check_pu
 
 # the emulator's thread shares the host with everything else: a starved host only
 # costs wall time here, so its replies are awaited longer than the bench's 0.5 s (but
-# not the runs' 10 s: the no-reply fault waits this three times)
+# not the runs' 10 s: the no-reply fault waits this eight times). The search for a pump
+# at another address has its own timeout: a test of the faults, where no reply is the
+# point, shortens the first and keeps the second (the answer it needs may come late).
 SIM_REPLY_TIMEOUT_S = 2.0
+SIM_SEARCH_TIMEOUT_S = 2.0
 FAULTS = {
     "no-reply": "the pump sends no reply (cable, power)",
     "wrong-address": "the rig file names pump address 3; the pump is at 0",
@@ -98,7 +101,13 @@ def check_sim_rig(config: RigConfig, fault: str | None = None) -> list[DeviceChe
             )
 
         return [
-            check_pump(pump, rig.clock, port=sim.emulator.port, timeout_s=SIM_REPLY_TIMEOUT_S),
+            check_pump(
+                pump,
+                rig.clock,
+                port=sim.emulator.port,
+                timeout_s=SIM_REPLY_TIMEOUT_S,
+                search_timeout_s=SIM_SEARCH_TIMEOUT_S,
+            ),
             check_pressure(
                 named,
                 rig.clock,

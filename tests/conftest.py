@@ -1,9 +1,111 @@
-"""Shared fixtures: simulated run files, written once per session (see simulated_runs)."""
+"""Shared fixtures: simulated run files, written once per session (see simulated_runs);
+and the order of the suite on pytest-xdist's two workers (pyproject.toml's addopts).
+
+The order: the suite runs on two processes (``-n 2 --dist loadgroup``), which hand out
+work units (a test, or a group's tests together: ``GROUPS``) in the order collected; the
+long ones (``LONG_FIRST``, the slowest measured on the 2-core machine) are moved to the
+front so that neither worker is left with one of them at the end while the other idles.
+The tests of the compiled path (scans and the compiled path itself, in-process or
+through ``labrig model scan``) form one group: on a fresh clone the first of them
+compiles ``labrig.model.actuator.compiled_path`` (1.5-3 min of one core), and the
+fixture ``compiled_path_cached`` does that once, in that worker, before any scan's own
+worker processes start (each would compile it at the same time, two cores for one
+result; the cache written here is the one they load: measured, no new cache file).
+"""
 
 import shutil
 
 import pytest
 from simulated_runs import killed_run, simulate_run, tiny_run
+
+# node ids (prefixes) of the longest work units, longest first (a group's tests count
+# together; seconds on the idle 2-core machine, warm numba cache, one process): these
+# start first, in this order (--no-loadscope-reorder: xdist would order by test count)
+LONG_FIRST = (
+    "tests/cli/test_bench.py::",  # the compiled path's group: ~60, +100-170 cold
+    "tests/rig/test_determinism.py::test_same_seed_same_data_beside_two_cpu_burners",
+    "tests/rig/test_demo_run.py::",  # the demo's group: ~30 with the one above
+    "tests/live/test_watch.py::",  # 19
+    "tests/live/test_api_state.py::",  # 23 before, 15 now
+    "tests/live/test_live_page.py::",  # 16
+    "tests/analysis/test_compare.py::",  # the simulated runs' group: ~25
+    "tests/model/test_reference.py::test_the_papers_named_combinations",  # 12
+    "tests/cli/test_model_scan.py::test_ctrl_c_keeps",  # 8
+    "tests/rig/test_video_and_frames.py::",  # 10
+    "tests/rig/test_faults.py::",
+    "tests/model/test_reference.py::",
+)
+# tests that share something costly, each group run by one worker: the compiled path
+# (see the module docstring), the demo's run (a session fixture, rig/conftest.py), the
+# browser (a module fixture) and the simulated runs of this file (session fixtures)
+COMPILED_GROUP = "compiled_path"
+GROUPS = {
+    "tests/cli/test_bench.py::": COMPILED_GROUP,
+    "tests/model/test_compiled_path.py::": COMPILED_GROUP,
+    "tests/model/test_jit.py::": COMPILED_GROUP,
+    "tests/model/test_scan.py::": COMPILED_GROUP,
+    "tests/model/test_scan_distributed.py::": COMPILED_GROUP,
+    "tests/model/test_scan_failures.py::": COMPILED_GROUP,
+    "tests/rig/test_demo_run.py::": "demo_run",
+    "tests/rig/test_determinism.py::": "demo_run",
+    "tests/live/test_live_page.py::": "browser",
+    "tests/analysis/test_compare.py::": "simulated_runs",
+    "tests/analysis/test_results.py::": "simulated_runs",
+    "tests/analysis/test_transitions.py::": "simulated_runs",
+    "tests/cli/test_review.py::": "simulated_runs",
+    "tests/cli/test_library_add.py::": "simulated_runs",
+}
+
+
+def _rank(nodeid: str) -> int:
+    return next((i for i, p in enumerate(LONG_FIRST) if nodeid.startswith(p)), len(LONG_FIRST))
+
+
+def _group(nodeid: str) -> str | None:
+    return next((g for p, g in GROUPS.items() if nodeid.startswith(p)), None)
+
+
+def pytest_collection_modifyitems(items):
+    """The long tests first (a stable sort: the rest keep their order)."""
+    items.sort(key=lambda item: _rank(item.nodeid))
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """``--dist loadgroup`` with ``GROUPS`` as the groups. xdist's own marks the groups
+    by a suffix to each test's node id, which pytest 9.2 no longer takes (its node ids
+    are not strings set on the item): the marked tests were spread over both workers.
+    Its scheduler is kept; only the grouping is this file's."""
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadGroupScheduling
+
+    class Groups(LoadGroupScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return _group(nodeid) or nodeid
+
+    return Groups(config, log)
+
+
+@pytest.fixture(scope="session")
+def compiled_path_cached():
+    """The compiled path compiled in this process for the scans' argument types, which
+    writes numba's cache for every process after it (a no-op when the cache is warm)."""
+    from labrig.model.actuator import jit
+
+    if not jit.COMPILED:
+        return
+    from labrig.model.scan.scan import ScanLibrary, solve_actuator
+    from labrig.model.segments.library import analytical_segment
+
+    names = ("B46-T20", "B46-T22")
+    solve_actuator(ScanLibrary("warm-up", tuple(analytical_segment(n) for n in names)), (0, 1))
+
+
+@pytest.fixture(autouse=True)
+def _compiled_path_first(request):
+    if _group(request.node.nodeid) == COMPILED_GROUP:
+        request.getfixturevalue("compiled_path_cached")
 
 
 @pytest.fixture(scope="session")

@@ -8,6 +8,7 @@ import re
 import numpy as np
 import pytest
 
+from labrig import rig_check_sim
 from labrig.cli import main
 from labrig.clock import RealClock
 from labrig.rig import PressureConfig, PumpConfig
@@ -51,7 +52,13 @@ def test_the_simulated_rig_passes(capsys):
         ("sensor-offset", "pressure", ["+4.00 kPa", "0 +- 2.5 kPa", "open to atmosphere"]),
     ],
 )  # fmt: skip
-def test_each_fault_is_named_and_exits_2(capsys, fault, device, words):
+def test_each_fault_is_named_and_exits_2(capsys, monkeypatch, fault, device, words):
+    # the replies a pump fault leaves out are awaited 0.2 s, not 2 s each (8 of them):
+    # silence is silence; the search for the pump at another address keeps its 2 s
+    # where an answer is expected (wrong-address)
+    monkeypatch.setattr(rig_check_sim, "SIM_REPLY_TIMEOUT_S", 0.2)
+    if fault == "no-reply":
+        monkeypatch.setattr(rig_check_sim, "SIM_SEARCH_TIMEOUT_S", 0.2)
     code, lines = rig_check(capsys, BENCH, "--sim", "--fault", fault)
     assert code == 2
     assert " FAIL " in lines[device]
@@ -65,7 +72,10 @@ def test_each_fault_is_named_and_exits_2(capsys, fault, device, words):
 def test_the_pump_check_finds_the_address_and_moves_nothing():
     clock = RealClock()
     with PumpEmulator(clock, address=5) as emulator:
-        wrong = check_pump(PumpConfig(port=emulator.port, address=2), clock)
+        # no reply at address 2 is awaited 0.2 s per command; the search keeps 0.5 s
+        wrong = check_pump(
+            PumpConfig(port=emulator.port, address=2), clock, timeout_s=0.2, search_timeout_s=0.5
+        )
         assert not wrong.ok and "answers at address 5" in wrong.found
         right = check_pump(PumpConfig(port=emulator.port, address=5), clock)
         assert right.ok, right.line()

@@ -1,6 +1,7 @@
 """`labrig run` refuses bad protocols with a clear message before anything moves, and
 the dry run answers without a rig."""
 
+import os
 import subprocess
 import sys
 import textwrap
@@ -96,6 +97,9 @@ def test_run_cli_writes_a_complete_file(tmp_path):
         capture_output=True,
         text=True,
         timeout=120,
+        # the console's width is the terminal's or 80: the message on one line, also
+        # for an xdist worker's longer tmp_path
+        env={**os.environ, "COLUMNS": "500"},
     )
     assert result.returncode == 0, result.stderr
     assert f"complete: {out_file}" in result.stderr
