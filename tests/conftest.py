@@ -11,8 +11,17 @@ compiles ``labrig.model.actuator.compiled_path`` (1.5-3 min of one core), and th
 fixture ``compiled_path_cached`` does that once, in that worker, before any scan's own
 worker processes start (each would compile it at the same time, two cores for one
 result; the cache written here is the one they load: measured, no new cache file).
+
+Every module of labrig is imported before the first test (``_import_every_module``):
+hypothesis draws a few of its values from the constants of the local modules already
+in ``sys.modules``, so a property test's examples, derandomized or not, would otherwise
+depend on which tests ran before it in its process; with two workers handing out work
+as each finishes, on the host's speed. Seen: test_stress found two failing examples
+only when it ran after the compiled path's tests in their worker.
 """
 
+import importlib
+import pkgutil
 import shutil
 
 import pytest
@@ -55,6 +64,23 @@ GROUPS = {
     "tests/cli/test_review.py::": "simulated_runs",
     "tests/cli/test_library_add.py::": "simulated_runs",
 }
+
+
+# labrig's packages (drivers/ and sim/ are mapped to labrig.drivers and labrig.sim)
+PACKAGES = ("labrig", "labrig.drivers", "labrig.sim")
+
+
+def _import_every_module() -> None:
+    """All of labrig in sys.modules: the same constants for hypothesis in every worker,
+    whatever ran before (see the module docstring)."""
+    for name in PACKAGES:
+        package = importlib.import_module(name)
+        for module in pkgutil.walk_packages(package.__path__, f"{name}."):
+            if not module.name.endswith(".__main__"):  # __main__ runs the CLI
+                importlib.import_module(module.name)
+
+
+_import_every_module()
 
 
 def _rank(nodeid: str) -> int:
