@@ -72,6 +72,7 @@ class FileFollower:
         self._t_first: float | None = None
         self._t_last: float | None = None
         self._pump_state = ""
+        self._fed_repetition = 0  # the latest repetition with samples fed
 
     def follow(self) -> str:
         """Poll until the run ends; returns its final status."""
@@ -117,12 +118,14 @@ class FileFollower:
         self._t_last = max(self._t_last or float(t[-1]), float(t[-1]))
         if log == "pump":
             self._pump_state = decode(columns["state"][-1])
+        self._fed_repetition = max(self._fed_repetition, repetition)
+        self._under_way()  # before the samples reach the page: never data and "starting"
         self.state.tap(repetition, log, columns)
 
     def _report_step(self, rep_status: list[str], t_start: np.ndarray) -> None:
         running = [i + 1 for i, s in enumerate(rep_status) if s == "running"]
         done = [i + 1 for i, s in enumerate(rep_status) if s != "pending"]
-        repetition = running[0] if running else (done[-1] if done else 0)
+        repetition = running[0] if running else (done[-1] if done else self._fed_repetition)
         started = t_start[np.isfinite(t_start)]
         t0 = float(started[0]) if len(started) else self._t_first
         elapsed_s = (self._t_last - t0) if self._t_last is not None and t0 is not None else 0.0
@@ -130,7 +133,13 @@ class FileFollower:
         self.state.set_step(
             Step(step, repetition, elapsed_s, max(0.0, self.duration_s - elapsed_s))
         )
-        # a watcher that opens the file between two repetitions sees none running, yet
-        # the run is under way once any repetition has begun
-        if self.state.status == "starting" and done:
+        if done:
+            self._under_way()
+
+    def _under_way(self) -> None:
+        """The run is running once any repetition has begun or any sample is in the
+        file: a watcher may open it between two repetitions (none running then), and a
+        reader may see a repetition's first samples before its status (SWMR refreshes
+        each dataset on its own; seen in CI: samples at 0.5 mL, status "starting")."""
+        if self.state.status == "starting":
             self.state.status = "running"

@@ -29,6 +29,9 @@ if stage == "between":
     t = np.arange(5.0)
     writer.append_pump(1, t, t * 0.5, t * 0.5, 0 * t, ["infusing"] * 5)
     writer.set_repetition_status(1, "complete", t_end_s=4.0)  # rep 2 still pending
+if stage == "samples":  # samples seen before their repetition's status
+    t = np.arange(5.0)
+    writer.append_pump(1, t, t * 0.5, t * 0.5, 0 * t, ["infusing"] * 5)
 writer.flush()
 print("written", flush=True)
 status, reason = sys.stdin.readline().split(maxsplit=1)
@@ -61,6 +64,8 @@ def _follower(path) -> FileFollower:
     [
         # opened between two repetitions: none running, yet the run is under way
         ("between", "running", 1, "complete", "-"),
+        # the first samples read before the repetition's status: under way all the same
+        ("samples", "running", 1, "complete", "-"),
         # opened before the first repetition: still starting
         ("before", "starting", 0, "aborted", "stopped by the operator"),
     ],
