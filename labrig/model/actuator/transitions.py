@@ -140,11 +140,11 @@ def below_resolution(timeline, t: int, resolution: TablesResolution) -> bool:
         return True
     if not resolution.resolves_fold_pair(dp, flow):
         return True
-    following = [x for x in timeline[t + 1 :] if isinstance(x, Event)]
+    following = next((x for x in timeline[t + 1 :] if isinstance(x, Event)), None)
     return bool(
-        following
-        and following[0].kind == "snap"
-        and abs(following[0].pre.v_ml - item.post.v_ml) <= resolution.curve_gap_ml
+        following is not None
+        and following.kind == "snap"
+        and abs(following.pre.v_ml - item.post.v_ml) <= resolution.curve_gap_ml
     )
 
 
