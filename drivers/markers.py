@@ -155,16 +155,21 @@ class MarkerTracker:
         # 16-bit labels are 3x faster (OpenCV 4.x/5.x); a region of fewer than 2 * 65535
         # pixels cannot hold more components than they count
         ltype = cv2.CV_16U if mask.size < 2 * 65535 else cv2.CV_32S
-        n, _, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8, ltype=ltype)
+        _, _, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8, ltype=ltype)
+        # the area test on every component at once (a window over the specimen's edge
+        # holds a few, a noisy one dozens), Python only for the few that pass
+        stats, centroids = stats[1:], centroids[1:]  # label 0 is the background
+        area = stats[:, cv2.CC_STAT_AREA]
+        sized = np.flatnonzero((area >= self.min_area_px) & (area <= self.max_area_px))
         blobs = []
-        for i in range(1, n):
-            bw, bh, area = stats[i, 2:5]  # CC_STAT_WIDTH, CC_STAT_HEIGHT, CC_STAT_AREA
-            if not self.min_area_px <= area <= self.max_area_px:
-                continue
+        for (bw, bh, a), (cx, cy) in zip(
+            stats[sized, cv2.CC_STAT_WIDTH : cv2.CC_STAT_AREA + 1].tolist(),
+            centroids[sized].tolist(),
+            strict=True,
+        ):
             aspect = max(bw, bh) / max(min(bw, bh), 1)
-            is_round = area >= _MIN_FILL * bw * bh and aspect <= _MAX_ASPECT
-            cx, cy = centroids[i]
-            blobs.append(_Blob(x0 + cx, y0 + cy, float(area), bool(is_round)))
+            is_round = a >= _MIN_FILL * bw * bh and aspect <= _MAX_ASPECT
+            blobs.append(_Blob(x0 + cx, y0 + cy, float(a), is_round))
         return blobs
 
     def _mask(self, region: np.ndarray) -> np.ndarray:

@@ -1,5 +1,6 @@
 """The CLI's frame: version, help, lazy sub-commands, and errors as one clear line."""
 
+import os
 import subprocess
 import sys
 
@@ -64,6 +65,41 @@ def test_help_imports_no_heavy_module():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip().splitlines()[-1] == "HEAVY="
+
+
+@pytest.mark.parametrize(
+    ("args", "one_actuator"),
+    [
+        (["run", "protocols/demo.yaml", "--sim"], True),
+        (["run", "protocols/demo.yaml", "--dry-run"], True),
+        (["compare", "runs/RUN.h5", "--json"], True),
+        (["model", "path", "B48-T30", "B50-T20"], True),
+        (["library", "add", "runs/RUN.h5", "--name", "S"], True),
+        (["model", "scan", "--n", "3"], False),
+        (["--debug", "model", "scan", "--n", "3"], False),
+        (["bench", "model", "--scans", "2"], False),
+    ],
+)
+def test_only_the_commands_that_solve_many_actuators_compile(args, one_actuator):
+    assert cli_module._solves_one_actuator(args) is one_actuator
+
+
+def test_a_command_that_solves_one_actuator_never_imports_numba():
+    """As the console script runs it (``argv`` None): the model's loops as plain Python,
+    so a fresh install's first command compiles nothing."""
+    code = (
+        "import sys\n"
+        "from labrig.cli import main\n"
+        "sys.argv = ['labrig', 'model', 'path', 'B48-T30', 'B50-T20']\n"
+        "try:\n    main()\nexcept SystemExit:\n    pass\n"
+        "print('NUMBA=' + str('numba' in sys.modules))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "LABRIG_JIT"}
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env
+    )
+    assert "snap" in out.stdout
+    assert out.stdout.strip().splitlines()[-1] == "NUMBA=False"
 
 
 def test_namespaced_packages_map_to_the_top_level_folders():
