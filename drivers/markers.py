@@ -104,7 +104,8 @@ class MarkerTracker:
 
     def reset(self) -> None:
         """Forget the last positions: the next frame is searched whole."""
-        self._last: np.ndarray | None = None  # (2, 2) last good centres, marker order
+        # the last good centres, in marker order: ((x1, y1), (x2, y2))
+        self._last: tuple[tuple[float, float], tuple[float, float]] | None = None
         self._area_px: float | None = None  # a marker's blob area in the last good frame
         self.full_searches = 0
 
@@ -211,14 +212,14 @@ class MarkerTracker:
             # Each centre's window would hold part of the other marker and be pulled
             # towards it: too close to measure apart is as good as merged.
             return _failed("merged")
-        centres = np.array([self._refine(frame, b) for b in markers])
-        if not np.all(np.isfinite(centres)):
+        (x1, y1), (x2, y2) = (self._refine(frame, b) for b in markers)
+        if not all(map(math.isfinite, (x1, y1, x2, y2))):
             return _failed("lost")
-        centres = self._in_identity_order(centres)
-        self._last = centres
+        if self._in_swapped_order(x1, y1, x2, y2):
+            x1, y1, x2, y2 = x2, y2, x1, y1
+        self._last = ((x1, y1), (x2, y2))
         self._area_px = 0.5 * (markers[0].area_px + markers[1].area_px)
-        (x1, y1), (x2, y2) = centres
-        return MarkerFix(float(x1), float(y1), float(x2), float(y2), ok=True, status="ok")
+        return MarkerFix(x1, y1, x2, y2, ok=True, status="ok")
 
     def _nearest_to_last(self, markers: list[_Blob], near: int) -> list[_Blob]:
         """For each last position the nearest candidate within ``near`` px, or nothing."""
@@ -237,14 +238,16 @@ class MarkerTracker:
         lo, hi = _MERGED_AREA
         return any(lo * self._area_px <= b.area_px <= hi * self._area_px for b in blobs)
 
-    def _in_identity_order(self, centres: np.ndarray) -> np.ndarray:
-        """Nearest neighbour to the last positions; the first time, left to right."""
+    def _in_swapped_order(self, x1: float, y1: float, x2: float, y2: float) -> bool:
+        """Whether the two centres are the markers in the other order: by nearest
+        neighbour to the last positions; the first time, left to right (then top to
+        bottom)."""
         if self._last is None:
-            order = np.lexsort((centres[:, 1], centres[:, 0]))
-            return centres[order]
-        straight = np.hypot(*(centres - self._last).T).sum()
-        swapped = np.hypot(*(centres[::-1] - self._last).T).sum()
-        return centres if straight <= swapped else centres[::-1]
+            return (x2, y2) < (x1, y1)
+        (lx1, ly1), (lx2, ly2) = self._last
+        straight = math.hypot(x1 - lx1, y1 - ly1) + math.hypot(x2 - lx2, y2 - ly2)
+        swapped = math.hypot(x2 - lx1, y2 - ly1) + math.hypot(x1 - lx2, y1 - ly2)
+        return swapped < straight
 
     def _refine(self, frame: np.ndarray, blob: _Blob) -> tuple[float, float]:
         """Sub-pixel centre: intensity-weighted moments in a circular window.
