@@ -1,6 +1,5 @@
 """The CLI's frame: version, help, lazy sub-commands, and errors as one clear line."""
 
-import os
 import subprocess
 import sys
 
@@ -81,25 +80,9 @@ def test_help_imports_no_heavy_module():
     ],
 )
 def test_only_the_commands_that_solve_many_actuators_compile(args, one_actuator):
+    """Which mode the console script picks (tests/model/test_jit.py checks, in a
+    subprocess, that a plain-Python command imports no numba)."""
     assert cli_module._solves_one_actuator(args) is one_actuator
-
-
-def test_a_command_that_solves_one_actuator_never_imports_numba():
-    """As the console script runs it (``argv`` None): the model's loops as plain Python,
-    so a fresh install's first command compiles nothing."""
-    code = (
-        "import sys\n"
-        "from labrig.cli import main\n"
-        "sys.argv = ['labrig', 'model', 'path', 'B48-T30', 'B50-T20']\n"
-        "try:\n    main()\nexcept SystemExit:\n    pass\n"
-        "print('NUMBA=' + str('numba' in sys.modules))\n"
-    )
-    env = {k: v for k, v in os.environ.items() if k != "LABRIG_JIT"}
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env
-    )
-    assert "snap" in out.stdout
-    assert out.stdout.strip().splitlines()[-1] == "NUMBA=False"
 
 
 def test_namespaced_packages_map_to_the_top_level_folders():
