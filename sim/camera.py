@@ -190,22 +190,14 @@ class SimCamera:
                        dtype=np.uint8)  # fmt: skip
         if out.size == 0:
             return out
-        centres = frame.centres
         background, specimen, marker = frame.palette()
+        band, dots = frame.layout()
         _fill(out, 0, 0, x1 - x0, y1 - y0, background)
-        ends_px = 3 * self.radius_px + 40  # the band runs a little past the markers
-        cy = 0.5 * (centres[0, 1] + centres[1, 1])
-        band = (
-            max(round(centres[0, 0] - ends_px), 0, x0),
-            max(round(cy - self.band_half_px), 0, y0),
-            min(round(centres[1, 0] + ends_px), self.width, x1),
-            min(round(cy + self.band_half_px), self.height, y1),
-        )
-        if band[0] < band[2] and band[1] < band[3]:
-            _fill(out, band[0] - x0, band[1] - y0, band[2] - x0, band[3] - y0, specimen)
-        for index, (x, y) in enumerate(centres):
-            if index not in frame.hidden:
-                self._draw_dot(out, x0, y0, float(x), float(y), marker)
+        bx0, by0, bx1, by1 = max(band[0], x0), max(band[1], y0), min(band[2], x1), min(band[3], y1)
+        if bx0 < bx1 and by0 < by1:
+            _fill(out, bx0 - x0, by0 - y0, bx1 - x0, by1 - y0, specimen)
+        for x, y, box in dots:
+            self._draw_dot(out, x0, y0, x, y, box, marker)
         if frame.noise is not None:
             # the noise's positive and negative parts: one saturating add, in two
             # uint8 passes (a pixel's noise is one or the other), bit for bit
@@ -223,9 +215,29 @@ class SimCamera:
         )
         return background, specimen, np.minimum(np.maximum(self.marker_bgr * gain, 0), 255)
 
-    def _draw_dot(self, out: np.ndarray, ox: int, oy: int, x: float, y: float, marker) -> None:
-        """Blend one anti-aliased, blurred dot around frame point (x, y) into ``out``, the
-        frame's region whose top-left pixel is (ox, oy).
+    def layout(self, centres: np.ndarray, hidden: frozenset) -> tuple[tuple, list]:
+        """Where a frame's parts are: the specimen band's box [x0, x1) x [y0, y1) and,
+        for each marker drawn, its centre and its dot's box (``_dot_box``), in frame
+        pixels; worked out once per frame, whichever regions are rendered."""
+        (xa, ya), (xb, yb) = centres.tolist()
+        ends_px = 3 * self.radius_px + 40  # the band runs a little past the markers
+        cy = 0.5 * (ya + yb)
+        band = (
+            max(round(xa - ends_px), 0),
+            max(round(cy - self.band_half_px), 0),
+            min(round(xb + ends_px), self.width),
+            min(round(cy + self.band_half_px), self.height),
+        )
+        dots = [
+            (x, y, self._dot_box(x, y))
+            for index, (x, y) in enumerate(((xa, ya), (xb, yb)))
+            if index not in hidden
+        ]
+        return band, dots
+
+    def _draw_dot(self, out: np.ndarray, ox: int, oy: int, x: float, y: float, box, marker):
+        """Blend one anti-aliased, blurred dot around frame point (x, y), whose box is
+        ``box``, into ``out``, the frame's region whose top-left pixel is (ox, oy).
 
         Coverage of each pixel by the disc is a linear ramp of its centre's distance to
         the edge (the covered area for an edge parallel to the pixel's sides, close to it
@@ -234,7 +246,7 @@ class SimCamera:
         the surroundings are flat. The coverage is always computed over the dot's whole
         box (then cut to the region), so every region sees the same values.
         """
-        x0, y0, x1, y1 = self._dot_box(x, y)
+        x0, y0, x1, y1 = box
         h, w = out.shape[:2]
         cx0, cy0 = max(x0, ox), max(y0, oy)
         cx1, cy1 = min(x1, ox + w), min(y1, oy + h)
@@ -425,6 +437,7 @@ class SimFrame:
         self.hidden = hidden
         self.noise = noise
         self._palette = None
+        self._layout = None
         self._resize((camera.width, camera.height))
         self._resized_to: tuple[int, int] | None = None
         self._full: np.ndarray | None = None
@@ -457,6 +470,12 @@ class SimFrame:
         if self._palette is None:
             self._palette = self.camera._palette(self.gain)
         return self._palette
+
+    def layout(self) -> tuple[tuple, list]:
+        """Where the band and the dots are (``SimCamera.layout``), worked out once."""
+        if self._layout is None:
+            self._layout = self.camera.layout(self.centres, self.hidden)
+        return self._layout
 
     @property
     def scene(self) -> tuple:
