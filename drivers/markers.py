@@ -157,20 +157,17 @@ class MarkerTracker:
         # pixels cannot hold more components than they count
         ltype = cv2.CV_16U if mask.size < 2 * 65535 else cv2.CV_32S
         _, _, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8, ltype=ltype)
-        # the area test on every component at once (a window over the specimen's edge
-        # holds a few, a noisy one dozens), Python only for the few that pass
-        stats, centroids = stats[1:], centroids[1:]  # label 0 is the background
-        area = stats[:, cv2.CC_STAT_AREA]
-        sized = np.flatnonzero((area >= self.min_area_px) & (area <= self.max_area_px))
+        # plain Python on the components' rows (a window holds a few, a noisy one
+        # dozens): cheaper than numpy's calls on arrays this small
         blobs = []
-        for (bw, bh, a), (cx, cy) in zip(
-            stats[sized, cv2.CC_STAT_WIDTH : cv2.CC_STAT_AREA + 1].tolist(),
-            centroids[sized].tolist(),
-            strict=True,
-        ):
+        for (_, _, bw, bh, area), (cx, cy) in zip(
+            stats.tolist()[1:], centroids.tolist()[1:], strict=True
+        ):  # label 0 is the background
+            if not self.min_area_px <= area <= self.max_area_px:
+                continue
             aspect = max(bw, bh) / max(min(bw, bh), 1)
-            is_round = a >= _MIN_FILL * bw * bh and aspect <= _MAX_ASPECT
-            blobs.append(_Blob(x0 + cx, y0 + cy, float(a), is_round))
+            is_round = area >= _MIN_FILL * bw * bh and aspect <= _MAX_ASPECT
+            blobs.append(_Blob(x0 + cx, y0 + cy, float(area), is_round))
         return blobs
 
     def _mask(self, region: np.ndarray) -> np.ndarray:

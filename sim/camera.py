@@ -273,8 +273,10 @@ class SimCamera:
             return x0, y0, np.zeros((0, 0), dtype=np.float32)
         xx = (np.arange(x0, x1) - x) ** 2
         yy = (np.arange(y0, y1) - y) ** 2
-        distance = np.sqrt(xx[None, :] + yy[:, None], dtype=np.float32)
-        coverage = np.minimum(np.maximum(self.radius_px + 0.5 - distance, 0.0), 1.0)
+        coverage = np.sqrt(np.add.outer(yy, xx), dtype=np.float32)  # the distance, then
+        np.subtract(np.float32(self.radius_px + 0.5), coverage, out=coverage)
+        np.maximum(coverage, 0.0, out=coverage)
+        np.minimum(coverage, 1.0, out=coverage)
         if self.blur_px > 0:
             coverage = cv2.GaussianBlur(coverage, (0, 0), self.blur_px)
         return x0, y0, coverage
