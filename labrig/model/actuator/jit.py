@@ -36,14 +36,40 @@ COMPILED = os.environ.get(MODE_VARIABLE, "numba").strip().lower() != PYTHON
 # reads arrays its caller holds, so it needs none.
 LEAF = {"cache": True, "_nrt": False}
 
+# The option of a function compiled code calls from one place only: numba copies its
+# code into its caller's instead of compiling it on its own. numba compiles every
+# function it is asked for into machine code with all the functions it calls (LLVM links
+# the callees' code into the caller's and optimises and compiles it all again), so a
+# cold compile costs the size of each function's call tree, summed over the functions:
+# one compiled function per level of a deep tree recompiled the tree below it at each
+# level. The same arithmetic in the same order either way (the same bits); what the
+# cold compile costs is in tests/bench/bench_compile.py and the module docstring.
+INLINE = {"inline": "always"}
+# The options of a function only compiled code calls: no wrappers for calls from Python
+# (code numba would otherwise compile, with the callees', for every such function) and
+# no cache of its own (a process loads its callers' machine code, which holds it).
+INTERNAL = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True}
+INTERNAL_LEAF = {**INTERNAL, "_nrt": False}  # a LEAF that only compiled code calls
+
 
 def njit(**options):
-    """numba's ``njit(**options)`` when compiling, else the function itself."""
+    """numba's ``njit(**options)`` when compiling (with the dispatcher of
+    ``labrig.model.actuator.dispatcher``: no literal specialisations), else the
+    function itself."""
     if not COMPILED:
         return _plain
-    from numba import njit as numba_njit
+    from labrig.model.actuator.dispatcher import Dispatcher
 
-    return numba_njit(**options)
+    cache = options.pop("cache", False)
+    targetoptions = {"nopython": True, **options}
+
+    def compiled(function):
+        dispatcher = Dispatcher(py_func=function, locals={}, targetoptions=targetoptions)
+        if cache:
+            dispatcher.enable_caching()
+        return dispatcher
+
+    return compiled
 
 
 def _plain(function):
