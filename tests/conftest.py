@@ -7,7 +7,7 @@ long ones (``LONG_FIRST``, the slowest measured on the 2-core machine) are moved
 front so that neither worker is left with one of them at the end while the other idles.
 The tests of the compiled path (scans and the compiled path itself, in-process or
 through ``labrig model scan``) form one group: on a fresh clone the first of them
-compiles ``labrig.model.actuator.compiled_path`` (~1 min of one core: 58 s of CPU,
+compiles ``labrig.model.actuator.compiled_path`` (~1 min of one core: 56 s of CPU,
 tests/bench/bench_compile.py; 1.5-3 min before: labrig.model.actuator.jit), and the
 fixture ``compiled_path_cached`` does that once, in that worker, before any scan's own
 worker processes start (each would compile it at the same time, two cores for one
