@@ -57,13 +57,9 @@ COMPILED = os.environ.get(MODE_VARIABLE, "numba").strip().lower() != PYTHON
 LEAF = {"cache": True, "_nrt": False}
 
 # The option of a function compiled code calls from one place only: numba copies its
-# code into its caller's instead of compiling it on its own. numba compiles every
-# function it is asked for into machine code with all the functions it calls (LLVM links
-# the callees' code into the caller's and optimises and compiles it all again), so a
-# cold compile costs the size of each function's call tree, summed over the functions:
-# one compiled function per level of a deep tree recompiled the tree below it at each
-# level. The same arithmetic in the same order either way (the same bits); what the
-# cold compile costs is in tests/bench/bench_compile.py and the module docstring.
+# code into its caller's instead of compiling it, with its call tree, on its own (see
+# "Compile time" in the module docstring). The same arithmetic in the same order: the
+# same bits.
 INLINE = {"inline": "always"}
 # The options of a function only compiled code calls: no wrappers for calls from Python
 # (code numba would otherwise compile, with the callees', for every such function) and
