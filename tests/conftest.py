@@ -7,7 +7,8 @@ long ones (``LONG_FIRST``, the slowest measured on the 2-core machine) are moved
 front so that neither worker is left with one of them at the end while the other idles.
 The tests of the compiled path (scans and the compiled path itself, in-process or
 through ``labrig model scan``) form one group: on a fresh clone the first of them
-compiles ``labrig.model.actuator.compiled_path`` (1.5-3 min of one core), and the
+compiles ``labrig.model.actuator.compiled_path`` (~1 min of one core: 56 s of CPU,
+tests/bench/bench_compile.py; 1.5-3 min before: labrig.model.actuator.jit), and the
 fixture ``compiled_path_cached`` does that once, in that worker, before any scan's own
 worker processes start (each would compile it at the same time, two cores for one
 result; the cache written here is the one they load: measured, no new cache file).
@@ -32,7 +33,7 @@ from simulated_runs import killed_run, simulate_run, tiny_run
 # together; seconds on the idle 2-core machine, warm numba cache, one process): these
 # start first, in this order (--no-loadscope-reorder: xdist would order by test count)
 LONG_FIRST = (
-    "tests/cli/test_bench.py::",  # the compiled path's group: ~60, +100-170 cold
+    "tests/cli/test_bench.py::",  # the compiled path's group: ~60, +60-95 cold
     "tests/rig/test_determinism.py::test_same_seed_same_data_beside_two_cpu_burners",
     "tests/rig/test_demo_run.py::",  # the demo's group: ~30 with the one above
     "tests/live/test_watch.py::",  # 19

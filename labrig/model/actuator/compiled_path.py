@@ -50,7 +50,7 @@ from labrig.model.actuator.curve_tables import (
 )
 from labrig.model.actuator.equilibria import stable_slopes
 from labrig.model.actuator.fold_search import AT_PRESSURE, AT_VOLUME, START, at_volume_of, find_fold
-from labrig.model.actuator.jit import LEAF, njit
+from labrig.model.actuator.jit import INLINE, INTERNAL, INTERNAL_LEAF, njit
 from labrig.model.actuator.roots import XTOL, bracketed_root
 from labrig.model.actuator.ros2_flow import MAX_STEPS, SETTLED, settle_flow
 
@@ -90,13 +90,13 @@ def branch_tables(kernels) -> tuple:
 
 
 # --- Python's arithmetic, exactly ------------------------------------------------------
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _max(a, b):
     """Python's ``max(a, b)``: the first unless the second is larger."""
     return b if b > a else a
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _min(a, b):
     """Python's ``min(a, b)``: the first unless the second is smaller."""
     return b if b < a else a
@@ -163,18 +163,18 @@ def fsum(values):
 
 
 # --- states --------------------------------------------------------------------------
-@njit(cache=True)
+@njit(**INTERNAL)
 def _at(tables, b, p):
     v, k = volumes_on_branches(tables, b, p)
     return b.copy(), p, v, k
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _rising(tables, i, branch):
     return tables[BRANCH_RISING][i, branch]
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _branch_of(info, i, v):
     """``CurveKernel.branch_of``."""
     for index in range(info[N_BRANCHES][i] - 1):
@@ -183,13 +183,13 @@ def _branch_of(info, i, v):
     return info[N_BRANCHES][i] - 1
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _spacing_near(tables, i, v):
     j = piece_index(tables, i, v)
     return tables[BREAKPOINTS][i, j + 1] - tables[BREAKPOINTS][i, j]
 
 
-@njit(cache=True)
+@njit(**INTERNAL)
 def _with_volume(tables, info, state, v):
     """``_Tracer._with_volume``: (found, state)."""
     b, p, vs, ks = state
@@ -215,7 +215,7 @@ def _with_volume(tables, info, state, v):
     return True, (b, p, volumes, slopes)
 
 
-@njit(cache=True)
+@njit(**INLINE)
 def _reach_between(tables, info, b, p_a, p_b, v_target, f_a, f_b):
     p = bracketed_root(EXCESS_VOLUME, tables, b, v_target, p_a, p_b, f_a, f_b, XTOL)
     found, reached = _with_volume(tables, info, _at(tables, b, p), v_target)
@@ -224,7 +224,7 @@ def _reach_between(tables, info, b, p_a, p_b, v_target, f_a, f_b):
     return reached
 
 
-@njit(cache=True)
+@njit(**INLINE)
 def _reach(tables, info, state, v_target, has_end, end, s_p):
     b, p, vs, _ = state
     v_state = fsum(vs)
@@ -243,7 +243,7 @@ def _reach(tables, info, state, v_target, has_end, end, s_p):
 
 
 # --- folds -------------------------------------------------------------------------
-@njit(cache=True)
+@njit(**INLINE)
 def _find_fold(tables, profiles, state, m, p_stop, direction, margin):
     """``_Tracer._find_fold``: (found, state)."""
     b = state[0]
@@ -268,7 +268,7 @@ def _find_fold(tables, profiles, state, m, p_stop, direction, margin):
     return kind == START, state
 
 
-@njit(cache=True)
+@njit(**INTERNAL)
 def _fold_residual(k):
     soft = 0
     for x in k:
@@ -283,7 +283,7 @@ def _fold_residual(k):
 
 
 # --- the flow and where it ends ----------------------------------------------------------
-@njit(cache=True)
+@njit(**INTERNAL)
 def _settle(tables, w0, tol, unit):
     """``descent.settle``, but a stall on a saddle is left to the reference."""
     if len(w0) == 2:
@@ -305,7 +305,7 @@ def _settle(tables, w0, tol, unit):
     raise Unported("the flow stalled on a saddle")
 
 
-@njit(cache=True)
+@njit(**INLINE)
 def _settle_pair(tables, w):
     """``descent._settle_pair``."""
     v = w[0] + w[1]
@@ -342,7 +342,7 @@ def _settle_pair(tables, w):
     return out
 
 
-@njit(cache=True)
+@njit(**INTERNAL)
 def _equilibrium_on(tables, info, b, w, v):
     """``_Tracer._equilibrium_on``: (found, state)."""
     n = len(b)
@@ -381,7 +381,7 @@ def _equilibrium_on(tables, info, b, w, v):
         width *= 4.0
 
 
-@njit(cache=True)
+@njit(**INTERNAL)
 def _combinations_near(tables, info, w, near_ml):
     """``_Tracer._combinations_near``: the combinations as rows, in the same order."""
     n = len(w)
@@ -424,7 +424,7 @@ def _combinations_near(tables, info, w, near_ml):
     return product[order]
 
 
-@njit(cache=True)
+@njit(**INTERNAL)
 def _polish(tables, info, w, v, near_ml):
     """``_Tracer.polish``."""
     combos = _combinations_near(tables, info, w, near_ml)
@@ -442,7 +442,7 @@ def _polish(tables, info, w, v, near_ml):
     raise RuntimeError("no equilibrium at the volume")
 
 
-@njit(cache=True)
+@njit(**INTERNAL)
 def _snap_from_fold(tables, info, fold, s_p, unit, flow_tol):
     """``_Tracer._snap_from_fold``."""
     b, p, vs, ks = fold
@@ -471,7 +471,7 @@ def _snap_from_fold(tables, info, fold, s_p, unit, flow_tol):
     raise RuntimeError("no state to snap to from the fold")
 
 
-@njit(cache=True)
+@njit(**INLINE)
 def _past_semi_stable(tables, info, post, fold, eta, flow_tol, unit):
     """``_Tracer._past_semi_stable``."""
     zero = _max(10.0 * _fold_residual(fold[3]), 1e-9)
@@ -497,14 +497,14 @@ def _past_semi_stable(tables, info, post, fold, eta, flow_tol, unit):
     return post
 
 
-@njit(cache=True)
+@njit(**INLINE)
 def _fold_snap(tables, info, fold, s_p, unit, flow_tol):
     """The snap from a fold, as ``_cross`` returns its event: (kind, cause, post)."""
     return SNAP, CAUSE_FOLD, _snap_from_fold(tables, info, fold, s_p, unit, flow_tol)
 
 
 # --- branch ends -------------------------------------------------------------------
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _switched(tables, info, i, branch, s_p):
     """``_Tracer._switched``; -1 for None."""
     forward = _rising(tables, i, branch) == (s_p > 0)
@@ -512,7 +512,7 @@ def _switched(tables, info, i, branch, s_p):
     return new if 0 <= new < info[N_BRANCHES][i] else -1
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _lexicographic_less(a, b):
     """Python's comparison of two tuples of ints, a < b."""
     for i in range(min(len(a), len(b))):
@@ -521,7 +521,7 @@ def _lexicographic_less(a, b):
     return len(a) < len(b)
 
 
-@njit(cache=True)
+@njit(**INTERNAL)
 def _cross(tables, info, end, at_limit, s_p, direction, unit, flow_tol):
     """``_Tracer._cross``: (kind, cause, post)."""
     b, p_end, v_end, k_end = end
@@ -600,7 +600,7 @@ def _cross(tables, info, end, at_limit, s_p, direction, unit, flow_tol):
 
 
 # --- the timeline ------------------------------------------------------------------
-@njit(cache=True)
+@njit(**INLINE)
 def _new_timeline(n):
     """Items: type, direction, event kind, cause (int64); pressures a, b and volumes
     a, b of a piece (float64, an event's are its states' pressures); branches a, b and
@@ -613,7 +613,7 @@ def _new_timeline(n):
     return ints, floats, branches, states, count
 
 
-@njit(cache=True)
+@njit(**INLINE)
 def _append_piece(timeline, start, end, direction):
     ints, floats, branches, _, counter = timeline
     count = counter[0]
@@ -626,7 +626,7 @@ def _append_piece(timeline, start, end, direction):
     counter[0] = count + 1
 
 
-@njit(cache=True)
+@njit(**INLINE)
 def _append_event(timeline, kind, cause, direction, pre, post):
     ints, floats, branches, states, counter = timeline
     count = counter[0]
@@ -640,19 +640,19 @@ def _append_event(timeline, kind, cause, direction, pre, post):
     counter[0] = count + 1
 
 
-@njit(cache=True)
+@njit(**INTERNAL)
 def _event_state(timeline, t, side):
     _, floats, branches, states, _ = timeline
     return (branches[t, side].copy(), floats[t, side], states[t, 2 * side].copy(),
             states[t, 2 * side + 1].copy())  # fmt: skip
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _event_cause(timeline, t):
     return timeline[0][t, 3]
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _touched(timeline, first):
     """``path._touched`` on the items from ``first`` on (this direction's)."""
     ints, floats, _, _, counter = timeline
@@ -668,7 +668,7 @@ def _touched(timeline, first):
     return abs(v_to - v_from) <= 1e-10 * size
 
 
-@njit(cache=True)
+@njit(**INTERNAL)
 def _follow(tables, profiles, info, timeline, state, direction, v_target, params):
     """``_Tracer.follow``: appends to the timeline; the final state."""
     unit, margin, flow_tol = params
@@ -732,7 +732,7 @@ def _follow(tables, profiles, info, timeline, state, direction, v_target, params
 
 
 # --- the path and its transitions ---------------------------------------------------------
-@njit(cache=True)
+@njit(**INLINE)
 def default_end_volume(tables, info):
     """``path.default_end_volume_ml``."""
     n = len(info[N_BRANCHES])
@@ -757,7 +757,7 @@ def default_end_volume(tables, info):
     return fsum(volumes)
 
 
-@njit(cache=True)
+@njit(**INLINE)
 def _state_on_piece(tables, info, timeline, t, v_ml):
     """``path.state_on_piece`` on the timeline's piece t (its fallback left to the
     reference)."""
@@ -779,7 +779,7 @@ def _state_on_piece(tables, info, timeline, t, v_ml):
     return reached
 
 
-@njit(cache=True)
+@njit(**INLINE)
 def _bracketed_or_nan(tables, b, v, p_a, p_b):
     """The root ``reach_between`` finds, NaN where it raises (no sign change)."""
     f_a = excess_volume_at(p_a, tables, b, v)
@@ -789,7 +789,7 @@ def _bracketed_or_nan(tables, b, v, p_a, p_b):
     return bracketed_root(EXCESS_VOLUME, tables, b, v, p_a, p_b, f_a, f_b, XTOL)
 
 
-@njit(cache=True)
+@njit(**INLINE)
 def _select(library, library_profiles, library_info, combo):
     """The rows of ``combo``'s segments: the actuator's tables (their padding to the
     library's widest segment changes no number)."""
@@ -805,7 +805,7 @@ def _select(library, library_profiles, library_info, combo):
     return tables, profiles, info
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _alpha(info, branches):
     total = 0
     for i in range(len(branches)):

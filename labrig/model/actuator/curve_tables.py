@@ -24,7 +24,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from labrig.model.actuator.jit import LEAF, njit
+from labrig.model.actuator.jit import INTERNAL, INTERNAL_LEAF, LEAF, njit
 
 # Newton on a branch's cubic piece stops when the step is below this fraction of the
 # sample spacing (the interpolant itself is only defined to rounding, ~1e-16).
@@ -312,7 +312,7 @@ def volumes_on_branches(tables, branches, p):
     return v, k
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _neumaier_add(total, compensation, a):
     """One term of Neumaier's compensated sum: (total, compensation) after adding a."""
     t = total + a
@@ -323,7 +323,7 @@ def _neumaier_add(total, compensation, a):
     return t, compensation
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def compensated_sum(values):
     """Neumaier's compensated sum (``math.fsum`` to within an ulp for a few terms)."""
     total = 0.0
@@ -338,7 +338,7 @@ def compensated_sum(values):
 # inverts: packing the tables into a tuple per call (an atomic reference count per
 # array) and allocating the volumes took more time than the inversions themselves.
 # The terms and their order are those of ``compensated_sum`` and ``inverse_sum_of``.
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def excess_volume_at(p, tables, branches, v):
     """sum_i v_i(p) - v on a branch combination."""
     total = 0.0
@@ -356,7 +356,7 @@ def excess_volume(p, args):
     return excess_volume_at(p, tables, branches, v)
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _inverse_term(tables, i, branch, k):
     """1/k of segment i, +-inf at a branch end (k = 0) by the branch's side."""
     if k == 0.0:
@@ -374,7 +374,7 @@ def inverse_sum_of(tables, branches, k):
     return total
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def inverse_slope_sum_at(p, tables, branches):
     """``inverse_sum_of`` the state at pressure p on a branch combination."""
     total = 0.0
@@ -404,7 +404,7 @@ def singular_distance(tables, i, branch, p):
     return 1.0 if distance == math.inf else distance
 
 
-@njit(cache=True)
+@njit(**INTERNAL)
 def fold_screen(tables, profiles, branches, p_from, p_to, margin):
     """Pressures strictly between p_from and p_to, in the order the path meets them,
     where the screened sum of 1/k comes within ``margin`` of its terms' magnitudes
@@ -447,7 +447,7 @@ def fold_screen(tables, profiles, branches, p_from, p_to, margin):
 EXCESS_VOLUME, INVERSE_SLOPE_SUM, PAIR_IMBALANCE = range(3)
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def objective(kind, x, tables, branches, v):
     """``excess_volume_at`` (x a pressure), ``inverse_slope_sum_at`` (x a pressure; v unused)
     or ``pair_imbalance`` (x the first segment's volume; branches unused)."""

@@ -30,7 +30,7 @@ from labrig.model.actuator.curve_tables import (
     pressure_and_slope,
     volumes_on_branches,
 )
-from labrig.model.actuator.jit import LEAF, njit
+from labrig.model.actuator.jit import INTERNAL_LEAF, LEAF, njit
 from labrig.model.actuator.roots import bracketed_root
 
 NOT_FOUND, AT_PRESSURE, AT_VOLUME, START = range(4)
@@ -58,7 +58,7 @@ def _spacing_near(tables, i, v):
     return tables[BREAKPOINTS][i, j + 1] - tables[BREAKPOINTS][i, j]
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _fold_between(tables, branches, p_a, s_a, p_c, s_c):
     """The first root of sum 1/k between a (negative) and c (not): Brent's root, then a
     look at 16 points before it for an earlier sign change. Returns (found, p): found

@@ -16,6 +16,26 @@ bit (tests/model/test_jit.py).
 
 The mode is read once, when this module is first imported: every compiled function may
 call only compiled ones, so the modes never mix within a process.
+
+Compile time. A fresh install's first scan compiles ``compiled_path.trace_transitions``
+and all it calls. numba compiles each function it is asked for into machine code
+together with every function it calls (LLVM links the callees' code into the caller's,
+then optimises and compiles the whole again), so a cold compile costs the size of each
+compiled function's call tree, summed over the functions, and a second signature of a
+function compiles its tree a second time. Measured (``python
+tests/bench/bench_compile.py``: an empty cache, what the suite and a scan compile, per
+function; 2-core machine shared with other work, load average 1.6-4.8, so upper bounds):
+89.6 s of CPU before, 84 s of them the compiled path; now 57 s, 55.5 s the compiled
+path. What was cut: literal specialisations (constants passed between compiled
+functions, ``labrig.model.actuator.dispatcher``: 84 -> 68 s), functions called from one
+place copied into their caller (``INLINE``) and no Python wrappers for those only
+compiled code calls (``INTERNAL``): 68 -> 55.5 s. Not kept (no gain): no loop
+vectorizing, and copying more into ``trace_transitions`` (``_follow``, or all of it:
+59-65 s, LLVM's time grows faster than the size of one function). The compiled code is
+as fast as before (an n = 4 scan: 25-28 s of CPU against 29-34 s, the same file bit for
+bit). What is left is LLVM compiling the whole tree at each of a few levels
+(``trace_transitions``, ``_follow``, ``_cross``, ``_snap_from_fold``, ``find_fold``; a
+third of the time in the first two).
 """
 
 from __future__ import annotations
@@ -36,14 +56,36 @@ COMPILED = os.environ.get(MODE_VARIABLE, "numba").strip().lower() != PYTHON
 # reads arrays its caller holds, so it needs none.
 LEAF = {"cache": True, "_nrt": False}
 
+# The option of a function compiled code calls from one place only: numba copies its
+# code into its caller's instead of compiling it, with its call tree, on its own (see
+# "Compile time" in the module docstring). The same arithmetic in the same order: the
+# same bits.
+INLINE = {"inline": "always"}
+# The options of a function only compiled code calls: no wrappers for calls from Python
+# (code numba would otherwise compile, with the callees', for every such function) and
+# no cache of its own (a process loads its callers' machine code, which holds it).
+INTERNAL = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True}
+INTERNAL_LEAF = {**INTERNAL, "_nrt": False}  # a LEAF that only compiled code calls
+
 
 def njit(**options):
-    """numba's ``njit(**options)`` when compiling, else the function itself."""
+    """numba's ``njit(**options)`` when compiling (with the dispatcher of
+    ``labrig.model.actuator.dispatcher``: no literal specialisations), else the
+    function itself."""
     if not COMPILED:
         return _plain
-    from numba import njit as numba_njit
+    from labrig.model.actuator.dispatcher import Dispatcher
 
-    return numba_njit(**options)
+    cache = options.pop("cache", False)
+    targetoptions = {"nopython": True, **options}
+
+    def compiled(function):
+        dispatcher = Dispatcher(py_func=function, locals={}, targetoptions=targetoptions)
+        if cache:
+            dispatcher.enable_caching()
+        return dispatcher
+
+    return compiled
 
 
 def _plain(function):

@@ -21,7 +21,7 @@ import numpy as np
 
 from labrig.model.actuator.curve_tables import compensated_sum, pressure_and_slope
 from labrig.model.actuator.equilibria import stable_slopes
-from labrig.model.actuator.jit import LEAF, njit
+from labrig.model.actuator.jit import INTERNAL_LEAF, njit
 
 GAMMA = 1.0 + 1.0 / math.sqrt(2.0)  # ROS2, L-stable
 
@@ -30,13 +30,13 @@ SADDLE = 1  # at rest on an unstable equilibrium: the caller pushes it off
 MAX_STEPS = 2  # the step budget ran out
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _state(tables, w, p, k):
     for i in range(len(w)):
         p[i], k[i] = pressure_and_slope(tables, i, w[i])
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _step_limit(h, k):
     """See ``descent``: h, or less so that gamma h |mu| <= 1/2 for the flow's fastest
     unstable rate mu (the secular equation sum 1/(k_i - mu) = 0)."""
@@ -73,7 +73,7 @@ def _step_limit(h, k):
     return min(h, 0.5 / (GAMMA * -lo)) if lo < 0 else h
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _solve(h, k, rhs, out, inverse, work):
     """(I - gamma h J) out = rhs by Sherman-Morrison (see ``descent``); False if the
     matrix is (nearly) singular for this step size. ``inverse`` and ``work`` are
@@ -99,7 +99,7 @@ def _solve(h, k, rhs, out, inverse, work):
     return True
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _newton_step_size(k, f, work):
     """Max-norm length of the Newton step to the nearest equilibrium (see ``descent``)."""
     n = len(k)
@@ -120,7 +120,7 @@ def _newton_step_size(k, f, work):
     return size
 
 
-@njit(**LEAF)
+@njit(**INTERNAL_LEAF)
 def _mean(values):
     total = 0.0
     for a in values:
