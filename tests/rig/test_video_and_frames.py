@@ -12,8 +12,7 @@ import time
 import cv2
 import numpy as np
 import pytest
-from conftest import DEMO
-from simrig import run_sim, short_protocol
+from simrig import DEMO, run_sim, short_protocol
 
 from labrig.analysis.strip import CAPTION_PX, TILE_WIDTH_PX
 from labrig.cli import main
