@@ -213,7 +213,11 @@ def _fit_noisy(v, p, length, resolution: TableResolution):
     the isotonic fit's block centres. The offset at v = 0 is ``zero_offset`` of the
     first bins' means (the smoothed values there are the least certain)."""
     v_bin, (p_bin, l_bin), counts = binned_trimmed_means(v, [p, length], min(MAX_BINS, len(v)))
-    min_dip = STEP_PROMINENCE * resolution.step_kpa
+    # a dip of a few steps is rounding only where nothing dithers the steps: with noise
+    # of at least half a step the bins' means average the quantisation out (B42-T26's
+    # 0.6 kPa dip at 0.5 kPa noise on a 0.27 kPa step stands out of its bins' noise by
+    # 10 standard errors), and what a dip must stand out of is their noise alone
+    min_dip = STEP_PROMINENCE * resolution.step_kpa if resolution.quantised else 0.0
     fit = fit_rise_fall_rise(p_bin, counts, min_dip_kpa=min_dip)
     if len(fit.branches) == 3:
         valley = min(fit.branches[1][-1][2], fit.branches[2][0][2])
