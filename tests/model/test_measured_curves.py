@@ -32,7 +32,7 @@ from labrig.model.segments.measured import curve_from_table, load_csv
 from labrig.model.segments.resolution import ROUTE_FITTED, ROUTE_TABULATED, resolution_of
 
 PROPERTY = settings(
-    max_examples=40,
+    max_examples=5,
     deadline=None,
     derandomize=True,
     database=None,
