@@ -302,6 +302,12 @@ spacings = st.floats(np.log10(0.0005), np.log10(0.5)).map(lambda x: 10.0**x)
 # pairs within a bin, and dropped as 'one snap in two steps' (both missed)
 @example(names=("B40-T28", "B42-T20", "B44-T20"), spacing_ml=0.001, uniform=False,
          round_to_kpa=0.001, seed=0)  # fmt: skip
+# xfail examples: found with 40 examples instead of 5 (a local run), failing the same
+# way on main before this work (the same snap volumes), not fixed
+@example(names=("B44-T20", "B40-T22", "B42-T30"), spacing_ml=10.0**-1.921875, uniform=True,
+         round_to_kpa=ADC_STEP_KPA, seed=0).xfail(
+    reason="as on main: a clean 0.042 kPa snap missed"
+)  # fmt: skip
 @example(names=("B40-T22", "B42-T20"), spacing_ml=0.1, uniform=False, round_to_kpa=0.5,
          seed=0)  # fmt: skip
 @example(names=("B44-T20", "B48-T20", "B46-T26"), spacing_ml=0.1, uniform=False,
@@ -413,6 +419,13 @@ def synthetic(name: str, shape: dict):
     )
 
 
+@example(
+    shape_a={"peak_v_ml": 3.0, "peak_kpa": 30.0, "dip_kpa": 2.0, "valley_after_ml": 3.0,
+             "end_after_ml": 20.0},
+    shape_b={"peak_v_ml": 3.0, "peak_kpa": 37.0, "dip_kpa": 4.0, "valley_after_ml": 3.0,
+             "end_after_ml": 20.0},
+    spacing_ml=10.0**-1.5, uniform=False, round_to_kpa=0.27, noise_kpa=0.0, seed=0,
+).xfail(reason="as on main: a spurious snap at 16.96 mL")  # fmt: skip
 @PROPERTY
 @given(
     shape_a=synthetic_shapes,
@@ -527,6 +540,12 @@ FORMATS = {"%.2f": 0.01, "%.5f": 1e-5, "%.9f": 0.0, "%g": 1e-3, "%.6e": 1e-4}
          adc=False, seed=0)  # fmt: skip
 @example(names=("B40-T20", "B42-T20"), spacing_ml=0.1, uniform=False, fmt="%.5f", adc=True,
          seed=0)  # fmt: skip
+@example(names=("B50-T30", "B40-T20", "B46-T28"), spacing_ml=0.1, uniform=False, fmt="%.2f",
+         adc=False, seed=0).xfail(
+    reason="as on main: a spurious snap at 41.46 mL")  # fmt: skip
+@example(names=("B44-T20", "B40-T28"), spacing_ml=0.01, uniform=False, fmt="%.2f", adc=False,
+         seed=0).xfail(
+    reason="as on main: the clean 0.10 kPa snap at 14.93 mL missed")  # fmt: skip
 @PROPERTY
 @given(
     names=library_actuators(),
