@@ -179,7 +179,47 @@ def staircases() -> None:
             )
 
 
+def steps_written_with_decimals() -> None:
+    """The quantisation step read from B50-T22 at 8,000 rows on a lattice written with
+    few decimals (as another tool writes it): the lattice's step is the answer."""
+    curve = analytical_segment("B50-T22")
+    v = np.linspace(0.0, curve.v_max_ml, 8000)
+    for step, decimals in ((0.5, 1), (0.27, 2), (ADC_STEP_KPA, 2), (ADC_STEP_KPA, 3)):
+        p = np.round(curve.pressure_kpa(v) / step) * step
+        written = np.array([float(f"{x:.{decimals}f}") for x in p])
+        table = np.column_stack([v, written, curve.length_mm(v)])
+        read = curve_from_table(table, name="q", where="q").measured.resolution.step_kpa
+        print(f"step {step:.4g} kPa written with {decimals} decimals: read {read:.4g} kPa")
+
+
+def noisiest_triple() -> None:
+    """B40-T20 + B42-T26 + B44-T20 at 1,000 rows/mL, 0.5 kPa noise on a 0.27 kPa step
+    (B42-T26's dip is 0.6 kPa, under three steps): snap-volume error over seeds."""
+    names = ("B40-T20", "B42-T26", "B44-T20")
+    clean = [analytical_segment(n) for n in names]
+    (want,) = snap_volumes(clean)
+    errors = []
+    for seed in (0, 1, 2):
+        curves = [
+            curve_from_table(
+                sample_table(c, 0.001, round_to_kpa=0.27, noise_kpa=0.5, seed=seed + k),
+                name=c.name,
+                where=c.name,
+            )
+            for k, c in enumerate(clean)
+        ]
+        got = snap_volumes(curves)
+        errors.append(max(abs(v - want) for v in got) if len(got) == 1 else float("nan"))
+    print(
+        f"{' + '.join(names)}, 1000/mL, noise 0.5 kPa, step 0.27 kPa: snap errors "
+        + ", ".join(f"{e:.2f}" for e in errors)
+        + " mL"
+    )
+
+
 if __name__ == "__main__":
     main()
     synthetic_rates()
     staircases()
+    steps_written_with_decimals()
+    noisiest_triple()

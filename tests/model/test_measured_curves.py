@@ -296,7 +296,18 @@ spacings = st.floats(np.log10(0.0005), np.log10(0.5)).map(lambda x: 10.0**x)
 # (the snap moved by 3 mL: that step estimate is not used); staircases at 0.27-0.5 kPa
 # whose stair values put the snap beyond 1.5 mL per kPa of step or made a snap vanish
 # (found by a sweep of 80 random draws; within it with the stair-edge extrema); a
-# monotone segment beside a snapping one at 0.1 kPa, 0.51 mL off: a strict xfail below
+# monotone segment beside a snapping one at 0.1 kPa, 0.51 mL off: a test below (its
+# corner rows kept now); with 40 examples, a dense table rounded to 0.001 kPa whose real
+# snaps at 17.5 and 30.4 mL were each followed by a train of unresolved 0.001 kPa fold
+# pairs within a bin, and dropped as 'one snap in two steps' (both missed)
+@example(names=("B40-T28", "B42-T20", "B44-T20"), spacing_ml=0.001, uniform=False,
+         round_to_kpa=0.001, seed=0)  # fmt: skip
+# xfail examples: found with 40 examples instead of 5 (a local run), failing the same
+# way on main before this work (the same snap volumes), not fixed
+@example(names=("B44-T20", "B40-T22", "B42-T30"), spacing_ml=10.0**-1.921875, uniform=True,
+         round_to_kpa=ADC_STEP_KPA, seed=0).xfail(
+    reason="as on main: a clean 0.042 kPa snap missed"
+)  # fmt: skip
 @example(names=("B40-T22", "B42-T20"), spacing_ml=0.1, uniform=False, round_to_kpa=0.5,
          seed=0)  # fmt: skip
 @example(names=("B44-T20", "B48-T20", "B46-T26"), spacing_ml=0.1, uniform=False,
@@ -339,12 +350,13 @@ def test_clean_and_quantised_library_tables_snap_like_the_clean_curves(
     check_same_snaps(clean_snaps(names), got, tolerance, resolvable, unseen(step, curves), curves)
 
 
-@pytest.mark.xfail(strict=True, reason="0.51 mL off at 0.1 kPa (0.59 with the stair values)")
 def test_a_monotone_segment_rounded_to_a_tenth_beside_a_snapping_one():
-    """Found by the property above: B44-T30 (no peak) + B46-T20 every 0.1 mL (jittered),
-    rounded to 0.1 kPa, snap 0.51 mL off the clean 15.594 mL although B46-T20's peak and
-    valley from the stair edges are within 0.016 kPa (0.06 / 0.19 kPa from the stairs):
-    what is left is elsewhere on the curves (docs/model.md, section 9)."""
+    """Was a strict xfail, found by the property above: B44-T30 (no peak) + B46-T20
+    every 0.1 mL (jittered), rounded to 0.1 kPa, snapped 0.51 mL off the clean 15.594
+    mL. B44-T30's braid contact is a corner inside one row gap (39.1 kPa up to 8.357 mL,
+    39.3 at 8.513); the plateau's centre joined to the next row spread it, and the fold
+    moved to 39.30 kPa (clean 39.09). The plateau's row at the jump is now kept
+    (``keep_corner_rows``): the fold at 39.13 kPa, the snap 0.39 mL off."""
     names = ("B44-T30", "B46-T20")
     clean = [analytical_segment(n) for n in names]
     curves = measured(clean, 0.1, uniform=False, round_to_kpa=0.1, seed=1)
@@ -353,13 +365,11 @@ def test_a_monotone_segment_rounded_to_a_tenth_beside_a_snapping_one():
     check_same_snaps(clean_snaps(names), got, tolerance, True, unseen(0.1, curves), curves)
 
 
-# Above 0.3 kPa of noise the snaps are the clean ones (none spurious, none missed) but
-# a valley fitted from 0.5 kPa rows is off by up to ~0.5 kPa: B40-T20 + B42-T26 +
-# B44-T20 at 1,000 rows/mL and a 0.27 kPa step snap 1.17 mL off (found by this property
-# with 25 examples, kept below)
-NOISIEST_TOLERANCE_ML = 1.25
-
-
+# found by this property with 25 examples: B40-T20 + B42-T26 + B44-T20 at 1,000 rows/mL,
+# 0.5 kPa noise on a 0.27 kPa step snapped 1.17 mL off: B42-T26's 0.6 kPa dip, within
+# three steps, was taken for rounding although the noise dithers the steps (its bins'
+# means resolve it by 10 standard errors); its peak lost, the path was another one.
+# The valleys fitted were within 0.1 kPa all along (docs/model.md, section 9)
 @example(names=("B40-T20", "B42-T26", "B44-T20"), noise_kpa=0.5, averaging=0.015625,
          round_to_kpa=0.27, seed=0)  # fmt: skip
 @PROPERTY
@@ -376,19 +386,15 @@ def test_noisy_library_tables_snap_like_the_clean_curves(
     """``averaging`` is the noise left in a 1 mL average (noise / sqrt(rows per mL)):
     up to 0.02 kPa, with noise enough to dither the quantisation (at least half a
     step), the clean snaps are found, none spurious, at any noise of 0.05-0.5 kPa,
-    within the issue's 0.5 mL up to 0.3 kPa (``NOISIEST_TOLERANCE_ML`` above); beyond,
-    the fit still gives a valid curve and the path no exception (docs/model.md, the
-    benchmark)."""
+    within the issue's 0.5 mL; beyond, the fit still gives a valid curve and the path
+    no exception (docs/model.md, the benchmark)."""
     spacing_ml = max((averaging / noise_kpa) ** 2, 0.00053)
     clean = [analytical_segment(n) for n in names]
     curves = measured(clean, spacing_ml, round_to_kpa=round_to_kpa, noise_kpa=noise_kpa, seed=seed)
     got = snap_volumes(curves)
     dithered = round_to_kpa is None or noise_kpa >= 0.5 * round_to_kpa
     if noise_kpa * np.sqrt(spacing_ml) <= 0.02 and dithered:
-        tolerance = 0.5 if noise_kpa <= 0.3 else NOISIEST_TOLERANCE_ML
-        check_same_snaps(
-            clean_snaps(names), got, tolerance, True, unseen(noise_kpa, curves), curves
-        )
+        check_same_snaps(clean_snaps(names), got, 0.5, True, unseen(noise_kpa, curves), curves)
 
 
 synthetic_shapes = st.fixed_dictionaries(
@@ -413,6 +419,13 @@ def synthetic(name: str, shape: dict):
     )
 
 
+@example(
+    shape_a={"peak_v_ml": 3.0, "peak_kpa": 30.0, "dip_kpa": 2.0, "valley_after_ml": 3.0,
+             "end_after_ml": 20.0},
+    shape_b={"peak_v_ml": 3.0, "peak_kpa": 37.0, "dip_kpa": 4.0, "valley_after_ml": 3.0,
+             "end_after_ml": 20.0},
+    spacing_ml=10.0**-1.5, uniform=False, round_to_kpa=0.27, noise_kpa=0.0, seed=0,
+).xfail(reason="as on main: a spurious snap at 16.96 mL")  # fmt: skip
 @PROPERTY
 @given(
     shape_a=synthetic_shapes,
@@ -527,6 +540,12 @@ FORMATS = {"%.2f": 0.01, "%.5f": 1e-5, "%.9f": 0.0, "%g": 1e-3, "%.6e": 1e-4}
          adc=False, seed=0)  # fmt: skip
 @example(names=("B40-T20", "B42-T20"), spacing_ml=0.1, uniform=False, fmt="%.5f", adc=True,
          seed=0)  # fmt: skip
+@example(names=("B50-T30", "B40-T20", "B46-T28"), spacing_ml=0.1, uniform=False, fmt="%.2f",
+         adc=False, seed=0).xfail(
+    reason="as on main: a spurious snap at 41.46 mL")  # fmt: skip
+@example(names=("B44-T20", "B40-T28"), spacing_ml=0.01, uniform=False, fmt="%.2f", adc=False,
+         seed=0).xfail(
+    reason="as on main: the clean 0.10 kPa snap at 14.93 mL missed")  # fmt: skip
 @PROPERTY
 @given(
     names=library_actuators(),

@@ -5,6 +5,7 @@ were sampled from (an independent computation, not the module's own output)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from measured_tables import sample_table
@@ -67,3 +68,35 @@ def test_extrema_from_the_edges_are_nearer_the_clean_curves_than_the_stairs():
         assert np.mean(errors) <= 0.2 * step, (step, np.mean(errors))
         assert np.mean(errors) <= 0.75 * np.mean(stair_errors), (step, np.mean(stair_errors))
         assert max(errors) <= 0.75 * step, step
+
+
+def test_a_corner_inside_a_row_gap_keeps_the_plateaus_row_at_the_jump():
+    """A curve flat at 10.03 kPa up to a corner at 5.0 mL, then 2 kPa/mL (a braid
+    contact), rows every 0.15 mL rounded to 0.1 kPa: the plateau at 10.0 kPa ends at
+    the row before the corner and the next row is two steps up. The row at the jump is
+    kept a quarter step up (10.025 kPa, within 0.005 kPa of the clean curve there),
+    so a line from it to the next row has the steep slope of the clean curve after
+    the corner, not the plateau centre's spread one."""
+    from labrig.model.segments.measured import collapse_plateaus, keep_corner_rows
+
+    v = np.arange(0.0, 8.0, 0.15)
+    clean = np.where(v < 5.0, 10.03, 10.03 + 2.0 * (v - 5.0))
+    p = np.round(clean / 0.1) * 0.1
+    length = np.ones_like(v)
+    last = int(np.flatnonzero(v < 5.0)[-1])  # the plateau's row before the corner
+    assert p[last] == pytest.approx(10.0) and p[last + 1] - p[last] >= 0.2 - 1e-9
+    v_c, p_c, _, _ = collapse_plateaus(v, p, length)
+    v_k, p_k, _, _ = keep_corner_rows(v, p, length, 0.1)
+    assert v[last] in v_k and v[last] not in v_c
+    kept = p_k[np.flatnonzero(v_k == v[last])[0]]
+    assert kept == pytest.approx(10.025) and abs(kept - clean[last]) <= 0.006
+    assert np.all(np.diff(p_k) > 0)
+    # the slope into the first row after the corner: from the kept row as the clean
+    # curve's within a row's rounding; from the plateau's centre spread well below it
+    i = int(np.flatnonzero(v_k == v[last + 1])[0])
+    kept_slope = (p_k[i] - p_k[i - 1]) / (v_k[i] - v_k[i - 1])
+    j = int(np.flatnonzero(v_c == v[last + 1])[0])
+    centre_slope = (p_c[j] - p_c[j - 1]) / (v_c[j] - v_c[j - 1])
+    clean_slope = (clean[last + 1] - clean[last]) / (v[last + 1] - v[last])
+    assert abs(kept_slope - clean_slope) <= 0.1 / 0.15
+    assert centre_slope < 0.3 * clean_slope

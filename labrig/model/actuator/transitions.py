@@ -126,21 +126,40 @@ def _flow_ml(pre: State, post: State) -> float:
     return max(b - a for a, b in zip(pre.v_i_ml, post.v_i_ml, strict=True))
 
 
-def below_resolution(timeline, t: int, resolution: TablesResolution) -> bool:
-    """Whether the snap ``timeline[t]`` is below the tables' resolution (module
-    docstring): it lands on the branches it left and its jump is within the pressure
-    and volume the rows resolve, or its slope is not resolved, or the state it lands on
-    is left by the next snap within the curves' sample gap (one snap in two steps)."""
-    item = timeline[t]
+def _fold_pair_unresolved(item, resolution: TablesResolution) -> bool:
+    """A snap that lands on the branches it left with a jump and flow within the rows'
+    pressure and volume, or with a slope they do not resolve (module docstring)."""
     if item.pre.branches != item.post.branches:
         return False
     flow = _flow_ml(item.pre, item.post)
     dp = item.post.p_kpa - item.pre.p_kpa
     if abs(dp) <= 2 * resolution.p_kpa and flow <= resolution.v_ml:
         return True
-    if not resolution.resolves_fold_pair(dp, flow):
+    return not resolution.resolves_fold_pair(dp, flow)
+
+
+def below_resolution(timeline, t: int, resolution: TablesResolution) -> bool:
+    """Whether the snap ``timeline[t]`` is below the tables' resolution (module
+    docstring): it lands on the branches it left and its jump is within the pressure
+    and volume the rows resolve, or its slope is not resolved, or the state it lands on
+    is left by the next snap within the curves' sample gap (one snap in two steps). That
+    next snap is the next one the tables resolve: a real snap followed by a train of
+    unresolved fold pairs of 0.001 kPa (a falling branch tabulated from rows rounded to
+    0.001 kPa every 0.001 mL, whose slope flickers from row to row) is one snap, kept."""
+    item = timeline[t]
+    if item.pre.branches != item.post.branches:
+        return False
+    if _fold_pair_unresolved(item, resolution):
         return True
-    following = next((x for x in timeline[t + 1 :] if isinstance(x, Event)), None)
+    following = next(
+        (
+            x
+            for x in timeline[t + 1 :]
+            if isinstance(x, Event)
+            and not (x.kind == "snap" and _fold_pair_unresolved(x, resolution))
+        ),
+        None,
+    )
     return bool(
         following is not None
         and following.kind == "snap"

@@ -63,6 +63,7 @@ P_END_KPA = 300.0
 EDGE_MIN_STEP_KPA = 0.05
 MIN_END_SLOPE_KPA_PER_ML = 1.0
 EXTENSION_SAMPLES = 8
+CORNER_STEPS = 2  # a jump of this many steps between two rows at a plateau is a corner
 ROUNDING_SLOPE_FACTOR = 10.0  # slopes between rows known to 10 % (median)
 # Bore of the paper's latex tube: the enclosed volume at p = 0 is estimated as
 # pi R^2 l(0) when the caller does not know it (it only enters normalisations).
@@ -198,6 +199,45 @@ def collapse_plateaus(v, p, length):
     return v_c, p[starts], l_c, int(np.sum(counts > 1))
 
 
+def keep_corner_rows(v, p, length, step_kpa: float):
+    """``collapse_plateaus`` for a staircase, keeping the rows of a corner: where a
+    plateau (a run of rows at one value) meets a jump of at least ``CORNER_STEPS``
+    steps between two rows, the curve turns steep inside that gap (a braid contact),
+    and the plateau's centre joined to the row after the jump would spread the turn
+    over half the plateau (a slope of 0.35 kPa/mL where the curve is flat, then 1.8:
+    an actuator's fold, where a segment's slope passes its partner's falling one,
+    moved to the row after the jump, 0.2 kPa too high). So the plateau's row at the
+    jump is kept, at a quarter step from the plateau's value towards the jump (its
+    value is within half a step of the plateau's, and the curve nears the next level
+    there). Returns (v, p, l, runs merged)."""
+    v_c, p_c, l_c, merged = collapse_plateaus(v, p, length)
+    if not merged or step_kpa <= 0:
+        return v_c, p_c, l_c, merged
+    scale = max(float(np.max(np.abs(p))), 1.0)
+    jump = np.diff(p)
+    new_run = np.abs(jump) > 1e-12 * scale
+    starts = np.flatnonzero(np.r_[True, new_run])
+    ends = np.r_[starts[1:], len(v)] - 1  # last row of each run
+    extra_v, extra_p, extra_l = [], [], []
+    for k, (a, b) in enumerate(zip(starts, ends, strict=True)):
+        if b == a:
+            continue
+        # the jump after the run (into the next) and before it (from the previous)
+        if b + 1 < len(v) and abs(jump[b]) >= CORNER_STEPS * step_kpa * (1 - 1e-6):
+            extra_v.append(v[b])
+            extra_p.append(p[b] + 0.25 * step_kpa * np.sign(jump[b]))
+            extra_l.append(length[b])
+        if a > 0 and k > 0 and abs(jump[a - 1]) >= CORNER_STEPS * step_kpa * (1 - 1e-6):
+            extra_v.append(v[a])
+            extra_p.append(p[a] - 0.25 * step_kpa * np.sign(jump[a - 1]))
+            extra_l.append(length[a])
+    if not extra_v:
+        return v_c, p_c, l_c, merged
+    v_all = np.r_[v_c, extra_v]
+    order = np.argsort(v_all, kind="stable")
+    return v_all[order], np.r_[p_c, extra_p][order], np.r_[l_c, extra_l][order], merged
+
+
 def _fit_noisy(v, p, length, resolution: TableResolution):
     """Bin, decide the shape (a dip only if it stands out of the noise of the bins and
     of the table's step) and fit it: returns (v, p, l, offset) on the bins, or None if
@@ -213,7 +253,11 @@ def _fit_noisy(v, p, length, resolution: TableResolution):
     the isotonic fit's block centres. The offset at v = 0 is ``zero_offset`` of the
     first bins' means (the smoothed values there are the least certain)."""
     v_bin, (p_bin, l_bin), counts = binned_trimmed_means(v, [p, length], min(MAX_BINS, len(v)))
-    min_dip = STEP_PROMINENCE * resolution.step_kpa
+    # a dip of a few steps is rounding only where nothing dithers the steps: with noise
+    # of at least half a step the bins' means average the quantisation out (B42-T26's
+    # 0.6 kPa dip at 0.5 kPa noise on a 0.27 kPa step stands out of its bins' noise by
+    # 10 standard errors), and what a dip must stand out of is their noise alone
+    min_dip = STEP_PROMINENCE * resolution.step_kpa if resolution.quantised else 0.0
     fit = fit_rise_fall_rise(p_bin, counts, min_dip_kpa=min_dip)
     if len(fit.branches) == 3:
         valley = min(fit.branches[1][-1][2], fit.branches[2][0][2])
@@ -427,7 +471,7 @@ def curve_from_table(
     notes = [resolution.describe()]
     if repeated:
         notes.append(f"{repeated} rows at a repeated volume averaged")
-    v_c, p_c, l_c, merged = collapse_plateaus(v, p, length)
+    v_c, p_c, l_c, merged = keep_corner_rows(v, p, length, resolution.step_kpa)
     # rows at a repeated volume mark a raw acquisition log, not a curve: always fitted
     if (
         not repeated

@@ -11,9 +11,10 @@ valley) the table can be trusted to show.
 
 - spacing: the median volume step between rows (and the extremes, to call the table
   uniform or not);
-- step: the largest q such that every pressure difference between rows is a whole
-  multiple of q (a sensor's ADC lattice, offset or not), or, failing that, the
-  decimal to which every pressure was rounded; 0 when the values are full-precision;
+- step: the largest q such that every distinct pressure is on a lattice o + k q to
+  within the decimals it was written with (a sensor's ADC lattice, offset or not, a
+  0.5 kPa staircase written with one decimal), or, failing that, the decimal to which
+  every pressure was rounded; 0 when the values are full-precision;
 - noise: the robust standard deviation of each row's residual from the cubic through
   its four neighbours (exact for any cubic trend, so curvature of a sparse table does
   not count as noise), with the quantisation step's own error included (a staircase
@@ -35,7 +36,9 @@ NOISE_PROMINENCE = 4.0
 _FLOAT_FLOOR = 1e-12
 _MAX_DECIMALS = 10
 _LATTICE_DIVISORS = 16
-_LATTICE_OVER_DECIMALS = 10  # a lattice must be this much coarser than the decimals
+_LATTICE_OVER_DECIMALS = 2.5  # a lattice must be this much coarser than the decimals
+_EXACT_OVER_DECIMALS = 2.0  # ... or an exact multiple of them this much coarser
+_MIN_LEVELS = 8  # fewer distinct values tell no lattice
 ROUTE_TABULATED = "tabulated"
 ROUTE_FITTED = "fitted"
 
@@ -109,33 +112,82 @@ def resolution_of(v_ml, p_kpa) -> TableResolution:
 
 
 def quantisation_step(p_kpa) -> float:
-    """The pressure lattice of the table (see the module docstring); 0 if none. The
-    lattice is found through the decimals the values were written with: an ADC's counts
-    printed to 5 decimals are multiples of 0.0271 kPa only to within 1e-5 kPa."""
+    """The pressure lattice of the table (see the module docstring); 0 if none.
+
+    The lattice is searched among the distinct values (its levels), whatever decimals
+    they were written with: an ADC's 0.0271 kPa counts printed to 2 decimals are 0.02 or
+    0.03 apart, a 0.5 kPa staircase printed to 1 decimal is on the 0.1 kPa decimals
+    too. A candidate step comes from the smallest gap between levels g (one step, or a
+    few where the rows skip levels): the mean of the gaps within a decimal of g (each
+    one step written to the decimals: their mean is the step to a decimal over their
+    number) over 1, 2, ... steps. Each gap is then a whole number of steps, so each
+    level has its count k, and the step is taken when some lattice o + k q holds every
+    level to within half a decimal (the Chebyshev fit, ``_lattice_fit``). The largest
+    such step at least ``_LATTICE_OVER_DECIMALS`` decimals wins, else the decimal."""
     p = np.asarray(p_kpa, dtype=float)
     scale = max(float(np.max(np.abs(p))), 1.0)
     floor = _FLOAT_FLOOR * scale
     decimal = _decimal_step(p, floor)
-    d = np.abs(np.diff(p))
-    d = d[d > max(floor, 0.5 * decimal)]
-    lattice = 0.0
-    if len(d) >= 8:
-        smallest = float(d.min())
-        written = decimal + 4 * floor  # how far a difference may be off its multiple
-        for divisor in range(1, _LATTICE_DIVISORS + 1):
-            q = smallest / divisor
-            if decimal and q <= _LATTICE_OVER_DECIMALS * decimal:
-                break  # a lattice not coarser than the decimals is the decimals
-            # refine q on the small differences (the smallest one carries the decimals'
-            # rounding), then test every difference against it
-            small = d <= 20 * q
-            q = float(np.sum(d[small]) / np.sum(np.round(d[small] / q)))
-            ratio = d / q
-            whole = np.round(ratio)
-            if np.all(np.abs(ratio - whole) <= 1e-3 + written / q):
-                lattice = float(np.median(d / whole))
+    levels = np.unique(p)
+    gaps = np.diff(levels)
+    if len(levels) < _MIN_LEVELS or gaps.min() <= floor:
+        return decimal
+    written = 0.5 * decimal + 4 * floor  # how far a level may be off its lattice point
+    smallest = float(gaps.min())
+    near = gaps[gaps <= smallest + 1.01 * decimal + 4 * floor]
+    one_gap = float(near.mean())
+    for divisor in range(1, _LATTICE_DIVISORS + 1):
+        q = one_gap / divisor
+        if q < _EXACT_OVER_DECIMALS * decimal - written or q <= 1e3 * floor:
+            break  # a lattice not coarser than the decimals is the decimals
+        # refine q on gaps of ever more steps: a gap of m steps gets its count right
+        # while m times the error of q is well within half a step
+        reach = 2.0  # in smallest gaps: never none
+        while True:
+            small = gaps <= reach * one_gap
+            counts = np.round(gaps[small] / q)
+            if np.any(counts < 1):
                 break
-    return max(lattice, decimal)
+            q = float(np.sum(gaps[small]) / np.sum(counts))
+            if np.all(small):
+                break
+            reach *= 4.0
+        counts = np.round(gaps / q)
+        if np.any(counts < 1):
+            continue
+        k = np.r_[0.0, np.cumsum(counts)]
+        # between 2 and 2.5 decimals only an exact multiple of the decimal is told from
+        # the decimals themselves (every decimal is within half of one of such a lattice)
+        tolerance = written if q >= _LATTICE_OVER_DECIMALS * decimal else 4 * floor
+        lattice = _lattice_fit(k, levels, tolerance)
+        if lattice is not None:
+            return max(lattice, decimal)
+    return decimal
+
+
+def _lattice_fit(k: np.ndarray, levels: np.ndarray, tolerance_kpa: float) -> float | None:
+    """The step q of a lattice o + k q that holds every level within ``tolerance_kpa``,
+    or None. The least-squares line decides the clear cases; where its largest residual
+    is within twice the tolerance, the line of least largest residual (a linear
+    programme in o, q and that residual) decides."""
+    q, o = np.polyfit(k, levels, 1)
+    worst = float(np.max(np.abs(levels - o - k * q)))
+    if worst <= tolerance_kpa:
+        return float(q)
+    if worst > 2 * tolerance_kpa:
+        return None
+    from scipy.optimize import linprog
+
+    # minimise r subject to |level - o - k q| <= r
+    ones = np.ones_like(k)
+    a_ub = np.r_[np.c_[-ones, -k, -ones], np.c_[ones, k, -ones]]
+    b_ub = np.r_[-levels, levels]
+    result = linprog(
+        [0.0, 0.0, 1.0], A_ub=a_ub, b_ub=b_ub, bounds=[(None, None)] * 3, method="highs"
+    )
+    if result.status != 0 or result.x[2] > tolerance_kpa:
+        return None
+    return float(result.x[1])
 
 
 def _decimal_step(p: np.ndarray, floor: float) -> float:
