@@ -1,10 +1,10 @@
 """Shared fixtures: simulated run files, written once per session (see simulated_runs);
-and the order of the suite on pytest-xdist's two workers (pyproject.toml's addopts).
+and the order of the suite on pytest-xdist's three workers (pyproject.toml's addopts).
 
-The order: the suite runs on two processes (``-n 2 --dist loadgroup``), which hand out
+The order: the suite runs on three processes (``-n 3 --dist loadgroup``), which hand out
 work units (a test, or a group's tests together: ``GROUPS``) in the order collected; the
 long ones (``LONG_FIRST``, the slowest measured on the 2-core machine) are moved to the
-front so that neither worker is left with one of them at the end while the other idles.
+front so that no worker is left with one of them at the end while the others idle.
 The tests of the compiled path (scans and the compiled path itself, in-process or
 through ``labrig model scan``) form one group: on a fresh clone the first of them
 compiles ``labrig.model.actuator.compiled_path`` (~1 min of one core: 56 s of CPU,
@@ -16,7 +16,7 @@ result; the cache written here is the one they load: measured, no new cache file
 Every module of labrig is imported before the first test (``_import_every_module``):
 hypothesis draws a few of its values from the constants of the local modules already
 in ``sys.modules``, so a property test's examples, derandomized or not, would otherwise
-depend on which tests ran before it in its process; with two workers handing out work
+depend on which tests ran before it in its process; with workers handing out work
 as each finishes, on the host's speed. Seen: test_stress found two failing examples
 only when it ran after the compiled path's tests in their worker.
 """
