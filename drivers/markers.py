@@ -19,6 +19,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -50,8 +51,10 @@ class MarkerFix:
         return math.hypot(self.x2_px - self.x1_px, self.y2_px - self.y1_px)
 
 
-@dataclass(frozen=True)
-class _Blob:
+class _Blob(NamedTuple):
+    """A candidate blob (a tuple: a frame makes several, and a frozen dataclass costs
+    more to build than its tests)."""
+
     x: float  # coarse centre (the blob's binary centroid), frame px
     y: float
     area_px: float
@@ -261,11 +264,12 @@ class MarkerTracker:
         x0, y0, x1, y1 = cx - half, cy - half, cx + half + 1, cy + half + 1
         if x0 < 0 or y0 < 0 or x1 > w or y1 > h:
             return (float("nan"), float("nan"))  # cut by the frame edge: not measurable
-        signal = self._signal(frame[y0:y1, x0:x1])
+        signal = self._signal(frame[y0:y1, x0:x1])  # a new array: changed in place
         inside, ring = _window_masks(half, r_in)
-        background = _median(signal[ring])
-        weights = np.where(inside, signal - background, np.float32(0.0))
-        m = cv2.moments(weights)
+        background = _median(signal.ravel().take(ring))
+        signal -= np.float32(background)
+        signal *= inside  # the weights: 0 outside the window
+        m = cv2.moments(signal)
         if m["m00"] <= 0:
             return (float("nan"), float("nan"))
         return (x0 + m["m10"] / m["m00"], y0 + m["m01"] / m["m00"])
@@ -279,26 +283,29 @@ class MarkerTracker:
 
 @functools.lru_cache(maxsize=64)
 def _window_masks(half: int, r_in: float) -> tuple[np.ndarray, np.ndarray]:
-    """The centroid window (within ``r_in`` of the centre) and the background ring
-    (from there to ``r_in`` + 3) of a (2 half + 1)^2 patch; a held marker's blob keeps
-    a few areas, so these are made once each."""
+    """The centroid window (1 within ``r_in`` of the centre, else 0, as float32) and the
+    flat indices of the background ring (from there to ``r_in`` + 3) of a
+    (2 half + 1)^2 patch; a held marker's blob keeps a few areas, so these are made
+    once each."""
     offsets = np.arange(-half, half + 1)
     r2 = offsets[None, :] ** 2 + offsets[:, None] ** 2
     inside = r2 <= r_in * r_in
     r_out = r_in + 3.0
-    return inside, ~inside & (r2 <= r_out * r_out)
+    return inside.astype(np.float32), np.flatnonzero(~inside & (r2 <= r_out * r_out))
 
 
 def _median(values: np.ndarray) -> float:
-    """``np.median`` of a small 1-d array, without its generic machinery's cost."""
+    """``np.median`` of a small 1-d array (reordered in place), without its generic
+    machinery's cost."""
     n = values.size
     k = n // 2
     if n == 0:
         return float("nan")
     if n % 2:
-        return float(np.partition(values, k)[k])
-    low, high = np.partition(values, [k - 1, k])[k - 1 : k + 1]
-    return 0.5 * (float(low) + float(high))
+        values.partition(k)
+        return float(values[k])
+    values.partition([k - 1, k])
+    return 0.5 * (float(values[k - 1]) + float(values[k]))
 
 
 def _window_radius_px(blob: _Blob) -> float:

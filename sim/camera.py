@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import functools
 import math
+import struct
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -125,6 +126,9 @@ class SimCamera:
             np.array(bgr if not monochrome else [_grey_level(bgr)], dtype=np.float32)
             for bgr in (marker_bgr, specimen_bgr, background_bgr)
         )
+        self._marker_channels, self._specimen_channels, self._background_channels = (
+            bgr.tolist() for bgr in (self.marker_bgr, self.specimen_bgr, self.background_bgr)
+        )
         self._rng = np.random.default_rng(seed)
         self._noise = self._make_noise() if self.noise_grey > 0 else None
         self.hidden_markers: set[int] = set()  # fault injection: 0 and/or 1 not drawn
@@ -208,12 +212,17 @@ class SimCamera:
         return out
 
     def _palette(self, gain: float) -> tuple[tuple[float, ...], tuple[float, ...], np.ndarray]:
-        """Background and specimen fill colours, the markers' colour, under ``gain``."""
+        """Background and specimen fill colours, the markers' colour, under ``gain``:
+        each channel times the gain in single precision (as numpy multiplies a float32
+        colour), the fills rounded half to even; in plain Python, as a frame asks for
+        it once and numpy's calls on 1-3 values cost more than the arithmetic."""
+        g = _to_float32(gain)
         background, specimen = (
-            tuple(min(max(float(v), 0.0), 255.0) for v in np.rint(bgr * gain))
-            for bgr in (self.background_bgr, self.specimen_bgr)
+            tuple(min(max(float(round(_to_float32(c * g))), 0.0), 255.0) for c in bgr)
+            for bgr in (self._background_channels, self._specimen_channels)
         )
-        return background, specimen, np.minimum(np.maximum(self.marker_bgr * gain, 0), 255)
+        marker = [min(max(_to_float32(c * g), 0.0), 255.0) for c in self._marker_channels]
+        return background, specimen, np.array(marker, dtype=np.float32)
 
     def layout(self, centres: np.ndarray, hidden: frozenset) -> tuple[tuple, list]:
         """Where a frame's parts are: the specimen band's box [x0, x1) x [y0, y1) and,
@@ -501,7 +510,7 @@ class SimFrame:
                 x0, x1, dx = cols.indices(w)
                 if dy == dx == 1:
                     region = self._region(x0, y0, max(x1, x0), max(y1, y0))
-                    return region[(slice(None), slice(None), *key[2:])]
+                    return region if len(key) == 2 else region[(slice(None), slice(None), *key[2:])]
         return np.asarray(self)[key]
 
     def _region(self, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
@@ -542,6 +551,14 @@ class SceneRenderer:
         if self._camera is None:
             self._camera = SimCamera(None, None, **self.spec)  # draws only: no clock
         return self._camera.render_scene(scene)
+
+
+def _to_float32(value: float) -> float:
+    """``value`` rounded to the nearest single-precision float (ties to even)."""
+    return _FLOAT32.unpack(_FLOAT32.pack(value))[0]
+
+
+_FLOAT32 = struct.Struct("f")
 
 
 def _fill(frame: np.ndarray, x0: int, y0: int, x1: int, y1: int, colour: tuple) -> None:
