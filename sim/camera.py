@@ -269,7 +269,12 @@ class SimCamera:
             marker = marker[0]
         view = out[cy0 - oy : cy1 - oy, cx0 - ox : cx1 - ox]
         # a blend of two grey levels in 0-255, + 0.5: truncating rounds it, no clip needed
-        view[:] = view.astype(np.float32) * (1 - c) + marker * c + 0.5
+        # (the same operations in the same order, in place)
+        blend = view.astype(np.float32)
+        blend *= 1 - c
+        blend += marker * c
+        blend += 0.5
+        view[:] = blend
 
     # a frame's dots are drawn in both of the tracker's windows (the one on the other
     # marker only when the two are close) and again when the frame is rendered whole
@@ -381,6 +386,8 @@ class SimCamera:
         self._streaming = False
 
     def get(self, prop_id: int) -> float:
+        if prop_id == cv2.CAP_PROP_POS_MSEC:  # asked after every frame's grab
+            return self._pos_msec
         return {
             cv2.CAP_PROP_POS_MSEC: self._pos_msec,
             cv2.CAP_PROP_FRAME_WIDTH: float(self.stream_size[0]),
