@@ -261,7 +261,7 @@ class SimCamera:
         cx1, cy1 = min(x1, ox + w), min(y1, oy + h)
         if cx0 >= cx1 or cy0 >= cy1:
             return  # outside the region: the tracker's window on the other marker
-        _, _, coverage = self._dot_coverage(x, y)
+        coverage = self._dot_coverage(x, y, box)
         c = coverage[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0]
         if out.ndim == 3:
             c = c[:, :, None]
@@ -279,12 +279,12 @@ class SimCamera:
     # a frame's dots are drawn in both of the tracker's windows (the one on the other
     # marker only when the two are close) and again when the frame is rendered whole
     @functools.lru_cache(maxsize=16)  # noqa: B019
-    def _dot_coverage(self, x: float, y: float) -> tuple[int, int, np.ndarray]:
-        """(x0, y0, coverage) of the dot centred at (x, y): its box's top-left pixel and
-        the blurred coverage over the box, cut to the frame."""
-        x0, y0, x1, y1 = self._dot_box(x, y)
+    def _dot_coverage(self, x: float, y: float, box: tuple) -> np.ndarray:
+        """The blurred coverage of the dot centred at (x, y) over its box (``_dot_box``,
+        cut to the frame)."""
+        x0, y0, x1, y1 = box
         if x0 >= x1 or y0 >= y1:
-            return x0, y0, np.zeros((0, 0), dtype=np.float32)
+            return np.zeros((0, 0), dtype=np.float32)
         xx = (np.arange(x0, x1) - x) ** 2
         yy = (np.arange(y0, y1) - y) ** 2
         coverage = np.sqrt(np.add.outer(yy, xx), dtype=np.float32)  # the distance, then
@@ -293,7 +293,7 @@ class SimCamera:
         np.minimum(coverage, 1.0, out=coverage)
         if self.blur_px > 0:
             coverage = cv2.GaussianBlur(coverage, (0, 0), self.blur_px)
-        return x0, y0, coverage
+        return coverage
 
     def _dot_box(self, x: float, y: float) -> tuple[int, int, int, int]:
         """The box [x0, x1) x [y0, y1) a dot centred at (x, y) covers, cut to the frame."""
@@ -389,7 +389,6 @@ class SimCamera:
         if prop_id == cv2.CAP_PROP_POS_MSEC:  # asked after every frame's grab
             return self._pos_msec
         return {
-            cv2.CAP_PROP_POS_MSEC: self._pos_msec,
             cv2.CAP_PROP_FRAME_WIDTH: float(self.stream_size[0]),
             cv2.CAP_PROP_FRAME_HEIGHT: float(self.stream_size[1]),
             cv2.CAP_PROP_FPS: self.fps,

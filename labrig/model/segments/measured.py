@@ -186,9 +186,7 @@ def collapse_plateaus(v, p, length):
     """Each run of rows with equal pressure (a quantised table's plateau) as one row at
     the run's centre, where a rounded monotone curve has the plateau's value; the first
     run keeps its first row (the unpressurised state). Returns (v, p, l, runs merged)."""
-    scale = max(float(np.max(np.abs(p))), 1.0)
-    new_run = np.abs(np.diff(p)) > 1e-12 * scale
-    starts = np.flatnonzero(np.r_[True, new_run])
+    starts = _run_starts(p)
     if len(starts) == len(v):
         return v, p, length, 0
     ends = np.r_[starts[1:], len(v)]
@@ -197,6 +195,12 @@ def collapse_plateaus(v, p, length):
     l_c = np.add.reduceat(length, starts) / counts
     v_c[0], l_c[0] = v[0], length[0]
     return v_c, p[starts], l_c, int(np.sum(counts > 1))
+
+
+def _run_starts(p) -> np.ndarray:
+    """The first row of each run of rows with equal pressure (to float rounding)."""
+    scale = max(float(np.max(np.abs(p))), 1.0)
+    return np.flatnonzero(np.r_[True, np.abs(np.diff(p)) > 1e-12 * scale])
 
 
 def keep_corner_rows(v, p, length, step_kpa: float):
@@ -213,10 +217,8 @@ def keep_corner_rows(v, p, length, step_kpa: float):
     v_c, p_c, l_c, merged = collapse_plateaus(v, p, length)
     if not merged or step_kpa <= 0:
         return v_c, p_c, l_c, merged
-    scale = max(float(np.max(np.abs(p))), 1.0)
     jump = np.diff(p)
-    new_run = np.abs(jump) > 1e-12 * scale
-    starts = np.flatnonzero(np.r_[True, new_run])
+    starts = _run_starts(p)
     ends = np.r_[starts[1:], len(v)] - 1  # last row of each run
     extra_v, extra_p, extra_l = [], [], []
     for k, (a, b) in enumerate(zip(starts, ends, strict=True)):
