@@ -110,6 +110,9 @@ class _Handler(BaseHTTPRequestHandler):
 
 class _Server(ThreadingHTTPServer):
     daemon_threads = True
+    # a page opens several connections at once (page, script, style, polls), and a few
+    # pages may watch one run: room for them while a busy host accepts late (default 5)
+    request_queue_size = 64
 
     def handle_error(self, request, client_address) -> None:
         """A browser that went away mid-reply is not an error worth a traceback."""

@@ -53,10 +53,13 @@ def count(page, selector: str) -> int:
 
 
 def open_page(browser, run, **options):
-    """The run's page, with its script errors collected in ``page.errors``."""
+    """The run's page, with its script errors collected in ``page.errors`` and its
+    failed requests in ``page.failed_requests``."""
     page = browser.new_page(**options)
     page.errors = []
     page.on("pageerror", lambda error: page.errors.append(str(error)))
+    page.failed_requests = []  # told on a timeout (the page retries its polls itself)
+    page.on("requestfailed", lambda r: page.failed_requests.append(f"{r.url}: {r.failure}"))
     page.goto(run.url)
     return page
 
@@ -72,7 +75,8 @@ def waiting(page, run, wait, *args):
             " detection: window.labrigLive.detectionError, n: window.labrigLive.pressure.length})"
         )
         raise AssertionError(
-            f"timed out on {args[0]!r}: page errors {page.errors}, live {live}, "
+            f"timed out on {args[0]!r}: page errors {page.errors}, failed requests "
+            f"{page.failed_requests}, live {live}, "
             f"run: {''.join(run.lines[-15:])}"
         ) from None
 
@@ -95,8 +99,14 @@ def test_page_shows_data_growing_the_model_and_a_transition(live_run, browser):
     model = page.evaluate("window.labrigLive.model")
     assert count(page, "#pv polyline.model") >= 1
     assert count(page, "#pv line.model-transition") == len(model["transitions"])
-    dash = page.eval_on_selector("#pv polyline.model", "e => getComputedStyle(e).strokeDasharray")
-    assert dash not in ("", "none")
+    # dashed by the page's stylesheet (seen once beside two CPU burners: the style not
+    # yet applied when the curve was first drawn; a stylesheet that never arrives fails
+    # here, with the failed requests)
+    dashed = (
+        "['', 'none'].indexOf(getComputedStyle("
+        "document.querySelector('#pv polyline.model')).strokeDasharray) < 0"
+    )
+    waiting(page, run, page.wait_for_function, dashed)
 
     # a transition marker after the snap, near the model's first snap on inflation
     marker_or_end = (
