@@ -44,6 +44,18 @@ def _stop(process):
         process.wait()
 
 
+def _scheduler_address(info, process, timeout_s=60):
+    """The address the scheduler wrote to ``info``: the file appears before its JSON is
+    complete (a busy host once read it empty), so it is read until it parses."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        assert process.poll() is None, "the scheduler exited; see cluster.log"
+        with contextlib.suppress(FileNotFoundError, json.JSONDecodeError, KeyError):
+            return json.loads(info.read_text())["address"]
+        time.sleep(0.1)
+    raise AssertionError(f"no scheduler address in {info} within {timeout_s} s")
+
+
 @contextlib.contextmanager
 def local_cluster(folder, n_workers):
     """(address, processes) of a scheduler with ``n_workers`` single-threaded worker
@@ -66,10 +78,7 @@ def local_cluster(folder, n_workers):
         )
     ]
     try:
-        deadline = time.monotonic() + 60
-        while not info.is_file() and time.monotonic() < deadline:
-            time.sleep(0.1)
-        address = json.loads(info.read_text())["address"]
+        address = _scheduler_address(info, processes[0])
         assert address.startswith("tcp://127.0.0.1:")
         processes.append(
             _dask(
