@@ -11,7 +11,7 @@ from scipy.interpolate import PchipInterpolator
 
 from labrig.model.actuator.equilibria import Actuator
 from labrig.model.actuator.path import quasi_static_path
-from labrig.model.actuator.transitions import transitions
+from labrig.model.actuator.transitions import fold_slope_deficit, transitions
 from labrig.model.segments.curve import SegmentCurve
 from labrig.model.segments.measured import HEADER
 
@@ -78,12 +78,13 @@ def snap_volumes(curves) -> list[float]:
 
 def snaps(curves) -> list[tuple[float, float]]:
     """(volume, size of the pressure jump in kPa) of each snap on the inflation path."""
-    return [(v, dp) for v, dp, _, _ in snap_details(curves)]
+    return [(v, dp) for v, dp, *_ in snap_details(curves)]
 
 
-def snap_details(curves) -> list[tuple[float, float, float, bool]]:
+def snap_details(curves) -> list[tuple[float, float, float, bool, float]]:
     """(volume, size of the pressure jump in kPa, internal flow in mL, whether it lands
-    on the branches it left) of each snap on the inflation path."""
+    on the branches it left, its slope deficit in kPa/mL: ``fold_slope_deficit``) of
+    each snap on the inflation path."""
     path = quasi_static_path(Actuator(list(curves)))
     return [
         (
@@ -91,6 +92,7 @@ def snap_details(curves) -> list[tuple[float, float, float, bool]]:
             abs(t.post.p_kpa - t.pre.p_kpa),
             max(b - a for a, b in zip(t.pre.v_i_ml, t.post.v_i_ml, strict=True)),
             t.pre.branches == t.post.branches,
+            fold_slope_deficit(curves, t.pre, t.post),
         )
         for t in transitions(path)
         if not t.stable

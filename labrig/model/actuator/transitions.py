@@ -15,11 +15,12 @@ pressure jump within that resolution (twice it: each side's pressure is known to
 and a flow between segments within a row spacing (a fold pair of
 0.007 kPa and 0.007 mL where a segment leaves its valley, from a table rounded to 0.01
 kPa every 0.05 mL), is not a prediction those tables can make: it is not reported, as
-a crossing of a valley is not. Nor is such a fold pair whose slope, its jump over its
-flow, does not stand out of the slope the rows resolve over that flow (where the clean
-path is marginally stable: a rising segment's lowest slope within the fit's error of a
-falling one's), nor one whose landing state the next snap leaves within a sample gap of
-the curves used (a fitted curve's bin: one snap in two steps, the second reported).
+a crossing of a valley is not. Nor is such a fold pair whose slope deficit does not
+stand out of the slope the rows resolve over its flow (``fold_slope_deficit``: where
+the path is marginally stable, a rising segment's lowest slope within the tables' error
+of a falling one's), nor one whose landing state the next snap leaves within a sample
+gap of the curves used (a fitted curve's bin: one snap in two steps, the second
+reported).
 Analytical curves resolve everything: nothing is left out.
 
 Definitions (pre/post: immediately before/after):
@@ -98,13 +99,13 @@ class TablesResolution:
             return 0.0
         return max(e * (12.0 * dv / window_ml**3) ** 0.5 for e, dv in self.rows)
 
-    def resolves_fold_pair(self, dp_kpa: float, flow_ml: float) -> bool:
-        """Whether a snap that lands on the branches it left, with a pressure jump
-        ``dp_kpa`` over an internal flow ``flow_ml``, is resolved: its slope dp / flow
-        (the stiffness by which the curves' sum falls below zero there) stands out of
-        the slope the tables resolve over that flow."""
+    def resolves_fold_pair(self, deficit_kpa_per_ml: float, flow_ml: float) -> bool:
+        """Whether a snap that lands on the branches it left, with a slope deficit
+        ``deficit_kpa_per_ml`` (``fold_slope_deficit``) over an internal flow
+        ``flow_ml``, is resolved: the deficit stands out of the slope the tables
+        resolve over that flow."""
         error = self.slope_error_kpa_per_ml(flow_ml)
-        return flow_ml > 0 and abs(dp_kpa) / flow_ml > FOLD_SLOPE_SIGMAS * error
+        return flow_ml > 0 and deficit_kpa_per_ml > FOLD_SLOPE_SIGMAS * error
 
 
 def table_resolution(actuator) -> TablesResolution:
@@ -126,19 +127,53 @@ def _flow_ml(pre: State, post: State) -> float:
     return max(b - a for a, b in zip(pre.v_i_ml, post.v_i_ml, strict=True))
 
 
-def _fold_pair_unresolved(item, resolution: TablesResolution) -> bool:
+DEFICIT_SAMPLES = 41  # states between a fold pair's ends at which the slopes are taken
+
+
+def fold_slope_deficit(segments, pre: State, post: State) -> float:
+    """How far a fold pair's path is from stable, in kPa/mL: the largest, between the
+    snap's two states (each segment's volume taken from pre to post in
+    ``DEFICIT_SAMPLES`` steps), of |k_falling| - k_series, k_series the stiffness of the
+    rising segments in series (1 / sum of 1 / k). Under volume control the states with
+    one falling segment are stable while k_series > |k_falling| (the energy's second
+    derivative along the volume shared out, k_series + k_falling, is positive); a fold
+    pair is a stretch where it is not, and what a table must resolve to show it is the
+    deficit, not the snap's jump over its flow (that is about |k_falling| however
+    marginal the stretch: 1.86 kPa/mL for a deficit of 0.2 kPa/mL where a staircase's
+    plateau centres put a rising slope 10 % low). 0 where not exactly one segment falls
+    (with two falling nothing is marginal: resolved as any snap)."""
+    a, b = np.array(pre.v_i_ml), np.array(post.v_i_ml)
+    worst = 0.0
+    for t in np.linspace(0.0, 1.0, DEFICIT_SAMPLES):
+        k = np.array(
+            [float(s.slope_kpa_per_ml(v)) for s, v in zip(segments, a + t * (b - a), strict=True)]
+        )
+        falling = k < 0
+        if np.count_nonzero(falling) != 1 or np.any(k == 0):
+            continue
+        k_series = 1.0 / float(np.sum(1.0 / k[~falling]))
+        worst = max(worst, -float(k[falling][0]) - k_series)
+    return worst
+
+
+def _fold_pair_unresolved(item, resolution: TablesResolution, segments) -> bool:
     """A snap that lands on the branches it left with a jump and flow within the rows'
-    pressure and volume, or with a slope they do not resolve (module docstring)."""
+    pressure and volume, or with a slope deficit they do not resolve (module
+    docstring). Where not exactly one segment falls nothing is marginal, and the
+    snap's whole slope, its jump over its flow, is what must be resolved."""
     if item.pre.branches != item.post.branches:
         return False
     flow = _flow_ml(item.pre, item.post)
     dp = item.post.p_kpa - item.pre.p_kpa
     if abs(dp) <= 2 * resolution.p_kpa and flow <= resolution.v_ml:
         return True
-    return not resolution.resolves_fold_pair(dp, flow)
+    if flow <= 0 or not resolution.rows or np.count_nonzero(np.array(item.pre.k_i) < 0) != 1:
+        return not resolution.resolves_fold_pair(abs(dp) / max(flow, 1e-300), flow)
+    deficit = fold_slope_deficit(segments, item.pre, item.post)
+    return not resolution.resolves_fold_pair(deficit, flow)
 
 
-def below_resolution(timeline, t: int, resolution: TablesResolution) -> bool:
+def below_resolution(timeline, t: int, resolution: TablesResolution, segments) -> bool:
     """Whether the snap ``timeline[t]`` is below the tables' resolution (module
     docstring): it lands on the branches it left and its jump is within the pressure
     and volume the rows resolve, or its slope is not resolved, or the state it lands on
@@ -149,14 +184,14 @@ def below_resolution(timeline, t: int, resolution: TablesResolution) -> bool:
     item = timeline[t]
     if item.pre.branches != item.post.branches:
         return False
-    if _fold_pair_unresolved(item, resolution):
+    if _fold_pair_unresolved(item, resolution, segments):
         return True
     following = next(
         (
             x
             for x in timeline[t + 1 :]
             if isinstance(x, Event)
-            and not (x.kind == "snap" and _fold_pair_unresolved(x, resolution))
+            and not (x.kind == "snap" and _fold_pair_unresolved(x, resolution, segments))
         ),
         None,
     )
@@ -188,7 +223,7 @@ def transitions(path: Path, window_ml: float = WINDOW_ML) -> list[Transition]:
             stable = True
         else:
             continue
-        if not stable and below_resolution(timeline, t, resolution):
+        if not stable and below_resolution(timeline, t, resolution, actuator.segments):
             continue  # below the tables' resolution (module docstring)
         flow = _flow_ml(pre, post)
         e_pre, e_post = actuator.energy_mj(pre.v_i_ml), actuator.energy_mj(post.v_i_ml)

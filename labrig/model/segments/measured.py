@@ -304,11 +304,25 @@ def zero_offset(v, p, sigma) -> float:
     by 2-3 bins' errors (0.3 kPa at 50 rows/mL and 0.3 kPa noise), and removing it
     would shift the whole curve, peak and valley, by that much: an actuator's snap
     moves by 0.2 mL per 0.1 kPa of a library valley. A real offset (the MPX5100's is
-    up to 2.5 kPa) stands out and is removed."""
+    up to 2.5 kPa) stands out and is removed.
+
+    The uncertainty is also the quadratic's own: a library segment's start is steep and
+    bends fast (2-3 kPa per 0.1 mL row), which no quadratic through four rows follows to
+    the rows' 0.003 kPa rounding error. Where the bins miss it by more than their errors
+    (a reduced chi-square above 1), its covariance is scaled by that chi-square (the
+    Birge ratio): on a table rounded to 0.01 kPa every 0.1 mL, whose first row reads
+    0.00 at v = 0, the quadratic's -0.04 kPa at v = 0 was removed as an offset and moved
+    the whole curve, valley too, by that much (two valleys 0.006 kPa apart swapped: a
+    spurious snap)."""
     if len(v) < 3:
         return 0.0
-    coefficients, cov = np.polyfit(v, p, 2, w=1.0 / np.asarray(sigma), cov="unscaled")
+    weights = 1.0 / np.asarray(sigma)
+    coefficients, cov = np.polyfit(v, p, 2, w=weights, cov="unscaled")
     offset = float(coefficients[-1])
+    dof = len(v) - 3
+    if dof > 0:
+        chi2 = float(np.sum((weights * (p - np.polyval(coefficients, v))) ** 2)) / dof
+        cov = cov * max(chi2, 1.0)
     return offset if abs(offset) > OFFSET_SIGMAS * math.sqrt(cov[-1, -1]) else 0.0
 
 
