@@ -5,9 +5,9 @@ The order: the suite runs on three processes (``-n 3 --dist loadgroup``), which 
 work units (a test, or a group's tests together: ``GROUPS``) in the order collected; the
 long ones (``LONG_FIRST``, the slowest measured on the 2-core machine) are moved to the
 front so that no worker is left with one of them at the end while the others idle.
-The tests of the compiled path (every test that scans, in-process or through ``labrig
-model scan``, and the compiled path itself) form one group: on a fresh clone the first
-of them compiles ``labrig.model.actuator.compiled_path`` (~1 min of one core: 56 s of CPU,
+The tests of the compiled path (scans and the compiled path itself, in-process or
+through ``labrig model scan``) form one group: on a fresh clone the first of them
+compiles ``labrig.model.actuator.compiled_path`` (~1 min of one core: 56 s of CPU,
 tests/bench/bench_compile.py; 1.5-3 min before: labrig.model.actuator.jit), and the
 fixture ``compiled_path_cached`` does that once, in that worker, before any scan's own
 worker processes start (each would compile it at the same time, two cores for one
@@ -41,6 +41,7 @@ LONG_FIRST = (
     "tests/live/test_live_page.py::",  # 16
     "tests/analysis/test_compare.py::",  # the simulated runs' group: ~25
     "tests/model/test_reference.py::test_the_papers_named_combinations",  # 12
+    "tests/cli/test_model_scan.py::test_ctrl_c_keeps",  # 8
     "tests/rig/test_video_and_frames.py::",  # 10
     "tests/rig/test_faults.py::",
     "tests/model/test_reference.py::",
@@ -56,11 +57,6 @@ GROUPS = {
     "tests/model/test_scan.py::": COMPILED_GROUP,
     "tests/model/test_scan_distributed.py::": COMPILED_GROUP,
     "tests/model/test_scan_failures.py::": COMPILED_GROUP,
-    # scans too, through `labrig model scan` and scan_actuator: on a fresh clone they
-    # compiled the path beside the group's own compile (seen: the Ctrl-C scan test 62 s
-    # against 22 s warm, its scan's three processes compiling while the group did)
-    "tests/cli/test_model_scan.py::": COMPILED_GROUP,
-    "tests/model/test_measured_curves.py::test_a_scan_of_measured_csvs": COMPILED_GROUP,
     "tests/rig/test_demo_run.py::": "demo_run",
     "tests/rig/test_determinism.py::": "demo_run",
     "tests/live/test_live_page.py::": "browser",
