@@ -78,8 +78,10 @@ def _done_chunks(path):
 
 @pytest.mark.slow
 def test_ctrl_c_keeps_the_finished_chunks_and_resume_completes(tmp_path, capsys):
-    # 18 segments, 3,060 quadruples: a few seconds, long enough to be interrupted
-    library = csv_library(tmp_path / "lib", LIBRARY_NAMES[::2])
+    # 14 segments, 1,001 quadruples in 63 chunks of 16: long enough to be interrupted
+    # after two chunks (it was 3,060 quadruples: 36 s of the test alone, 62-70 s in a
+    # fresh-clone suite, for the same check)
+    library = csv_library(tmp_path / "lib", LIBRARY_NAMES[::2][:14])
     out = tmp_path / "quadruples.h5"
     argv = ["model", "scan", "--n", "4", "--library", str(library), "--out", str(out)]
     process = subprocess.Popen(
@@ -99,10 +101,10 @@ def test_ctrl_c_keeps_the_finished_chunks_and_resume_completes(tmp_path, capsys)
     assert process.returncode == 130, err
     assert "--resume continues it" in err and "Traceback" not in err
     partial = read_scan(out)
-    assert not partial.complete and 0 < partial.actuators_done < 3060
+    assert not partial.complete and 0 < partial.actuators_done < 1001
     code, text, err = run([*argv, "--resume", "--workers", "2"], capsys)
     assert code == 0, err
-    assert "3,060 of 3,060 actuators (complete)" in text
+    assert "1,001 of 1,001 actuators (complete)" in text
     resumed = read_scan(out)
     fresh = tmp_path / "fresh.h5"
     code, _, _ = run([*argv[:-1], str(fresh), "--workers", "1"], capsys)
