@@ -28,6 +28,7 @@ from measured_tables import (
     sample_table,
     snap_details,
     snap_volumes,
+    unresolved_fold_pair,
     write_table,
 )
 
@@ -131,7 +132,7 @@ def synthetic_rates(seeds=(1, 2, 3), cases=40) -> None:
             # not a snap those tables can show (``transitions``): not counted as missed
             tables = table_resolution(Actuator(curves))
             details = [c for c in snap_details(shapes) if c[1] > 0.01]
-            shown = [c for c in details if not (c[3] and not tables.resolves_fold_pair(c[4], c[2]))]
+            shown = [c for c in details if not unresolved_fold_pair(c, tables)]
             unresolved += len(details) - len(shown)
             clean = [c[0] for c in shown]
             got = snap_volumes(curves)

@@ -76,6 +76,14 @@ def snap_volumes(curves) -> list[float]:
     return [v for v, _ in snaps(curves)]
 
 
+def unresolved_fold_pair(snap, tables) -> bool:
+    """Whether a clean snap (``snap_details``) is a fold pair whose slope deficit the
+    measured tables (``transitions.table_resolution``) do not resolve over its flow: not
+    a snap those tables can show (the criterion of ``transitions``)."""
+    _, _, flow_ml, same_branches, deficit = snap
+    return same_branches and not tables.resolves_fold_pair(deficit, flow_ml)
+
+
 def snaps(curves) -> list[tuple[float, float]]:
     """(volume, size of the pressure jump in kPa) of each snap on the inflation path."""
     return [(v, dp) for v, dp, *_ in snap_details(curves)]

@@ -143,17 +143,19 @@ def fold_slope_deficit(segments, pre: State, post: State) -> float:
     plateau centres put a rising slope 10 % low). 0 where not exactly one segment falls
     (with two falling nothing is marginal: resolved as any snap)."""
     a, b = np.array(pre.v_i_ml), np.array(post.v_i_ml)
-    worst = 0.0
-    for t in np.linspace(0.0, 1.0, DEFICIT_SAMPLES):
-        k = np.array(
-            [float(s.slope_kpa_per_ml(v)) for s, v in zip(segments, a + t * (b - a), strict=True)]
-        )
-        falling = k < 0
-        if np.count_nonzero(falling) != 1 or np.any(k == 0):
-            continue
-        k_series = 1.0 / float(np.sum(1.0 / k[~falling]))
-        worst = max(worst, -float(k[falling][0]) - k_series)
-    return worst
+    t = np.linspace(0.0, 1.0, DEFICIT_SAMPLES)
+    # each segment's slope at every sample, one call a segment: (samples, segments)
+    k = np.column_stack(
+        [s.slope_kpa_per_ml(a[i] + t * (b[i] - a[i])) for i, s in enumerate(segments)]
+    )
+    falling = k < 0
+    one_falls = (np.count_nonzero(falling, axis=1) == 1) & np.all(k != 0, axis=1)
+    if not one_falls.any():
+        return 0.0
+    k, falling = k[one_falls], falling[one_falls]
+    k_series = 1.0 / np.sum(np.where(falling, 0.0, 1.0 / k), axis=1)
+    deficit = -np.sum(np.where(falling, k, 0.0), axis=1) - k_series
+    return max(0.0, float(np.max(deficit)))
 
 
 def _fold_pair_unresolved(item, resolution: TablesResolution, segments) -> bool:
@@ -167,10 +169,13 @@ def _fold_pair_unresolved(item, resolution: TablesResolution, segments) -> bool:
     dp = item.post.p_kpa - item.pre.p_kpa
     if abs(dp) <= 2 * resolution.p_kpa and flow <= resolution.v_ml:
         return True
-    if flow <= 0 or not resolution.rows or np.count_nonzero(np.array(item.pre.k_i) < 0) != 1:
-        return not resolution.resolves_fold_pair(abs(dp) / max(flow, 1e-300), flow)
-    deficit = fold_slope_deficit(segments, item.pre, item.post)
-    return not resolution.resolves_fold_pair(deficit, flow)
+    if flow <= 0:
+        return True  # no flow: no slope either table could show
+    if resolution.rows and np.count_nonzero(np.array(item.pre.k_i) < 0) == 1:
+        slope = fold_slope_deficit(segments, item.pre, item.post)
+    else:
+        slope = abs(dp) / flow
+    return not resolution.resolves_fold_pair(slope, flow)
 
 
 def below_resolution(timeline, t: int, resolution: TablesResolution, segments) -> bool:
