@@ -47,7 +47,7 @@ import numpy as np
 
 from labrig.clock import Clock, ClockThread
 from labrig.devices import LengthSample
-from labrig.drivers.markers import MarkerTracker, mm_per_px_from_reference
+from labrig.drivers.markers import MarkerFix, MarkerTracker, mm_per_px_from_reference
 from labrig.errors import DeviceError, InputError
 
 DEVICE_PATH = re.compile(r"^/dev/video\d+$")
@@ -345,12 +345,17 @@ class CameraLength:
         return None if frame is None else self._measure(frame)
 
     def read_new(self) -> list[LengthSample]:
-        """Every frame of a live camera since the last call, measured now, oldest first
-        (``FrameSource.take_frames``); never waits."""
-        return [self._measure(frame) for frame in self.frames.take_frames()]
+        """Every frame of a live camera since the last call, measured now as one batch
+        (``MarkerTracker.track_many``), oldest first (``FrameSource.take_frames``);
+        never waits."""
+        frames = self.frames.take_frames()
+        fixes = self.tracker.track_many([frame.image for frame in frames])
+        return [self._sample(frame, fix) for frame, fix in zip(frames, fixes, strict=True)]
 
     def _measure(self, frame: Frame) -> LengthSample:
-        fix = self.tracker.track(frame.image)
+        return self._sample(frame, self.tracker.track(frame.image))
+
+    def _sample(self, frame: Frame, fix: MarkerFix) -> LengthSample:
         if self.mm_per_px is None:
             # The first frame is the reference frame.
             self.mm_per_px = mm_per_px_from_reference(fix, self.reference_distance_mm)

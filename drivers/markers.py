@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -127,6 +128,141 @@ class MarkerTracker:
         self.full_searches += 1
         blobs = self._blobs(frame, 0, 0, frame.shape[1], frame.shape[0])
         return self._accept(frame, blobs, near=None)
+
+    def track_many(self, frames: Sequence[np.ndarray]) -> list[MarkerFix]:
+        """``track`` on each of a batch of consecutive frames, in order.
+
+        While both markers are held, their windows are searched in every frame of the
+        batch at once (``_track_held``): the windows around the positions before the
+        batch, one connected-components pass over all of them, the centres refined by
+        one vectorised pass — the same tests and the same centroid as frame by frame,
+        for a fraction of the calls. From the first frame where that does not clearly
+        find both markers (one lost, merged, ambiguous, moved near its window's edge),
+        the batch goes on frame by frame, which decides what the frame shows."""
+        frames = list(frames)
+        held = self._track_held(frames) if self._batchable(frames) else []
+        return held + [self.track(frame) for frame in frames[len(held) :]]
+
+    def _batchable(self, frames: list) -> bool:
+        if self._last is None or self._hsv is not None or len(frames) < 2:
+            return False
+        shape = getattr(frames[0], "shape", None)
+        return (
+            shape is not None
+            and len(shape) in (2, 3)
+            and all(getattr(f, "shape", None) == shape for f in frames)
+        )
+
+    def _track_held(self, frames: list) -> list[MarkerFix]:
+        """The fixes of the longest run of frames, from the first, in which each held
+        marker's window shows exactly one marker-like blob; [] when none."""
+        h, w = frames[0].shape[:2]
+        half = self._window_half_px()
+        boxes = []
+        for x, y in self._last:
+            box = (max(int(x) - half, 0), max(int(y) - half, 0),
+                   min(int(x) + half + 1, w), min(int(y) + half + 1, h))  # fmt: skip
+            if box[0] >= box[2] or box[1] >= box[3]:
+                return []
+            boxes.append(box)
+        if _overlap(*boxes):
+            return []  # close markers: frame by frame tells merged from apart
+        (ok1, x1, y1, area1), (ok2, x2, y2, area2) = (
+            self._held_in_window(frames, box, last, half)
+            for box, last in zip(boxes, self._last, strict=True)
+        )
+        # too close to measure apart, or in the other order, is for the frame-by-frame
+        # tests to judge (as ``_accept`` does, against the fix of the frame before)
+        apart_px = np.hypot(x2 - x1, y2 - y1)
+        radii_px = np.sqrt(area1 / math.pi) + np.sqrt(area2 / math.pi) + 8.0
+        (lx1, ly1), (lx2, ly2) = self._last
+        bx1, by1, bx2, by2 = (np.concatenate([[last], now[:-1]]) for last, now in
+                              ((lx1, x1), (ly1, y1), (lx2, x2), (ly2, y2)))  # fmt: skip
+        straight = np.hypot(x1 - bx1, y1 - by1) + np.hypot(x2 - bx2, y2 - by2)
+        swapped = np.hypot(x2 - bx1, y2 - by1) + np.hypot(x1 - bx2, y1 - by2)
+        ok = ok1 & ok2 & (apart_px >= radii_px) & ~(swapped < straight)
+        n = len(frames) if ok.all() else int(np.argmin(ok))
+        if n == 0:
+            return []
+        self._last = ((float(x1[n - 1]), float(y1[n - 1])), (float(x2[n - 1]), float(y2[n - 1])))
+        self._area_px = 0.5 * float(area1[n - 1] + area2[n - 1])
+        return [
+            MarkerFix(*row, ok=True, status="ok")
+            for row in np.column_stack([x1[:n], y1[:n], x2[:n], y2[:n]]).tolist()
+        ]
+
+    def _held_in_window(self, frames: list, box, last, near: int):
+        """One window in every frame: (found, x_px, y_px, area_px), arrays over the
+        frames; found where exactly one blob in it is marker-like (``_accept``'s tests),
+        within ``near`` of ``last``, and its centroid window lies inside the box."""
+        x0, y0, x1, y1 = box
+        bw, bh, n = x1 - x0, y1 - y0, len(frames)
+        stack = _stack_regions(frames, x0, y0, x1, y1)
+        grey = (
+            stack
+            if stack.ndim == 3
+            else cv2.cvtColor(stack.reshape(n * bh, bw, 3), cv2.COLOR_BGR2GRAY).reshape(n, bh, bw)
+        )
+        # each window's mask, as ``_mask`` makes it, with an empty row below it: one
+        # connected-components pass labels every window's blobs apart
+        masks = np.zeros((n, bh + 1, bw), dtype=np.uint8)
+        if self.threshold is not None:
+            masks[:, :bh] = grey <= self.threshold
+        else:
+            for k in range(n):
+                cv2.threshold(grey[k], 0, 1, cv2.THRESH_BINARY_INV | cv2.THRESH_OTSU,
+                              dst=masks[k, :bh])  # fmt: skip
+            flat = grey.reshape(n, -1)
+            masks[flat.max(axis=1).astype(int) - flat.min(axis=1) < self.min_contrast] = 0
+        rows = masks.reshape(n * (bh + 1), bw)
+        ltype = cv2.CV_16U if rows.size < 2 * 65535 else cv2.CV_32S
+        _, _, stats, centroids = cv2.connectedComponentsWithStats(rows, connectivity=8, ltype=ltype)
+        sw, sh, area = stats[1:, 2:].T.astype(float)  # label 0 is the background
+        frame_of = stats[1:, cv2.CC_STAT_TOP] // (bh + 1)
+        cx = x0 + centroids[1:, 0]
+        cy = y0 + centroids[1:, 1] - frame_of * (bh + 1)
+        aspect = np.maximum(sw, sh) / np.maximum(np.minimum(sw, sh), 1)
+        marker_like = (
+            (self.min_area_px <= area) & (area <= self.max_area_px)
+            & (area >= _MIN_FILL * sw * sh) & (aspect <= _MAX_ASPECT)
+            & (0.4 * self._area_px <= area) & (area <= 2.5 * self._area_px)
+            & (np.hypot(cx - last[0], cy - last[1]) <= near)
+        )  # fmt: skip
+        found = np.bincount(frame_of[marker_like], minlength=n) == 1
+        if not found.any():
+            nowhere = np.zeros(n)
+            return found, nowhere, nowhere, nowhere
+        blob = np.zeros(n, dtype=int)
+        blob[frame_of[marker_like]] = np.flatnonzero(marker_like)
+        x, y, a = cx[blob], cy[blob], area[blob]
+        # the sub-pixel centre (``_refine``), all frames at once: moments of the
+        # darkness less the ring's median, in a window around the rounded coarse centre
+        r_in = np.sqrt(a / math.pi) + 4.0
+        reach = math.ceil(float(r_in.max()) + 3.0)
+        offsets = np.arange(-reach, reach + 1)
+        r2 = offsets[None, :] ** 2 + offsets[:, None] ** 2
+        left_px = np.rint(x).astype(int) - reach - x0
+        top_px = np.rint(y).astype(int) - reach - y0
+        found &= (left_px >= 0) & (top_px >= 0)
+        found &= (left_px + 2 * reach < bw) & (top_px + 2 * reach < bh)
+        left_px, top_px = np.where(found, left_px, 0), np.where(found, top_px, 0)
+        patch = grey[
+            np.arange(n)[:, None, None],
+            top_px[:, None, None] + np.arange(2 * reach + 1)[None, :, None],
+            left_px[:, None, None] + np.arange(2 * reach + 1)[None, None, :],
+        ]
+        signal = 255.0 - patch.astype(np.float32)
+        inside = r2[None] <= (r_in * r_in)[:, None, None]
+        ring = ~inside & (r2[None] <= ((r_in + 3.0) ** 2)[:, None, None])
+        background = _ring_medians(signal, ring)
+        weights = (signal - background.astype(np.float32)[:, None, None]) * inside
+        weights = weights.astype(np.float64)
+        m00 = weights.sum(axis=(1, 2))
+        found &= m00 > 0
+        m00 = np.where(found, m00, 1.0)
+        x_px = x0 + left_px + (weights.sum(axis=1) @ np.arange(2 * reach + 1)) / m00
+        y_px = y0 + top_px + (weights.sum(axis=2) @ np.arange(2 * reach + 1)) / m00
+        return found, x_px, y_px, a
 
     # -- searching ---------------------------------------------------------------------------
 
@@ -292,6 +428,26 @@ def _window_masks(half: int, r_in: float) -> tuple[np.ndarray, np.ndarray]:
     inside = r2 <= r_in * r_in
     r_out = r_in + 3.0
     return inside.astype(np.float32), np.flatnonzero(~inside & (r2 <= r_out * r_out))
+
+
+def _ring_medians(signal: np.ndarray, ring: np.ndarray) -> np.ndarray:
+    """Per frame, the median of ``signal`` over ``ring`` (both (n, p, p)), as
+    ``_median`` takes it: the middle value, or the mean of the middle two."""
+    values = np.sort(np.where(ring, signal, np.inf).reshape(len(signal), -1), axis=1)
+    count = ring.reshape(len(ring), -1).sum(axis=1)
+    rows = np.arange(len(values))
+    upper = values[rows, np.maximum(count // 2, 0)].astype(np.float64)
+    lower = values[rows, np.maximum(count // 2 - 1, 0)].astype(np.float64)
+    return np.where(count % 2 == 1, upper, 0.5 * (lower + upper))
+
+
+def _stack_regions(frames: list, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
+    """The box of each frame, stacked: (n, y1 - y0, x1 - x0[, 3]). A frame type that
+    renders only what is read (``labrig.sim.camera.SimFrame``) renders them together."""
+    stack_regions = getattr(type(frames[0]), "stack_regions", None)
+    if stack_regions is not None:
+        return stack_regions(frames, x0, y0, x1, y1)
+    return np.stack([frame[y0:y1, x0:x1] for frame in frames])
 
 
 def _median(values: np.ndarray) -> float:

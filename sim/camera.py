@@ -21,10 +21,9 @@ the video's encoder process from the frame's ``scene`` (``SceneRenderer``).
 
 from __future__ import annotations
 
-import functools
 import math
 import struct
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -131,6 +130,7 @@ class SimCamera:
         )
         self._rng = np.random.default_rng(seed)
         self._noise = self._make_noise() if self.noise_grey > 0 else None
+        self._noise_picks: list[tuple[int, int, int]] = []  # (noise frame, dy, dx), next last
         self.hidden_markers: set[int] = set()  # fault injection: 0 and/or 1 not drawn
         self._pos_msec = 0.0
         # as a capture: V4L2 streams at 640x480 until a size is set
@@ -176,9 +176,11 @@ class SimCamera:
         shows does not depend on when, or whether, it is read."""
         noise = None
         if self._noise is not None:
-            k = int(self._rng.integers(2))
-            dy, dx = (int(v) for v in self._rng.integers(_NOISE_MARGIN_PX, size=2))
-            noise = (k, dy, dx)
+            if not self._noise_picks:
+                # drawn a block at a time: one generator call per 256 frames, not two a frame
+                picks = self._rng.integers((2, _NOISE_MARGIN_PX, _NOISE_MARGIN_PX), size=(256, 3))
+                self._noise_picks = [tuple(pick) for pick in reversed(picks.tolist())]
+            noise = self._noise_picks.pop()
         return SimFrame(
             self,
             t_s=t_s,
@@ -187,29 +189,45 @@ class SimCamera:
             noise=noise,
         )
 
-    def _render_box(self, frame: SimFrame, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
-        """The sensor-size frame's pixels [y0:y1, x0:x1]: the same values whichever box
-        is asked for, so a region read alone equals that region of the whole frame."""
-        out = np.empty((y1 - y0, x1 - x0, self.channels)[: 2 if self.channels == 1 else 3],
-                       dtype=np.uint8)  # fmt: skip
+    def render_stack(self, frames: Sequence[SimFrame], x0: int, y0: int, x1: int, y1: int):
+        """The sensor-size pixels [y0:y1, x0:x1] of each of ``frames`` (this camera's),
+        stacked: shape (n, y1 - y0, x1 - x0[, 3]). Every step is the one a single frame
+        takes, done for the whole stack at once (a run tracks its frames in batches), so
+        a frame's pixels are the same whichever box, and whichever stack, they are
+        rendered in: a region read alone equals that region of the whole frame."""
+        shape = (len(frames), y1 - y0, x1 - x0, self.channels)[: 3 if self.channels == 1 else 4]
+        out = np.empty(shape, dtype=np.uint8)
         if out.size == 0:
             return out
-        background, specimen, marker = frame.palette()
-        band, dots = frame.layout()
-        _fill(out, 0, 0, x1 - x0, y1 - y0, background)
-        bx0, by0, bx1, by1 = max(band[0], x0), max(band[1], y0), min(band[2], x1), min(band[3], y1)
-        if bx0 < bx1 and by0 < by1:
-            _fill(out, bx0 - x0, by0 - y0, bx1 - x0, by1 - y0, specimen)
-        for x, y, box in dots:
-            self._draw_dot(out, x0, y0, x, y, box, marker)
-        if frame.noise is not None:
-            # the noise's positive and negative parts: one saturating add, in two
-            # uint8 passes (a pixel's noise is one or the other), bit for bit
-            k, dy, dx = frame.noise
-            rows, cols = slice(dy + y0, dy + y1), slice(dx + x0, dx + x1)
-            cv2.add(out, self._noise[0][k, rows, cols], dst=out)
-            cv2.subtract(out, self._noise[1][k, rows, cols], dst=out)
+        for i, frame in enumerate(frames):
+            background, specimen, _ = frame.palette()
+            band, _ = frame.layout()
+            out[i] = background
+            bx0, by0 = max(band[0], x0), max(band[1], y0)
+            bx1, by1 = min(band[2], x1), min(band[3], y1)
+            if bx0 < bx1 and by0 < by1:
+                out[i, by0 - y0 : by1 - y0, bx0 - x0 : bx1 - x0] = specimen
+        for index in (0, 1):  # marker 0's dot first: where the two overlap, 1 is on top
+            self._draw_dots(out, frames, index, x0, y0)
+        noisy = [i for i, frame in enumerate(frames) if frame.noise is not None]
+        if noisy:
+            # the noise's positive and negative parts: one saturating add, in two uint8
+            # passes (a pixel's noise is one or the other), over the whole stack at once
+            stack = out if len(noisy) == len(out) else out[noisy]
+            flat = stack.reshape(-1, *stack.shape[2:])
+            for part, add in zip(self._noise, (cv2.add, cv2.subtract), strict=True):
+                picked = np.stack([
+                    part[k, dy + y0 : dy + y1, dx + x0 : dx + x1]
+                    for k, dy, dx in (frames[i].noise for i in noisy)
+                ])  # fmt: skip
+                add(flat, picked.reshape(flat.shape), dst=flat)
+            if stack is not out:
+                out[noisy] = stack  # the frames' copies, made noisy
         return out
+
+    def _render_box(self, frame: SimFrame, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
+        """One frame's pixels [y0:y1, x0:x1] (``render_stack`` of one)."""
+        return self.render_stack([frame], x0, y0, x1, y1)[0]
 
     def _palette(self, gain: float) -> tuple[tuple[float, ...], tuple[float, ...], np.ndarray]:
         """Background and specimen fill colours, the markers' colour, under ``gain``:
@@ -226,7 +244,7 @@ class SimCamera:
 
     def layout(self, centres: np.ndarray, hidden: frozenset) -> tuple[tuple, list]:
         """Where a frame's parts are: the specimen band's box [x0, x1) x [y0, y1) and,
-        for each marker drawn, its centre and its dot's box (``_dot_box``), in frame
+        for each marker drawn, its index, its centre and its dot's box (``_dot_box``), in frame
         pixels; worked out once per frame, whichever regions are rendered."""
         (xa, ya), (xb, yb) = centres.tolist()
         ends_px = 3 * self.radius_px + 40  # the band runs a little past the markers
@@ -238,15 +256,15 @@ class SimCamera:
             min(round(cy + self.band_half_px), self.height),
         )
         dots = [
-            (x, y, self._dot_box(x, y))
+            (index, x, y, self._dot_box(x, y))
             for index, (x, y) in enumerate(((xa, ya), (xb, yb)))
             if index not in hidden
         ]
         return band, dots
 
-    def _draw_dot(self, out: np.ndarray, ox: int, oy: int, x: float, y: float, box, marker):
-        """Blend one anti-aliased, blurred dot around frame point (x, y), whose box is
-        ``box``, into ``out``, the frame's region whose top-left pixel is (ox, oy).
+    def _draw_dots(self, out: np.ndarray, frames, index: int, ox: int, oy: int) -> None:
+        """Blend marker ``index``'s anti-aliased, blurred dot of each frame into its
+        region of ``out`` (the stack whose top-left pixel is frame point (ox, oy)).
 
         Coverage of each pixel by the disc is a linear ramp of its centre's distance to
         the edge (the covered area for an edge parallel to the pixel's sides, close to it
@@ -255,45 +273,48 @@ class SimCamera:
         the surroundings are flat. The coverage is always computed over the dot's whole
         box (then cut to the region), so every region sees the same values.
         """
-        x0, y0, x1, y1 = box
-        h, w = out.shape[:2]
-        cx0, cy0 = max(x0, ox), max(y0, oy)
-        cx1, cy1 = min(x1, ox + w), min(y1, oy + h)
-        if cx0 >= cx1 or cy0 >= cy1:
+        h, w = out.shape[1:3]
+        dots = [
+            (i, x, y, box, frame.palette()[2])
+            for i, frame in enumerate(frames)
+            for m, x, y, box in frame.layout()[1]
+            if m == index and box[0] < ox + w and ox < box[2] and box[1] < oy + h and oy < box[3]
+        ]
+        if not dots:
             return  # outside the region: the tracker's window on the other marker
-        coverage = self._dot_coverage(x, y, box)
-        c = coverage[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0]
-        if out.ndim == 3:
-            c = c[:, :, None]
+        if len({(box[2] - box[0], box[3] - box[1]) for _, _, _, box, _ in dots}) > 1:
+            for dot in dots:  # a dot cut by the frame's edge has a box of its own size
+                self._draw_dots_of_one_size(out, [dot], ox, oy)
         else:
-            marker = marker[0]
-        view = out[cy0 - oy : cy1 - oy, cx0 - ox : cx1 - ox]
-        # a blend of two grey levels in 0-255, + 0.5: truncating rounds it, no clip needed
-        # (the same operations in the same order, in place)
-        blend = view.astype(np.float32)
-        blend *= 1 - c
-        blend += marker * c
-        blend += 0.5
-        view[:] = blend
+            self._draw_dots_of_one_size(out, dots, ox, oy)
 
-    # a frame's dots are drawn in both of the tracker's windows (the one on the other
-    # marker only when the two are close) and again when the frame is rendered whole
-    @functools.lru_cache(maxsize=16)  # noqa: B019
-    def _dot_coverage(self, x: float, y: float, box: tuple) -> np.ndarray:
-        """The blurred coverage of the dot centred at (x, y) over its box (``_dot_box``,
-        cut to the frame)."""
-        x0, y0, x1, y1 = box
-        if x0 >= x1 or y0 >= y1:
-            return np.zeros((0, 0), dtype=np.float32)
-        xx = (np.arange(x0, x1) - x) ** 2
-        yy = (np.arange(y0, y1) - y) ** 2
-        coverage = np.sqrt(np.add.outer(yy, xx), dtype=np.float32)  # the distance, then
+    def _draw_dots_of_one_size(self, out: np.ndarray, dots: list, ox: int, oy: int) -> None:
+        """``_draw_dots`` for dots (one per frame) whose boxes have one size."""
+        i = np.array([dot[0] for dot in dots])
+        x, y = (np.array([dot[k] for dot in dots])[:, None] for k in (1, 2))
+        bx0, by0, bx1, by1 = (np.array([dot[3][k] for dot in dots]) for k in range(4))
+        bw, bh = int(bx1[0] - bx0[0]), int(by1[0] - by0[0])
+        xx = (bx0[:, None] + np.arange(bw) - x) ** 2
+        yy = (by0[:, None] + np.arange(bh) - y) ** 2
+        coverage = np.sqrt(yy[:, :, None] + xx[:, None, :], dtype=np.float32)  # distance
         np.subtract(np.float32(self.radius_px + 0.5), coverage, out=coverage)
         np.maximum(coverage, 0.0, out=coverage)
         np.minimum(coverage, 1.0, out=coverage)
         if self.blur_px > 0:
-            coverage = cv2.GaussianBlur(coverage, (0, 0), self.blur_px)
-        return coverage
+            for c in coverage:
+                cv2.GaussianBlur(c, (0, 0), self.blur_px, dst=c)
+        marker = np.array([dot[4] for dot in dots], dtype=np.float32)
+        if out.ndim == 3:
+            marker = marker[:, :1, None]  # grey: one level per dot
+        else:
+            coverage, marker = coverage[..., None], marker[:, None, None, :]
+        h, w = out.shape[1:3]
+        for k, n in enumerate(i.tolist()):  # each in its own slices: cheaper than gathered
+            cx0, cy0 = max(bx0[k], ox), max(by0[k], oy)
+            cx1, cy1 = min(bx1[k], ox + w), min(by1[k], oy + h)
+            c = coverage[k, cy0 - by0[k] : cy1 - by0[k], cx0 - bx0[k] : cx1 - bx0[k]]
+            view = out[n, cy0 - oy : cy1 - oy, cx0 - ox : cx1 - ox]
+            view[:] = _blend(view, c, marker[k])
 
     def _dot_box(self, x: float, y: float) -> tuple[int, int, int, int]:
         """The box [x0, x1) x [y0, y1) a dot centred at (x, y) covers, cut to the frame."""
@@ -519,6 +540,18 @@ class SimFrame:
                     return region if len(key) == 2 else region[(slice(None), slice(None), *key[2:])]
         return np.asarray(self)[key]
 
+    @staticmethod
+    def stack_regions(frames: Sequence, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
+        """The box [y0:y1, x0:x1] of each frame, stacked (what a tracker reads from a
+        batch of frames): rendered for all of them at once when they are one camera's
+        frames at its sensor size, else cut from each."""
+        camera = frames[0].camera
+        if all(
+            isinstance(f, SimFrame) and f.camera is camera and f._resized_to is None for f in frames
+        ):
+            return camera.render_stack(frames, x0, y0, x1, y1)
+        return np.stack([f[y0:y1, x0:x1] for f in frames])
+
     def _region(self, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
         """The pixels of a box: cut from a box rendered before that holds it (the
         tracker's centroid windows lie inside its search windows), else rendered."""
@@ -557,6 +590,16 @@ class SceneRenderer:
         if self._camera is None:
             self._camera = SimCamera(None, None, **self.spec)  # draws only: no clock
         return self._camera.render_scene(scene)
+
+
+def _blend(pixels: np.ndarray, coverage: np.ndarray, marker: np.ndarray) -> np.ndarray:
+    """Pixels under a dot: a blend of their level and the marker's by the coverage, in
+    single precision, + 0.5 so that truncating to uint8 rounds (both are in 0-255)."""
+    blend = pixels.astype(np.float32)
+    blend *= 1 - coverage
+    blend += marker * coverage
+    blend += 0.5
+    return blend
 
 
 def _to_float32(value: float) -> float:
