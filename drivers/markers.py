@@ -30,6 +30,9 @@ from labrig.errors import InputError
 # A marker's blob is round: it fills about pi/4 of its bounding box, which is about square.
 _MIN_FILL = 0.55
 _MAX_ASPECT = 1.6
+# How far a held marker may move within one batch of frames and still be measured in it
+# (a snap moves it a few px a frame at 30 fps); beyond, the frames go one by one.
+_BATCH_MOTION_PX = 8
 # Two touching markers make one blob of about twice a marker's area.
 _MERGED_AREA = (1.3, 2.8)
 
@@ -157,7 +160,10 @@ class MarkerTracker:
         """The fixes of the longest run of frames, from the first, in which each held
         marker's window shows exactly one marker-like blob; [] when none."""
         h, w = frames[0].shape[:2]
-        half = self._window_half_px()
+        # a window just larger than a centroid window (``_refine``) by the motion a batch
+        # may hold: a quarter of the pixels of a frame-by-frame search window
+        radius_px = math.sqrt(self._area_px / math.pi)
+        half = math.ceil(radius_px + 7.0) + _BATCH_MOTION_PX
         boxes = []
         for x, y in self._last:
             box = (max(int(x) - half, 0), max(int(y) - half, 0),
@@ -239,19 +245,17 @@ class MarkerTracker:
         # darkness less the ring's median, in a window around the rounded coarse centre
         r_in = np.sqrt(a / math.pi) + 4.0
         reach = math.ceil(float(r_in.max()) + 3.0)
-        offsets = np.arange(-reach, reach + 1)
+        side = 2 * reach + 1
+        offsets = np.arange(-reach, reach + 1, dtype=float)
         r2 = offsets[None, :] ** 2 + offsets[:, None] ** 2
         left_px = np.rint(x).astype(int) - reach - x0
         top_px = np.rint(y).astype(int) - reach - y0
-        found &= (left_px >= 0) & (top_px >= 0)
-        found &= (left_px + 2 * reach < bw) & (top_px + 2 * reach < bh)
+        found &= (left_px >= 0) & (top_px >= 0) & (left_px + side <= bw) & (top_px + side <= bh)
+        if not found.any():
+            return found, x, y, a
         left_px, top_px = np.where(found, left_px, 0), np.where(found, top_px, 0)
-        patch = grey[
-            np.arange(n)[:, None, None],
-            top_px[:, None, None] + np.arange(2 * reach + 1)[None, :, None],
-            left_px[:, None, None] + np.arange(2 * reach + 1)[None, None, :],
-        ]
-        signal = 255.0 - patch.astype(np.float32)
+        patches = np.lib.stride_tricks.sliding_window_view(grey, (side, side), axis=(1, 2))
+        signal = 255.0 - patches[np.arange(n), top_px, left_px].astype(np.float32)
         inside = r2[None] <= (r_in * r_in)[:, None, None]
         ring = ~inside & (r2[None] <= ((r_in + 3.0) ** 2)[:, None, None])
         background = _ring_medians(signal, ring)
@@ -260,8 +264,8 @@ class MarkerTracker:
         m00 = weights.sum(axis=(1, 2))
         found &= m00 > 0
         m00 = np.where(found, m00, 1.0)
-        x_px = x0 + left_px + (weights.sum(axis=1) @ np.arange(2 * reach + 1)) / m00
-        y_px = y0 + top_px + (weights.sum(axis=2) @ np.arange(2 * reach + 1)) / m00
+        x_px = x0 + left_px + (weights.sum(axis=1) @ np.arange(side, dtype=float)) / m00
+        y_px = y0 + top_px + (weights.sum(axis=2) @ np.arange(side, dtype=float)) / m00
         return found, x_px, y_px, a
 
     # -- searching ---------------------------------------------------------------------------

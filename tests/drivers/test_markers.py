@@ -122,6 +122,74 @@ def test_markers_that_merge_give_nan_never_a_wrong_length():
     assert statuses[-5:] == ["ok"] * 5
 
 
+def _batches(frames, size):
+    return [frames[i : i + size] for i in range(0, len(frames), size)]
+
+
+@pytest.mark.parametrize("monochrome", [True, False])
+def test_a_batch_of_held_markers_is_measured_as_frame_by_frame(monochrome):
+    """``track_many`` on batches of lazily rendered frames: every fix within 0.05 px of
+    the truth and of ``track`` on the same frames; the windows of the held markers are
+    searched all at once (no full search after the first frame)."""
+
+    def frames():
+        cam = camera(length_mm_at=lambda t: 30.0 + 4.0 * math.sin(t / 3), size=(640, 360),
+                     mm_per_px=0.1, noise_grey=3.0, monochrome=monochrome)  # fmt: skip
+        return cam, [cam.frame_at(k / 30) for k in range(180)]
+
+    cam, one_by_one = frames()
+    tracker = MarkerTracker()
+    single = [tracker.track(f) for f in one_by_one]
+    _, batched_frames = frames()
+    batched_tracker = MarkerTracker()
+    batched = [fix for b in _batches(batched_frames, 6) for fix in batched_tracker.track_many(b)]
+    truth = np.array([cam.marker_centres_px(k / 30) for k in range(180)])
+    assert all(f.ok for f in batched)
+    got = np.array([centres(f) for f in batched])
+    assert np.max(np.abs(got - truth)) < 0.05
+    assert np.max(np.abs(got - np.array([centres(f) for f in single]))) < 0.05
+    assert batched_tracker.full_searches == 1
+
+
+def test_a_batch_goes_frame_by_frame_from_a_lost_or_merged_marker():
+    """Markers that merge and part again, and one that is hidden, inside batches: the
+    same statuses, frame by frame, as ``track`` gives; the lengths where both are seen."""
+    lengths = np.concatenate([np.linspace(8.0, 1.0, 30), np.linspace(1.0, 8.0, 30), [8.0] * 30])
+
+    def frames():
+        cam = camera(length_mm_at=lambda t: float(lengths[round(t * 30)]), size=(640, 360))
+        made = []
+        for k in range(len(lengths)):
+            hide = 70 <= k < 76
+            cam.hide_marker(1, hide)
+            made.append(cam.frame_at(k / 30))
+        return cam, made
+
+    _, one_by_one = frames()
+    tracker = MarkerTracker()
+    single = [tracker.track(f) for f in one_by_one]
+    cam, batched_frames = frames()
+    batched_tracker = MarkerTracker()
+    batched = [fix for b in _batches(batched_frames, 7) for fix in batched_tracker.track_many(b)]
+    assert [f.status for f in batched] == [f.status for f in single]
+    assert {"merged", "lost", "ok"} <= {f.status for f in batched}
+    for k, fix in enumerate(batched):
+        if fix.ok:
+            assert fix.distance_px * cam.mm_per_px == pytest.approx(lengths[k], abs=0.01)
+
+
+def test_a_batch_of_plain_image_arrays_is_tracked_too():
+    """Frames from a real camera are arrays: their windows are cut and stacked."""
+    cam = camera(size=(640, 360), mm_per_px=0.1)
+    images = [cam.render(k / 30) for k in range(12)]
+    tracker = MarkerTracker()
+    fixes = tracker.track_many(images[:1]) + tracker.track_many(images[1:])
+    for k, fix in enumerate(fixes):
+        assert fix.ok
+        assert centres(fix) == pytest.approx(cam.marker_centres_px(k / 30), abs=0.05)
+    assert tracker.full_searches == 1
+
+
 def test_three_look_alike_dots_are_ambiguous_not_a_guess():
     frame = np.full((360, 640, 3), 200, np.uint8)
     for x in (150, 320, 490):
