@@ -173,10 +173,19 @@ class MarkerTracker:
             boxes.append(box)
         if _overlap(*boxes):
             return []  # close markers: frame by frame tells merged from apart
-        (ok1, x1, y1, area1), (ok2, x2, y2, area2) = (
-            self._held_in_window(frames, box, last, half)
-            for box, last in zip(boxes, self._last, strict=True)
-        )
+        n = len(frames)
+        if boxes[0][2] - boxes[0][0] == boxes[1][2] - boxes[1][0] and (
+            boxes[0][3] - boxes[0][1] == boxes[1][3] - boxes[1][1]
+        ):  # both windows in one stack (unless the frame's edge cut one to another size)
+            windows = [boxes[0]] * n + [boxes[1]] * n
+            lasts = [self._last[0]] * n + [self._last[1]] * n
+            found = self._held_in_windows(frames * 2, windows, lasts, half)
+            (ok1, ok2), (x1, x2), (y1, y2), (area1, area2) = (v.reshape(2, n) for v in found)
+        else:
+            (ok1, x1, y1, area1), (ok2, x2, y2, area2) = (
+                self._held_in_windows(frames, [box] * n, [last] * n, half)
+                for box, last in zip(boxes, self._last, strict=True)
+            )
         # too close to measure apart, or in the other order, is for the frame-by-frame
         # tests to judge (as ``_accept`` does, against the fix of the frame before)
         apart_px = np.hypot(x2 - x1, y2 - y1)
@@ -187,7 +196,7 @@ class MarkerTracker:
         straight = np.hypot(x1 - bx1, y1 - by1) + np.hypot(x2 - bx2, y2 - by2)
         swapped = np.hypot(x2 - bx1, y2 - by1) + np.hypot(x1 - bx2, y1 - by2)
         ok = ok1 & ok2 & (apart_px >= radii_px) & ~(swapped < straight)
-        n = len(frames) if ok.all() else int(np.argmin(ok))
+        n = n if ok.all() else int(np.argmin(ok))
         if n == 0:
             return []
         self._last = ((float(x1[n - 1]), float(y1[n - 1])), (float(x2[n - 1]), float(y2[n - 1])))
@@ -197,13 +206,15 @@ class MarkerTracker:
             for row in np.column_stack([x1[:n], y1[:n], x2[:n], y2[:n]]).tolist()
         ]
 
-    def _held_in_window(self, frames: list, box, last, near: int):
-        """One window in every frame: (found, x_px, y_px, area_px), arrays over the
-        frames; found where exactly one blob in it is marker-like (``_accept``'s tests),
-        within ``near`` of ``last``, and its centroid window lies inside the box."""
-        x0, y0, x1, y1 = box
-        bw, bh, n = x1 - x0, y1 - y0, len(frames)
-        stack = _stack_regions(frames, x0, y0, x1, y1)
+    def _held_in_windows(self, frames: list, boxes: list, lasts: list, near: int):
+        """Window i (``boxes[i]``, all of one size) of frame i, for every i:
+        (found, x_px, y_px, area_px), arrays over them; found where exactly one blob in
+        the window is marker-like (``_accept``'s tests), within ``near`` of ``lasts[i]``,
+        and its centroid window lies inside the window."""
+        x0, y0 = (np.array([box[k] for box in boxes]) for k in (0, 1))
+        bw, bh, n = boxes[0][2] - boxes[0][0], boxes[0][3] - boxes[0][1], len(frames)
+        last_x, last_y = (np.array([last[k] for last in lasts]) for k in (0, 1))
+        stack = _stack_regions(frames, boxes)
         grey = (
             stack
             if stack.ndim == 3
@@ -225,14 +236,14 @@ class MarkerTracker:
         _, _, stats, centroids = cv2.connectedComponentsWithStats(rows, connectivity=8, ltype=ltype)
         sw, sh, area = stats[1:, 2:].T.astype(float)  # label 0 is the background
         frame_of = stats[1:, cv2.CC_STAT_TOP] // (bh + 1)
-        cx = x0 + centroids[1:, 0]
-        cy = y0 + centroids[1:, 1] - frame_of * (bh + 1)
+        cx = x0[frame_of] + centroids[1:, 0]
+        cy = y0[frame_of] + centroids[1:, 1] - frame_of * (bh + 1)
         aspect = np.maximum(sw, sh) / np.maximum(np.minimum(sw, sh), 1)
         marker_like = (
             (self.min_area_px <= area) & (area <= self.max_area_px)
             & (area >= _MIN_FILL * sw * sh) & (aspect <= _MAX_ASPECT)
             & (0.4 * self._area_px <= area) & (area <= 2.5 * self._area_px)
-            & (np.hypot(cx - last[0], cy - last[1]) <= near)
+            & (np.hypot(cx - last_x[frame_of], cy - last_y[frame_of]) <= near)
         )  # fmt: skip
         found = np.bincount(frame_of[marker_like], minlength=n) == 1
         if not found.any():
@@ -445,13 +456,17 @@ def _ring_medians(signal: np.ndarray, ring: np.ndarray) -> np.ndarray:
     return np.where(count % 2 == 1, upper, 0.5 * (lower + upper))
 
 
-def _stack_regions(frames: list, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
-    """The box of each frame, stacked: (n, y1 - y0, x1 - x0[, 3]). A frame type that
-    renders only what is read (``labrig.sim.camera.SimFrame``) renders them together."""
+def _stack_regions(frames: list, boxes: list) -> np.ndarray:
+    """Box i (x0, y0, x1, y1, all of one size) of frame i, stacked: (n, h, w[, 3]). A
+    frame type that renders only what is read (``labrig.sim.camera.SimFrame``) renders
+    them together."""
     stack_regions = getattr(type(frames[0]), "stack_regions", None)
-    if stack_regions is not None:
-        return stack_regions(frames, x0, y0, x1, y1)
-    return np.stack([frame[y0:y1, x0:x1] for frame in frames])
+    stack = stack_regions(frames, boxes) if stack_regions is not None else None
+    if stack is None:
+        stack = np.stack(
+            [f[y0:y1, x0:x1] for f, (x0, y0, x1, y1) in zip(frames, boxes, strict=True)]
+        )
+    return stack
 
 
 def _median(values: np.ndarray) -> float:

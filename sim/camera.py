@@ -190,17 +190,19 @@ class SimCamera:
             noise=noise,
         )
 
-    def render_stack(self, frames: Sequence[SimFrame], x0: int, y0: int, x1: int, y1: int):
-        """The sensor-size pixels [y0:y1, x0:x1] of each of ``frames`` (this camera's),
-        stacked: shape (n, y1 - y0, x1 - x0[, 3]). Every step is the one a single frame
-        takes, done for the whole stack at once (a run tracks its frames in batches), so
-        a frame's pixels are the same whichever box, and whichever stack, they are
-        rendered in: a region read alone equals that region of the whole frame."""
+    def render_stack(self, frames: Sequence[SimFrame], boxes: Sequence[tuple]) -> np.ndarray:
+        """The sensor-size pixels of box i (x0, y0, x1, y1: [y0:y1, x0:x1]) of frame i,
+        for every i, stacked: shape (n, h, w[, 3]), the boxes all of one size. Every step
+        is the one a single frame takes, done for the whole stack at once (a run tracks
+        its frames in batches), so a frame's pixels are the same whichever box, and
+        whichever stack, they are rendered in: a region read alone equals that region of
+        the whole frame."""
+        x0, y0, x1, y1 = boxes[0]
         shape = (len(frames), y1 - y0, x1 - x0, self.channels)[: 3 if self.channels == 1 else 4]
         out = np.empty(shape, dtype=np.uint8)
         if out.size == 0:
             return out
-        for i, frame in enumerate(frames):
+        for i, (frame, (x0, y0, x1, y1)) in enumerate(zip(frames, boxes, strict=True)):
             background, specimen, _ = frame.palette()
             band, _ = frame.layout()
             out[i] = background
@@ -209,17 +211,18 @@ class SimCamera:
             if bx0 < bx1 and by0 < by1:
                 out[i, by0 - y0 : by1 - y0, bx0 - x0 : bx1 - x0] = specimen
         for index in (0, 1):  # marker 0's dot first: where the two overlap, 1 is on top
-            self._draw_dots(out, frames, index, x0, y0)
+            self._draw_dots(out, frames, boxes, index)
         noisy = [i for i, frame in enumerate(frames) if frame.noise is not None]
         if noisy:
             # the noise's positive and negative parts: one saturating add, in two uint8
             # passes (a pixel's noise is one or the other), over the whole stack at once
             stack = out if len(noisy) == len(out) else out[noisy]
             flat = stack.reshape(-1, *stack.shape[2:])
+            picks = [(frames[i].noise, boxes[i]) for i in noisy]
             for part, add in zip(self._noise, (cv2.add, cv2.subtract), strict=True):
                 picked = np.stack([
                     part[k, dy + y0 : dy + y1, dx + x0 : dx + x1]
-                    for k, dy, dx in (frames[i].noise for i in noisy)
+                    for (k, dy, dx), (x0, y0, x1, y1) in picks
                 ])  # fmt: skip
                 add(flat, picked.reshape(flat.shape), dst=flat)
             if stack is not out:
@@ -228,7 +231,7 @@ class SimCamera:
 
     def _render_box(self, frame: SimFrame, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
         """One frame's pixels [y0:y1, x0:x1] (``render_stack`` of one)."""
-        return self.render_stack([frame], x0, y0, x1, y1)[0]
+        return self.render_stack([frame], [(x0, y0, x1, y1)])[0]
 
     def _palette(self, gain: float) -> tuple[tuple[float, ...], tuple[float, ...], np.ndarray]:
         """Background and specimen fill colours, the markers' colour, under ``gain``:
@@ -263,9 +266,9 @@ class SimCamera:
         ]
         return band, dots
 
-    def _draw_dots(self, out: np.ndarray, frames, index: int, ox: int, oy: int) -> None:
-        """Blend marker ``index``'s anti-aliased, blurred dot of each frame into its
-        region of ``out`` (the stack whose top-left pixel is frame point (ox, oy)).
+    def _draw_dots(self, out: np.ndarray, frames, boxes, index: int) -> None:
+        """Blend marker ``index``'s anti-aliased, blurred dot of frame i into stack entry
+        i of ``out``, which holds box i of it (``render_stack``).
 
         Coverage of each pixel by the disc is a linear ramp of its centre's distance to
         the edge (the covered area for an edge parallel to the pixel's sides, close to it
@@ -274,29 +277,29 @@ class SimCamera:
         the surroundings are flat. The coverage is always computed over the dot's whole
         box (then cut to the region), so every region sees the same values.
         """
-        h, w = out.shape[1:3]
         dots = [
-            (i, x, y, box, frame.palette()[2])
-            for i, frame in enumerate(frames)
-            for m, x, y, box in frame.layout()[1]
-            if m == index and box[0] < ox + w and ox < box[2] and box[1] < oy + h and oy < box[3]
-        ]
+            (i, x, y, dot, frame.palette()[2], box)
+            for i, (frame, box) in enumerate(zip(frames, boxes, strict=True))
+            for m, x, y, dot in frame.layout()[1]
+            if m == index and dot[0] < box[2] and box[0] < dot[2] and dot[1] < box[3]
+            and box[1] < dot[3]
+        ]  # fmt: skip
         if not dots:
             return  # outside the region: the tracker's window on the other marker
-        if len({(box[2] - box[0], box[3] - box[1]) for _, _, _, box, _ in dots}) > 1:
+        if len({(dot[2] - dot[0], dot[3] - dot[1]) for _, _, _, dot, _, _ in dots}) > 1:
             for dot in dots:  # a dot cut by the frame's edge has a box of its own size
-                self._draw_dots_of_one_size(out, [dot], ox, oy)
+                self._draw_dots_of_one_size(out, [dot])
         else:
-            self._draw_dots_of_one_size(out, dots, ox, oy)
+            self._draw_dots_of_one_size(out, dots)
 
-    def _draw_dots_of_one_size(self, out: np.ndarray, dots: list, ox: int, oy: int) -> None:
-        """``_draw_dots`` for dots (one per frame) whose boxes have one size."""
-        i = np.array([dot[0] for dot in dots])
+    def _draw_dots_of_one_size(self, out: np.ndarray, dots: list) -> None:
+        """``_draw_dots`` for dots (at most one per stack entry) whose boxes have one
+        size: their coverage computed all at once."""
         x, y = (np.array([dot[k] for dot in dots])[:, None] for k in (1, 2))
-        bx0, by0, bx1, by1 = (np.array([dot[3][k] for dot in dots]) for k in range(4))
-        bw, bh = int(bx1[0] - bx0[0]), int(by1[0] - by0[0])
-        xx = (bx0[:, None] + np.arange(bw) - x) ** 2
-        yy = (by0[:, None] + np.arange(bh) - y) ** 2
+        dx0, dy0, dx1, dy1 = (np.array([dot[3][k] for dot in dots]) for k in range(4))
+        bw, bh = int(dx1[0] - dx0[0]), int(dy1[0] - dy0[0])
+        xx = (dx0[:, None] + np.arange(bw) - x) ** 2
+        yy = (dy0[:, None] + np.arange(bh) - y) ** 2
         coverage = np.sqrt(yy[:, :, None] + xx[:, None, :], dtype=np.float32)  # distance
         np.subtract(np.float32(self.radius_px + 0.5), coverage, out=coverage)
         np.maximum(coverage, 0.0, out=coverage)
@@ -304,18 +307,15 @@ class SimCamera:
         if self.blur_px > 0:
             for c in coverage:
                 cv2.GaussianBlur(c, (0, 0), self.blur_px, dst=c)
-        marker = np.array([dot[4] for dot in dots], dtype=np.float32)
-        if out.ndim == 3:
-            marker = marker[:, :1, None]  # grey: one level per dot
-        else:
-            coverage, marker = coverage[..., None], marker[:, None, None, :]
-        h, w = out.shape[1:3]
-        for k, n in enumerate(i.tolist()):  # each in its own slices: cheaper than gathered
-            cx0, cy0 = max(bx0[k], ox), max(by0[k], oy)
-            cx1, cy1 = min(bx1[k], ox + w), min(by1[k], oy + h)
-            c = coverage[k, cy0 - by0[k] : cy1 - by0[k], cx0 - bx0[k] : cx1 - bx0[k]]
-            view = out[n, cy0 - oy : cy1 - oy, cx0 - ox : cx1 - ox]
-            view[:] = _blend(view, c, marker[k])
+        if out.ndim == 4:
+            coverage = coverage[..., None]
+        for (i, _, _, dot, marker, box), c in zip(dots, coverage, strict=True):
+            # each in its own slices: cheaper than gathered
+            x0, y0, x1, y1 = dot
+            cx0, cy0, cx1, cy1 = max(x0, box[0]), max(y0, box[1]), min(x1, box[2]), min(y1, box[3])
+            view = out[i, cy0 - box[1] : cy1 - box[1], cx0 - box[0] : cx1 - box[0]]
+            c = c[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0]
+            view[:] = _blend(view, c, marker if out.ndim == 4 else marker[0])
 
     def _dot_box(self, x: float, y: float) -> tuple[int, int, int, int]:
         """The box [x0, x1) x [y0, y1) a dot centred at (x, y) covers, cut to the frame."""
@@ -542,16 +542,16 @@ class SimFrame:
         return np.asarray(self)[key]
 
     @staticmethod
-    def stack_regions(frames: Sequence, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
-        """The box [y0:y1, x0:x1] of each frame, stacked (what a tracker reads from a
-        batch of frames): rendered for all of them at once when they are one camera's
-        frames at its sensor size, else cut from each."""
+    def stack_regions(frames: Sequence, boxes: Sequence[tuple]) -> np.ndarray | None:
+        """Box i (x0, y0, x1, y1: [y0:y1, x0:x1], all of one size) of frame i, stacked
+        (what a tracker reads from a batch of frames), rendered all at once; None unless
+        they are one camera's frames at its sensor size."""
         camera = frames[0].camera
         if all(
             isinstance(f, SimFrame) and f.camera is camera and f._resized_to is None for f in frames
         ):
-            return camera.render_stack(frames, x0, y0, x1, y1)
-        return np.stack([f[y0:y1, x0:x1] for f in frames])
+            return camera.render_stack(frames, boxes)
+        return None
 
     def _region(self, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
         """The pixels of a box: cut from a box rendered before that holds it (the
