@@ -9,7 +9,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from labrig.drivers.markers import MarkerTracker
-from labrig.sim.camera import SimCamera, SimFrame
+from labrig.sim.camera import SimCamera, SimFrame, _blur_matrix
 from labrig.virtual_clock import VirtualClock
 
 
@@ -300,3 +300,16 @@ def test_a_scene_pickled_and_drawn_elsewhere_is_the_frame_bit_for_bit(monochrome
         scene = pickle.loads(pickle.dumps(frame.scene))
         assert np.array_equal(renderer(scene), np.asarray(frame))
     assert not np.array_equal(np.asarray(frames[1]), np.asarray(frames[2]))  # fresh noise
+
+
+@pytest.mark.parametrize("sigma_px", [0.5, 1.0, 1.2, 2.0])
+def test_the_dots_blur_is_opencvs_gaussian_blur(sigma_px):
+    """The dots of a batch are blurred by matrix products (``_blur_matrix``): against
+    ``cv2.GaussianBlur`` on the same coverage, any size down to one pixel (a dot cut by
+    the frame's edge), its reflecting border included."""
+    rng = np.random.default_rng(1)
+    for height, width in [(1, 1), (2, 5), (3, 23), (13, 9), (27, 27), (40, 3)]:
+        coverage = rng.random((height, width)).astype(np.float32)
+        blurred = _blur_matrix(height, sigma_px) @ coverage @ _blur_matrix(width, sigma_px).T
+        expected = cv2.GaussianBlur(coverage, (0, 0), sigma_px)
+        np.testing.assert_allclose(blurred, expected, atol=1e-6)
