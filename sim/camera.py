@@ -206,11 +206,11 @@ class SimCamera:
         for i, (frame, (x0, y0, x1, y1)) in enumerate(zip(frames, boxes, strict=True)):
             background, specimen, _ = frame.palette()
             band, _ = frame.layout()
-            out[i] = background
+            _fill(out[i], 0, 0, x1 - x0, y1 - y0, background)
             bx0, by0 = max(band[0], x0), max(band[1], y0)
             bx1, by1 = min(band[2], x1), min(band[3], y1)
             if bx0 < bx1 and by0 < by1:
-                out[i, by0 - y0 : by1 - y0, bx0 - x0 : bx1 - x0] = specimen
+                _fill(out[i], bx0 - x0, by0 - y0, bx1 - x0, by1 - y0, specimen)
         for index in (0, 1):  # marker 0's dot first: where the two overlap, 1 is on top
             self._draw_dots(out, frames, boxes, index)
         noisy = [i for i, frame in enumerate(frames) if frame.noise is not None]
@@ -221,11 +221,12 @@ class SimCamera:
             flat = stack.reshape(-1, *stack.shape[2:])
             picks = [(frames[i].noise, boxes[i]) for i in noisy]
             for part, add in zip(self._noise, (cv2.add, cv2.subtract), strict=True):
-                picked = np.stack([
+                picked = [
                     part[k, dy + y0 : dy + y1, dx + x0 : dx + x1]
                     for (k, dy, dx), (x0, y0, x1, y1) in picks
-                ])  # fmt: skip
-                add(flat, picked.reshape(flat.shape), dst=flat)
+                ]  # a whole frame's noise is read where it lies, not copied first
+                picked = picked[0] if len(picked) == 1 else np.concatenate(picked)
+                add(flat, picked, dst=flat)
             if stack is not out:
                 out[noisy] = stack  # the frames' copies, made noisy
         return out
@@ -296,11 +297,11 @@ class SimCamera:
     def _draw_dots_of_one_size(self, out: np.ndarray, dots: list) -> None:
         """``_draw_dots`` for dots (at most one per stack entry) whose boxes have one
         size: their coverage computed all at once."""
-        x, y = (np.array([dot[k] for dot in dots])[:, None] for k in (1, 2))
-        dx0, dy0, dx1, dy1 = (np.array([dot[3][k] for dot in dots]) for k in range(4))
-        bw, bh = int(dx1[0] - dx0[0]), int(dy1[0] - dy0[0])
-        xx = (dx0[:, None] + np.arange(bw) - x) ** 2
-        yy = (dy0[:, None] + np.arange(bh) - y) ** 2
+        x, y, dx0, dy0 = np.array([(x, y, *dot[:2]) for _, x, y, dot, _, _ in dots]).T[:, :, None]
+        (x0, y0, x1, y1) = dots[0][3]
+        bw, bh = x1 - x0, y1 - y0
+        xx = (dx0 + np.arange(bw) - x) ** 2
+        yy = (dy0 + np.arange(bh) - y) ** 2
         coverage = np.sqrt(yy[:, :, None] + xx[:, None, :], dtype=np.float32)  # distance
         np.subtract(np.float32(self.radius_px + 0.5), coverage, out=coverage)
         np.maximum(coverage, 0.0, out=coverage)
@@ -643,3 +644,9 @@ def _grey_level(bgr: tuple[int, int, int]) -> float:
     """A colour's grey level as ``cv2.cvtColor(..., COLOR_BGR2GRAY)`` weighs it."""
     b, g, r = bgr
     return 0.114 * b + 0.587 * g + 0.299 * r
+
+
+def _fill(image: np.ndarray, x0: int, y0: int, x1: int, y1: int, colour: tuple) -> None:
+    """Fill [x0, x1) x [y0, y1) of one image with one colour (cv2 does it ~30x faster
+    than numpy)."""
+    cv2.rectangle(image, (x0, y0), (x1 - 1, y1 - 1), colour, thickness=cv2.FILLED)
