@@ -122,8 +122,20 @@ def test_markers_that_merge_give_nan_never_a_wrong_length():
     assert statuses[-5:] == ["ok"] * 5
 
 
-def _batches(frames, size):
-    return [frames[i : i + size] for i in range(0, len(frames), size)]
+def one_by_one_and_batched(make_frames, batch):
+    """Fixes of the frames ``make_frames()`` gives, tracked frame by frame and in
+    batches of ``batch`` (each from frames made anew: a frame renders what is read
+    once); and the batched tracker."""
+    tracker = MarkerTracker()
+    single = [tracker.track(frame) for frame in make_frames()]
+    tracker = MarkerTracker()
+    frames = make_frames()
+    batched = [
+        fix
+        for i in range(0, len(frames), batch)
+        for fix in tracker.track_many(frames[i : i + batch])
+    ]
+    return single, batched, tracker
 
 
 @pytest.mark.parametrize("monochrome", [True, False])
@@ -135,15 +147,10 @@ def test_a_batch_of_held_markers_is_measured_as_frame_by_frame(monochrome):
     def frames():
         cam = camera(length_mm_at=lambda t: 30.0 + 4.0 * math.sin(t / 3), size=(640, 360),
                      mm_per_px=0.1, noise_grey=3.0, monochrome=monochrome)  # fmt: skip
-        return cam, [cam.frame_at(k / 30) for k in range(180)]
+        return [cam.frame_at(k / 30) for k in range(180)]
 
-    cam, one_by_one = frames()
-    tracker = MarkerTracker()
-    single = [tracker.track(f) for f in one_by_one]
-    _, batched_frames = frames()
-    batched_tracker = MarkerTracker()
-    batched = [fix for b in _batches(batched_frames, 6) for fix in batched_tracker.track_many(b)]
-    truth = np.array([cam.marker_centres_px(k / 30) for k in range(180)])
+    single, batched, batched_tracker = one_by_one_and_batched(frames, 6)
+    truth = np.array([frames()[0].camera.marker_centres_px(k / 30) for k in range(180)])
     assert all(f.ok for f in batched)
     got = np.array([centres(f) for f in batched])
     assert np.max(np.abs(got - truth)) < 0.05
@@ -155,27 +162,23 @@ def test_a_batch_goes_frame_by_frame_from_a_lost_or_merged_marker():
     """Markers that merge and part again, and one that is hidden, inside batches: the
     same statuses, frame by frame, as ``track`` gives; the lengths where both are seen."""
     lengths = np.concatenate([np.linspace(8.0, 1.0, 30), np.linspace(1.0, 8.0, 30), [8.0] * 30])
+    mm_per_px = 0.05
 
     def frames():
-        cam = camera(length_mm_at=lambda t: float(lengths[round(t * 30)]), size=(640, 360))
+        cam = camera(length_mm_at=lambda t: float(lengths[round(t * 30)]), size=(640, 360),
+                     mm_per_px=mm_per_px)  # fmt: skip
         made = []
         for k in range(len(lengths)):
-            hide = 70 <= k < 76
-            cam.hide_marker(1, hide)
+            cam.hide_marker(1, 70 <= k < 76)
             made.append(cam.frame_at(k / 30))
-        return cam, made
+        return made
 
-    _, one_by_one = frames()
-    tracker = MarkerTracker()
-    single = [tracker.track(f) for f in one_by_one]
-    cam, batched_frames = frames()
-    batched_tracker = MarkerTracker()
-    batched = [fix for b in _batches(batched_frames, 7) for fix in batched_tracker.track_many(b)]
+    single, batched, _ = one_by_one_and_batched(frames, 7)
     assert [f.status for f in batched] == [f.status for f in single]
     assert {"merged", "lost", "ok"} <= {f.status for f in batched}
     for k, fix in enumerate(batched):
         if fix.ok:
-            assert fix.distance_px * cam.mm_per_px == pytest.approx(lengths[k], abs=0.01)
+            assert fix.distance_px * mm_per_px == pytest.approx(lengths[k], abs=0.01)
 
 
 def test_a_batch_of_plain_image_arrays_is_tracked_too():
