@@ -17,10 +17,16 @@ basin (the two B40 segments swap sides of their peak), which is not where the
 quasi-static path goes. The solver raises FlowError and the scan records the actuator as failed
 with that reason.
 
+Whether the flow stalls there is decided in the last bits of the host's arithmetic (a
+basin 1e-9 mL deep against rounding of ~1e-11 mL): on another processor (seen on an AMD
+EPYC host) the same code finds a state and snaps at the fold, by ~1e-11 mL onto the same
+branches or into a farther basin. So the solver's part is checked as what holds on any
+host: it stops at this fold, either giving up there (FlowError naming the fold) or
+snapping there.
+
 The fold pair is shown with a method that shares no code with the path solver: every
 segment's curve inverted on its branch at each pressure of a fine grid
-(``SegmentCurve.volumes_at_pressure``, the Fig. S5 equilibria). When the solver learns
-to snap across such a pair, the first check here fails: then check the snap instead.
+(``SegmentCurve.volumes_at_pressure``, the Fig. S5 equilibria).
 """
 
 import re
@@ -68,11 +74,6 @@ def test_a_failing_actuator_folds_on_a_pair_of_folds_below_the_flows_resolution(
     names, branches, p_near_kpa, window_kpa
 ):
     actuator = Actuator([analytical_segment(n) for n in names])
-    with pytest.raises(FlowError, match="no state to snap to from the fold") as failed:
-        quasi_static_path(actuator)
-    # the one-line PathError quotes the flow's own message, with the fold's volume
-    v_failed_ml = float(re.search(r"fold at v = ([0-9.]+) mL", str(failed.value)).group(1))
-
     p = p_near_kpa + np.linspace(-window_kpa, window_kpa, 4001)
     v, inverse_sum = _along(actuator, branches, p)
     assert np.all(np.isfinite(v)), "every segment is on that branch over the whole window"
@@ -93,5 +94,14 @@ def test_a_failing_actuator_folds_on_a_pair_of_folds_below_the_flows_resolution(
     depth_ml = v[upper] - v[lower]
     assert 0 < depth_ml < 1e-9
     assert v[0] > v[upper]  # further on, the same branches hold more volume: stable again
-    # and that fold is where the path solver gives up
-    assert v[upper] == pytest.approx(v_failed_ml, abs=1e-4)
+    # and that fold is where the path solver gives up, or (on other hosts) snaps
+    try:
+        path = quasi_static_path(actuator)
+    except FlowError as failed:
+        assert "no state to snap to from the fold" in str(failed)
+        # the one-line PathError quotes the flow's own message, with the fold's volume
+        v_failed_ml = float(re.search(r"fold at v = ([0-9.]+) mL", str(failed)).group(1))
+        assert v[upper] == pytest.approx(v_failed_ml, abs=1e-4)
+    else:
+        snaps_ml = [e.pre.v_ml for e in path.events if e.kind == "snap"]
+        assert any(abs(v_ml - v[upper]) < 1e-4 for v_ml in snaps_ml), (v[upper], snaps_ml)
