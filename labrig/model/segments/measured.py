@@ -498,6 +498,8 @@ def curve_from_table(
     staircase = resolution.step_kpa >= EDGE_MIN_STEP_KPA and not repeated
     dip_shown = staircase and shows_dip(v, p)
     min_dip = 0.0 if dip_shown else resolution.prominence_kpa
+    if dip_shown:
+        notes.append("an undithered staircase: the dip it shows counts, however shallow")
     # rows at a repeated volume mark a raw acquisition log, not a curve: always fitted
     if (
         not repeated
@@ -554,7 +556,7 @@ def curve_from_table(
     )
     peak, valley = curve.peak, curve.valley
     dip = 0.0 if peak is None or valley is None else peak.p_kpa - valley.p_kpa
-    measured = MeasuredImport(resolution, route, peak is not None, dip, tuple(notes), raw)
+    measured = MeasuredImport(resolution, route, peak is not None, dip, min_dip, tuple(notes), raw)
     return dataclasses.replace(curve, measured=measured)
 
 
