@@ -100,8 +100,9 @@ def shows_dip(v_rows, p_rows) -> bool:
     and up again within a few rows, at every crossing where the curve is flat) falls
     only where the curve falls: a fall of one level is the curve's dip, not rounding.
     Rounding can only hide a dip, one shallower than the step (no level between its
-    peak and its valley), and one at least a step deep always shows (the rounding is
-    monotone, and values a step or more apart round to different levels)."""
+    peak and its valley), and one at least a step deep always shows where rows sample
+    its peak and valley (the rounding is monotone, and values a step or more apart
+    round to different levels)."""
     _, _, _, direction, _ = stair_edges(v_rows, p_rows)
     turns = _turns(direction)
     return turns is not None and _two_sided(turns, len(direction))
