@@ -57,7 +57,11 @@ def summary_lines(curve, contact_ml: float | None) -> list[str]:
         what = "used as tabulated" if measured.route == "tabulated" else "fitted (robust)"
         lines.append(f"  import   {what}")
         lines.append(f"  rows     {measured.resolution.describe()}")
-        resolves = f"dips above {measured.resolution.prominence_kpa:.3g} kPa count"
+        resolves = (
+            f"dips above {measured.min_dip_kpa:.3g} kPa count"
+            if measured.min_dip_kpa > 0
+            else "an undithered staircase: any dip it shows counts"
+        )
         kept = (
             f"1 peak kept (dip {measured.dip_kpa:.3g} kPa; {resolves})"
             if measured.peak_kept
@@ -80,7 +84,7 @@ def measured_document(curve) -> dict:
         "uniform": res.uniform,
         "step_kpa": res.step_kpa,
         "noise_kpa": res.noise_kpa,
-        "prominence_kpa": res.prominence_kpa,
+        "prominence_kpa": measured.min_dip_kpa,
         "peaks_kept": int(measured.peak_kept),
         "dip_kpa": measured.dip_kpa,
     }

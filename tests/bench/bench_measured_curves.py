@@ -24,6 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "model"))
 
 from measured_tables import (
     ADC_STEP_KPA,
+    dip_hidden_by_step,
     noisy_synthetic_pair,
     sample_table,
     snap_details,
@@ -36,7 +37,11 @@ from labrig.model.actuator.equilibria import Actuator
 from labrig.model.actuator.path import quasi_static_path
 from labrig.model.actuator.transitions import table_resolution, transitions
 from labrig.model.segments import measured
-from labrig.model.segments.library import analytical_segment
+from labrig.model.segments.library import (
+    BRAID_LENGTHS_MM,
+    TUBE_LENGTHS_MM,
+    analytical_segment,
+)
 from labrig.model.segments.measured import curve_from_table, load_csv
 
 PAIR = ("B42-T24", "B50-T22")
@@ -188,6 +193,78 @@ def staircases() -> None:
             )
 
 
+def staircase_sweep(draws: int = 200, seed: int = 12345) -> None:
+    """Random library pairs and triples (braids distinct) as undithered staircases: a
+    step of 0.27 or 0.5 kPa, and one uniform in 0.27-0.5 kPa (off any decimal), rows
+    every 0.05-0.5 mL (log-uniform), uniform or jittered. Per step draw: how many give
+    the clean snaps (none spurious, none missed but a jump within the step or a fold
+    pair the rows do not resolve) within the issue's max(0.5 mL, 2 x widest gap); the
+    draws with a dip shallower than the step (``dip_hidden_by_step``: no table of that
+    step holds it) are counted apart, as are their misses; the worst error of the rest."""
+    for label, steps in (("0.27/0.5 kPa", None), ("0.27-0.5 kPa", (0.27, 0.5))):
+        rng = np.random.default_rng(seed)
+        within, hidden, hidden_within, worst, misses = 0, 0, 0, 0.0, []
+        for _ in range(draws):
+            n = int(rng.integers(2, 4))
+            braids = rng.choice(BRAID_LENGTHS_MM, n, replace=False)
+            tubes = rng.choice(TUBE_LENGTHS_MM, n)
+            names = [f"B{b}-T{t}" for b, t in zip(braids, tubes, strict=True)]
+            step = float(rng.uniform(*steps) if steps else rng.choice([0.27, 0.5]))
+            spacing = float(10 ** rng.uniform(np.log10(0.05), np.log10(0.5)))
+            uniform = bool(rng.integers(0, 2))
+            table_seed = int(rng.integers(0, 1000))
+            clean = [analytical_segment(name) for name in names]
+            curves = [
+                curve_from_table(
+                    sample_table(
+                        c, spacing, uniform=uniform, round_to_kpa=step, seed=table_seed + k
+                    ),
+                    name=c.name,
+                    where=c.name,
+                )
+                for k, c in enumerate(clean)
+            ]
+            tables = table_resolution(Actuator(curves))
+            unmatched = list(snap_details(clean))
+            got = snap_volumes(curves)
+            got = [v for k, v in enumerate(got) if k == 0 or v - got[k - 1] > 1e-3]
+            widest = max(c.measured.resolution.spacing_max_ml for c in curves)
+            error, spurious = 0.0, False
+            for v in got:
+                nearest = min(unmatched, key=lambda c, v=v: abs(c[0] - v), default=None)
+                if nearest is None:
+                    spurious = True
+                    continue
+                error = max(error, abs(nearest[0] - v))
+                unmatched.remove(nearest)
+            missed = any(
+                c[1] > max(step, 0.01) and not unresolved_fold_pair(c, tables) for c in unmatched
+            )
+            good = not spurious and not missed and error <= max(0.5, 2 * widest)
+            if dip_hidden_by_step(clean, step):
+                hidden += 1
+                hidden_within += good
+                continue
+            within += good
+            worst = max(worst, error)
+            if not good:
+                what = "spurious snap" if spurious else "missed snap" if missed else "off"
+                misses.append(
+                    f"{'+'.join(names)} every {spacing:.3f} mL "
+                    f"{'uniform' if uniform else 'jittered'}, step {step:.3g} kPa, "
+                    f"seed {table_seed}: {what} (error {error:.2f} mL)"
+                )
+        print(
+            f"staircases at {label}, {draws} random library draws: {within} of "
+            f"{draws - hidden} within the issue's tolerance, worst snap-volume error "
+            f"{worst:.2f} mL; "
+            f"{hidden} with a dip under the step counted apart ({hidden_within} of them "
+            "within it all the same)"
+        )
+        for miss in misses:
+            print(f"  beyond: {miss}")
+
+
 def steps_written_with_decimals() -> None:
     """The quantisation step read from B50-T22 at 8,000 rows on a lattice written with
     few decimals (as another tool writes it): the lattice's step is the answer."""
@@ -230,5 +307,6 @@ if __name__ == "__main__":
     main()
     synthetic_rates()
     staircases()
+    staircase_sweep()
     steps_written_with_decimals()
     noisiest_triple()

@@ -16,6 +16,7 @@ from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 from measured_tables import (
     ADC_STEP_KPA,
+    dip_hidden_by_step,
     noisy_synthetic_pair,
     rise_fall_rise,
     sample_table,
@@ -102,22 +103,14 @@ def check_same_snaps(
 
 def issue_tolerance(step_kpa: float, curves) -> float:
     """The issue's tolerance on a snap's volume: max(0.05 mL, 2 x spacing) for a clean
-    table, 0.5 mL for a quantised one (more for steps over 0.2 kPa, below), the larger
-    of the two for a table both sparse and rounded. The spacing is the tables' widest
-    gap between rows: where rows are not evenly spaced (jittered by up to +-45 %) the
-    peak may fall into it."""
+    table, 0.5 mL for a quantised one, the larger of the two for a table both sparse
+    and rounded. The spacing is the tables' widest gap between rows: where rows are not
+    evenly spaced (jittered by up to +-45 %) the peak may fall into it. Staircases up
+    to 0.5 kPa keep to it since a dip they show, however shallow, is kept and its peak
+    and valley come from the stair edges (``labrig.model.segments.stair_edges``); a dip
+    shallower than the step they need not show (``dip_hidden_by_step``)."""
     widest = max(c.measured.resolution.spacing_max_ml for c in curves)
-    quantised = max(0.5, ML_PER_KPA_OF_STEP * step_kpa)
-    return max(0.05 if step_kpa <= 1e-6 else quantised, 2 * widest)
-
-
-# The issue asks 0.5 mL for quantised tables: met up to steps of 0.33 kPa. Where nothing
-# dithers a coarser staircase, its peak and valley are estimated from the stair edges
-# (labrig.model.segments.stair_edges; before, the stair values, known to a step: the
-# benchmark's staircases snapped 0.24-0.73 mL off, now 0.05-0.42 mL), and a snap moves by
-# up to 2.5 mL per kPa of what is left: 1.5 mL per kPa of step (0.75 mL at 0.5 kPa) holds
-# for 74 of 80 random library draws at 0.1-0.5 kPa (1.0 for 72; before the edges, 62)
-ML_PER_KPA_OF_STEP = 1.5
+    return max(0.05 if step_kpa <= 1e-6 else 0.5, 2 * widest)
 
 
 def unseen(step_kpa: float, curves) -> float:
@@ -309,6 +302,20 @@ spacings = st.floats(np.log10(0.0005), np.log10(0.5)).map(lambda x: 10.0**x)
 # the slope the ADC staircase's rows give over its 0.087 mL flow (not resolvable)
 @example(names=("B44-T20", "B40-T22", "B42-T30"), spacing_ml=10.0**-1.921875, uniform=True,
          round_to_kpa=ADC_STEP_KPA, seed=0)  # fmt: skip
+# found by a sweep of 200 random draws of staircases at 0.27/0.5 kPa every 0.05-0.5 mL:
+# a dip of one or two steps (B40-T24's 0.73 kPa, B42-T26's 0.61, B44-T28's 0.51 at 0.5
+# kPa) fell under the 3-step prominence and the partner's snap moved by 0.7-1.8 mL; an
+# undithered staircase that falls shows a real dip now (``stair_edges.shows_dip``), and
+# its peak and valley come from its edges: 0.05-0.2 mL. The last: B40-T26's 0.05 kPa
+# dip, under the step, which the table does not hold (``dip_hidden_by_step``)
+@example(names=("B40-T24", "B48-T24"), spacing_ml=0.3030689851144785, uniform=False,
+         round_to_kpa=0.5, seed=263)  # fmt: skip
+@example(names=("B42-T26", "B46-T20"), spacing_ml=0.1539189974542332, uniform=True,
+         round_to_kpa=0.5, seed=767)  # fmt: skip
+@example(names=("B44-T28", "B48-T24", "B40-T22"), spacing_ml=0.10281950495084123,
+         uniform=True, round_to_kpa=0.5, seed=178)  # fmt: skip
+@example(names=("B48-T26", "B40-T26", "B42-T24"), spacing_ml=0.11078768967212878,
+         uniform=True, round_to_kpa=0.5, seed=36)  # fmt: skip
 @example(names=("B40-T22", "B42-T20"), spacing_ml=0.1, uniform=False, round_to_kpa=0.5,
          seed=0)  # fmt: skip
 @example(names=("B44-T20", "B48-T20", "B46-T26"), spacing_ml=0.1, uniform=False,
@@ -341,11 +348,15 @@ def test_clean_and_quantised_library_tables_snap_like_the_clean_curves(
     names, spacing_ml, uniform, round_to_kpa, seed
 ):
     """The clean snaps, none spurious, within the issue's tolerance (``issue_tolerance``:
-    0.5 mL for a quantised table up to a 0.33 kPa step, 1.5 mL per kPa above)."""
+    0.5 mL for a quantised table, or twice its widest gap), but for an actuator with a
+    dip shallower than the step, which the tables need not hold (``dip_hidden_by_step``):
+    it only runs."""
     clean = [analytical_segment(n) for n in names]
     curves = measured(clean, spacing_ml, uniform=uniform, round_to_kpa=round_to_kpa, seed=seed)
     got = snap_volumes(curves)
     step = round_to_kpa or 0.0
+    if dip_hidden_by_step(clean, step):
+        return
     tolerance = issue_tolerance(step, curves)
     resolvable = all(dip_kpa(c) > 10 * step or c.peak is None for c in clean)
     check_same_snaps(clean_snaps(names), got, tolerance, resolvable, unseen(step, curves), curves)

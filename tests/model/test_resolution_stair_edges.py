@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from measured_tables import sample_table
 
 from labrig.model.segments.library import BRAID_LENGTHS_MM, TUBE_LENGTHS_MM, analytical_segment
-from labrig.model.segments.stair_edges import refine_extrema, stair_edges
+from labrig.model.segments.stair_edges import refine_extrema, shows_dip, stair_edges
 
 NAMES = [f"B{b}-T{t}" for b in BRAID_LENGTHS_MM for t in TUBE_LENGTHS_MM]
 WITH_DIP = [n for n in NAMES[::3] if analytical_segment(n).peak is not None]
@@ -68,6 +68,27 @@ def test_extrema_from_the_edges_are_nearer_the_clean_curves_than_the_stairs():
         assert np.mean(errors) <= 0.2 * step, (step, np.mean(errors))
         assert np.mean(errors) <= 0.75 * np.mean(stair_errors), (step, np.mean(stair_errors))
         assert max(errors) <= 0.75 * step, step
+
+
+def test_an_undithered_staircase_shows_every_dip_a_step_deep_and_a_noisy_one_none():
+    """Rounding is monotone, so an undithered staircase of a rise-fall-rise curve rises,
+    falls and rises again, and does so wherever the dip is at least a step deep (plus
+    what 0.1 mL rows can miss of a corner valley: 0.1 kPa); a monotone segment's never
+    falls. With noise of half a step the rows flicker between levels where the curve
+    crosses one: no clean staircase, whatever the dip. Against the library's own dips."""
+    for step in (0.27, 0.5):
+        for name in NAMES[::2]:
+            curve = analytical_segment(name)
+            dip = 0.0 if curve.peak is None else curve.peak.p_kpa - curve.valley.p_kpa
+            for uniform in (True, False):
+                table = sample_table(curve, 0.1, uniform=uniform, round_to_kpa=step, seed=2)
+                shown = shows_dip(table[:, 0], table[:, 1])
+                if dip >= step + 0.1 or curve.peak is None:
+                    assert shown == (curve.peak is not None), (name, step, uniform, dip)
+                noisy = sample_table(
+                    curve, 0.1, uniform=uniform, round_to_kpa=step, noise_kpa=step / 2, seed=2
+                )
+                assert not shows_dip(noisy[:, 0], noisy[:, 1]), (name, step, uniform)
 
 
 def test_a_corner_inside_a_row_gap_keeps_the_plateaus_row_at_the_jump():

@@ -44,7 +44,7 @@ from labrig.model.segments.shape_fit import (
     one_minimum_slope_rise,
     smooth_with_shape,
 )
-from labrig.model.segments.stair_edges import refine_extrema
+from labrig.model.segments.stair_edges import refine_extrema, shows_dip
 
 HEADER = ("volume_ml", "pressure_kpa", "length_mm")
 MIN_ROWS = 10
@@ -240,10 +240,12 @@ def keep_corner_rows(v, p, length, step_kpa: float):
     return v_all[order], np.r_[p_c, extra_p][order], np.r_[l_c, extra_l][order], merged
 
 
-def _fit_noisy(v, p, length, resolution: TableResolution):
+def _fit_noisy(v, p, length, resolution: TableResolution, dip_shown: bool):
     """Bin, decide the shape (a dip only if it stands out of the noise of the bins and
     of the table's step) and fit it: returns (v, p, l, offset) on the bins, or None if
-    the fitted curve still falls at its end.
+    the fitted curve still falls at its end. ``dip_shown``: the rows are an undithered
+    staircase that falls (``stair_edges.shows_dip``), whose dip is the curve's however
+    shallow, and whose bins, means of a monotone staircase, fall only there.
 
     The curve up to the valley and the curve after it are smoothed apart: the valley is
     where the braids touch the tube, a corner, which a smoothing across it would raise
@@ -260,7 +262,11 @@ def _fit_noisy(v, p, length, resolution: TableResolution):
     # 0.6 kPa dip at 0.5 kPa noise on a 0.27 kPa step stands out of its bins' noise by
     # 10 standard errors), and what a dip must stand out of is their noise alone
     min_dip = STEP_PROMINENCE * resolution.step_kpa if resolution.quantised else 0.0
-    fit = fit_rise_fall_rise(p_bin, counts, min_dip_kpa=min_dip)
+    if dip_shown:
+        fit = fit_rise_fall_rise(p_bin, counts, min_dip_kpa=0.0, noise_kpa=0.0)
+        min_dip = 0.0
+    else:
+        fit = fit_rise_fall_rise(p_bin, counts, min_dip_kpa=min_dip)
     if len(fit.branches) == 3:
         valley = min(fit.branches[1][-1][2], fit.branches[2][0][2])
         if fit.branches[2][-1][2] - valley <= max(DIP_NOISE_FACTOR * fit.noise_kpa, min_dip):
@@ -488,13 +494,17 @@ def curve_from_table(
     if repeated:
         notes.append(f"{repeated} rows at a repeated volume averaged")
     v_c, p_c, l_c, merged = keep_corner_rows(v, p, length, resolution.step_kpa)
+    # an undithered coarse staircase that falls shows its dip, however shallow
+    staircase = resolution.step_kpa >= EDGE_MIN_STEP_KPA and not repeated
+    dip_shown = staircase and shows_dip(v, p)
+    min_dip = 0.0 if dip_shown else resolution.prominence_kpa
+    if dip_shown:
+        notes.append("an undithered staircase: the dip it shows counts, however shallow")
     # rows at a repeated volume mark a raw acquisition log, not a curve: always fitted
     if (
         not repeated
         and len(v_c) >= 4
-        and _has_segment_shape(
-            v_c, p_c, resolution.prominence_kpa, bounds := _branch_bounds(v_c, p_c)
-        )
+        and _has_segment_shape(v_c, p_c, min_dip, bounds := _branch_bounds(v_c, p_c))
         and slopes_resolved(v_c, p_c, resolution, bounds)
     ):
         route = ROUTE_TABULATED
@@ -505,7 +515,7 @@ def curve_from_table(
             notes.append(f"{merged} plateau{plural} of equal pressure collapsed to their centres")
     else:
         route = ROUTE_FITTED
-        fitted = _fit_noisy(v, p, length, resolution)
+        fitted = _fit_noisy(v, p, length, resolution, dip_shown)
         if fitted is None or not _has_segment_shape(fitted[0], fitted[1]):
             raise InputError(
                 f"{where}: the pressure still falls at the last rows (v = {v[-1]:g} mL): "
@@ -515,7 +525,7 @@ def curve_from_table(
         v, p, length, _ = collapse_plateaus(*fitted[:3])
         offset = fitted[3]
         notes.append(f"fitted rise-fall-rise to {len(v)} samples")
-    if resolution.step_kpa >= EDGE_MIN_STEP_KPA and not repeated:
+    if staircase:
         refined = refine_extrema(*raw[:, :2].T, v, p)
         if refined is not None and _has_segment_shape(*refined):
             length = np.interp(refined[0], v, length)
@@ -546,7 +556,7 @@ def curve_from_table(
     )
     peak, valley = curve.peak, curve.valley
     dip = 0.0 if peak is None or valley is None else peak.p_kpa - valley.p_kpa
-    measured = MeasuredImport(resolution, route, peak is not None, dip, tuple(notes), raw)
+    measured = MeasuredImport(resolution, route, peak is not None, dip, min_dip, tuple(notes), raw)
     return dataclasses.replace(curve, measured=measured)
 
 

@@ -85,12 +85,15 @@ class MeasuredImport:
     """What was done to a measured table to make its curve: the table's resolution, the
     route (``ROUTE_TABULATED``: its rows, plateaus collapsed; ``ROUTE_FITTED``: the
     robust rise-fall-rise fit), whether a peak (and its valley) was kept and how deep
-    its dip is, and the raw rows (for plots)."""
+    its dip is, the smallest dip that counted (the resolution's prominence, or 0 for an
+    undithered staircase that shows its dip: ``stair_edges.shows_dip``), and the raw
+    rows (for plots)."""
 
     resolution: TableResolution
     route: str
     peak_kept: bool
     dip_kpa: float
+    min_dip_kpa: float
     notes: tuple[str, ...]
     raw: np.ndarray  # (rows, 3): volume_ml, pressure_kpa, length_mm as read
 
