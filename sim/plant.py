@@ -30,6 +30,7 @@ from __future__ import annotations
 import bisect
 import threading
 from collections.abc import Callable, Sequence
+from operator import mul, sub, truediv
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
@@ -49,6 +50,7 @@ class _ScalarCurve:
         pressure = PchipInterpolator(curve.v_ml, curve.p_kpa)
         length = PchipInterpolator(curve.v_ml, curve.l_mm)
         self.x = curve.v_ml.tolist()
+        self._last_interval = len(self.x) - 2
         self.p_coef = pressure.c.T.tolist()
         self.l_coef = length.c.T.tolist()
         self.v_end = self.x[-1]
@@ -57,7 +59,8 @@ class _ScalarCurve:
         self.l_end = float(curve.l_mm[-1])
 
     def _interval(self, v: float) -> int:
-        return min(max(bisect.bisect_right(self.x, v) - 1, 0), len(self.x) - 2)
+        i = bisect.bisect_right(self.x, v) - 1
+        return 0 if i < 0 else min(i, self._last_interval)
 
     def pressure_and_slope(self, v: float) -> tuple[float, float]:
         if v > self.v_end:
@@ -123,7 +126,7 @@ class Plant:
         self._history_p: list[float] = []
         self._history_l: list[float] = []
         self._history_w: list[list[float]] = []
-        self._record(self._inlet_kpa(0.0, self._evaluated))
+        self._record(self._inlet_kpa(0.0, [p for p, _ in self._evaluated]))
 
     # --- state ---------------------------------------------------------------------
     @property
@@ -146,13 +149,13 @@ class Plant:
         )
 
     def _evaluate(self, w: list[float]) -> list[tuple[float, float]]:
-        return [cv.pressure_and_slope(wi) for cv, wi in zip(self._curves, w, strict=True)]
+        """(p, dp/dv) of each segment at volumes ``w``."""
+        return list(map(_ScalarCurve.pressure_and_slope, self._curves, w))
 
-    def _inlet_kpa(self, flow_ml_s: float, evaluated: list[tuple[float, float]]) -> float:
-        """The manifold (sensor) pressure (Q + sum c_i p_i) / C for the segments'
-        ``evaluated`` (p, dp/dv) with the pump supplying ``flow_ml_s``."""
-        c = self._conductances
-        weighted = sum(ci * p for ci, (p, _) in zip(c, evaluated, strict=True))
+    def _inlet_kpa(self, flow_ml_s: float, pressures: Sequence[float]) -> float:
+        """The manifold (sensor) pressure (Q + sum c_i p_i) / C for segment
+        ``pressures`` with the pump supplying ``flow_ml_s``."""
+        weighted = sum(map(mul, self._conductances, pressures))
         return (flow_ml_s + weighted) / self._total_conductance
 
     def _record(self, inlet: float) -> None:
@@ -185,7 +188,7 @@ class Plant:
             solved = self._solve_step(dt, d_supplied)
             if solved is not None:
                 w_next, evaluated, inlet = solved
-                moved = max(abs(a - b) for a, b in zip(w_next, self._w, strict=True))
+                moved = max(map(abs, map(sub, w_next, self._w)))
                 if moved <= self.max_step_volume_ml or dt < 1e-4:
                     break
             dt /= 2
@@ -215,25 +218,29 @@ class Plant:
         if dt * max(max(0.0, -k) * ci for k, ci in zip(slopes_old, c, strict=True)) > 0.5:
             return None
         w = [wi + d_supplied * ci / total_c for wi, ci in zip(old, c, strict=True)]
+        # the plant takes tens of thousands of steps a run: the element-wise products
+        # go through map in C rather than Python-level generators, in the same order
+        dt_c = [dt * ci for ci in c]
+        dt_c_over_total = [a / total_c for a in dt_c]
         for _ in range(30):
             evaluated = self._evaluate(w)
-            p_m = self._inlet_kpa(flow, evaluated)
+            p, k = zip(*evaluated, strict=True)
+            p_m = self._inlet_kpa(flow, p)
             residual = [
-                wi - oi - dt * ci * (p_m - p)
-                for wi, oi, ci, (p, _) in zip(w, old, c, evaluated, strict=True)
+                wi - oi - a * (p_m - pi) for wi, oi, a, pi in zip(w, old, dt_c, p, strict=True)
             ]
-            if max(abs(r) for r in residual) < 1e-11:
+            if max(map(abs, residual)) < 1e-11:
                 return w, evaluated, p_m
-            diagonal = [1.0 + dt * ci * k for ci, (_, k) in zip(c, evaluated, strict=True)]
-            if min(abs(d) for d in diagonal) < 1e-12:
+            diagonal = [1.0 + a * ki for a, ki in zip(dt_c, k, strict=True)]
+            if min(map(abs, diagonal)) < 1e-12:
                 return None
-            d_inv_r = [r / d for r, d in zip(residual, diagonal, strict=True)]
-            d_inv_u = [dt * ci / total_c / d for ci, d in zip(c, diagonal, strict=True)]
-            ck = [ci * k for ci, (_, k) in zip(c, evaluated, strict=True)]
-            denominator = 1.0 - sum(a * b for a, b in zip(ck, d_inv_u, strict=True))
+            d_inv_r = list(map(truediv, residual, diagonal))
+            d_inv_u = list(map(truediv, dt_c_over_total, diagonal))
+            ck = list(map(mul, c, k))
+            denominator = 1.0 - sum(map(mul, ck, d_inv_u))
             if abs(denominator) < 1e-12:
                 return None
-            factor = sum(a * b for a, b in zip(ck, d_inv_r, strict=True)) / denominator
+            factor = sum(map(mul, ck, d_inv_r)) / denominator
             w = [wi - (x + y * factor) for wi, x, y in zip(w, d_inv_r, d_inv_u, strict=True)]
         return None
 
