@@ -173,7 +173,8 @@ def parse_reply(raw: bytes, *, expect_payload: bool, command: str = "") -> Reply
     # Longest first, so '00T*' is not cut as if it were '00T'.
     prefixes = sorted({match[0] for match in prompts}, key=len, reverse=True)
     lines = tuple(_clean_line(line, prefixes) for line in payload)
-    if any(not ch.isascii() or not ch.isprintable() for ch in "".join(lines)):
+    joined = "".join(lines)
+    if not (joined.isascii() and joined.isprintable()):
         raise PumpProtocolError(f"unreadable reply to {command!r}: {raw!r}")
     address = prompt["address"]
     return Reply(lines, prompt["prompt"], int(address) if address else None)

@@ -151,6 +151,7 @@ class RunWriter:
         self._closed = False
         # rows appended since the last write, per group path, in arrival order
         self._pending: dict[str, list[dict[str, np.ndarray]]] = {}
+        self._datasets: dict[tuple[str, str], h5py.Dataset] = {}
         self._file = h5py.File(self.path, "w", libver="latest")
         self._create_layout(title, protocol_text, protocol_path, rig_config_text)
         self._file.swmr_mode = True
@@ -232,13 +233,13 @@ class RunWriter:
 
     def _append_to(self, where: str, columns: dict[str, np.ndarray]) -> dict | None:
         """Gather rows for the group at ``where``; the rows, or None if there were none."""
-        lengths = {len(np.atleast_1d(values)) for values in columns.values()}
+        rows = {field: np.atleast_1d(values) for field, values in columns.items()}
+        lengths = {len(values) for values in rows.values()}
         if len(lengths) != 1:
             raise ValueError(f"{where}: columns of different lengths {sorted(lengths)}")
         (count,) = lengths
         if count == 0:
             return None
-        rows = {field: np.atleast_1d(values) for field, values in columns.items()}
         with self._lock:
             if self._closed:
                 raise RuntimeError(f"{self.path}: the run file is already closed")
@@ -249,14 +250,22 @@ class RunWriter:
     def _write_pending(self) -> None:
         """Write the gathered rows, one resize and one write per dataset (under the lock)."""
         for where, chunks in self._pending.items():
-            group = self._file[where]
             for field in chunks[0]:
                 values = np.concatenate([chunk[field] for chunk in chunks])
-                dataset = group[field]
+                dataset = self._dataset(where, field)
                 start = dataset.shape[0]
                 dataset.resize((start + len(values),))
                 dataset[start:] = values
         self._pending.clear()
+
+    def _dataset(self, where: str, field: str) -> h5py.Dataset:
+        """The dataset ``field`` of the group at ``where``, looked up once: an h5py path
+        lookup costs more than the write of a flush's rows."""
+        key = (where, field)
+        dataset = self._datasets.get(key)
+        if dataset is None:
+            dataset = self._datasets[key] = self._file[where][field]
+        return dataset
 
     def append_pressure(self, repetition: int, t_s, pressure_kpa, out_of_range) -> None:
         self._append(

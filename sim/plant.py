@@ -30,6 +30,7 @@ from __future__ import annotations
 import bisect
 import threading
 from collections.abc import Callable, Sequence
+from operator import mul, sub, truediv
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
@@ -49,6 +50,7 @@ class _ScalarCurve:
         pressure = PchipInterpolator(curve.v_ml, curve.p_kpa)
         length = PchipInterpolator(curve.v_ml, curve.l_mm)
         self.x = curve.v_ml.tolist()
+        self._last_interval = len(self.x) - 2
         self.p_coef = pressure.c.T.tolist()
         self.l_coef = length.c.T.tolist()
         self.v_end = self.x[-1]
@@ -57,7 +59,8 @@ class _ScalarCurve:
         self.l_end = float(curve.l_mm[-1])
 
     def _interval(self, v: float) -> int:
-        return min(max(bisect.bisect_right(self.x, v) - 1, 0), len(self.x) - 2)
+        i = bisect.bisect_right(self.x, v) - 1
+        return 0 if i < 0 else min(i, self._last_interval)
 
     def pressure_and_slope(self, v: float) -> tuple[float, float]:
         if v > self.v_end:
@@ -115,12 +118,15 @@ class Plant:
         self._t = float(t0_s)
         self._supplied_ml = float(volume_ml_at(t0_s))
         self._w = [self._supplied_ml / n] * n
+        # (p, dp/dv) of each segment at ``_w``: the step that found ``_w`` evaluated
+        # them there last, and the next step starts from them
+        self._evaluated = self._evaluate(self._w)
         self._fastest_ml_s = 0.0  # the last step's fastest segment flow
         self._history_t: list[float] = []
         self._history_p: list[float] = []
         self._history_l: list[float] = []
         self._history_w: list[list[float]] = []
-        self._record(0.0)
+        self._record(self._inlet_kpa(0.0, [p for p, _ in self._evaluated]))
 
     # --- state ---------------------------------------------------------------------
     @property
@@ -142,10 +148,18 @@ class Plant:
             self.fittings_length_mm
         )
 
-    def _record(self, flow_ml_s: float) -> None:
-        p = [cv.pressure_and_slope(wi)[0] for cv, wi in zip(self._curves, self._w, strict=True)]
-        weighted = sum(ci * pi for ci, pi in zip(self._conductances, p, strict=True))
-        inlet = (flow_ml_s + weighted) / self._total_conductance
+    def _evaluate(self, w: list[float]) -> list[tuple[float, float]]:
+        """(p, dp/dv) of each segment at volumes ``w``."""
+        return list(map(_ScalarCurve.pressure_and_slope, self._curves, w))
+
+    def _inlet_kpa(self, flow_ml_s: float, pressures: Sequence[float]) -> float:
+        """The manifold (sensor) pressure (Q + sum c_i p_i) / C for segment
+        ``pressures`` with the pump supplying ``flow_ml_s``."""
+        weighted = sum(map(mul, self._conductances, pressures))
+        return (flow_ml_s + weighted) / self._total_conductance
+
+    def _record(self, inlet: float) -> None:
+        """Append the state at ``_t`` (volumes ``_w``, sensor pressure ``inlet``)."""
         self._history_t.append(self._t)
         self._history_p.append(inlet)
         self._history_l.append(self._length(self._w))
@@ -171,54 +185,62 @@ class Plant:
         while True:
             supplied_next = float(self.volume_ml_at(self._t + dt))
             d_supplied = supplied_next - self._supplied_ml
-            w_next = self._solve_step(dt, d_supplied)
-            if w_next is not None:
-                moved = max(abs(a - b) for a, b in zip(w_next, self._w, strict=True))
+            solved = self._solve_step(dt, d_supplied)
+            if solved is not None:
+                w_next, evaluated, inlet = solved
+                moved = max(map(abs, map(sub, w_next, self._w)))
                 if moved <= self.max_step_volume_ml or dt < 1e-4:
                     break
             dt /= 2
         self._t += dt
         self._supplied_ml = supplied_next
-        self._w = w_next
+        self._w, self._evaluated = w_next, evaluated
         self._fastest_ml_s = moved / dt
-        self._record(d_supplied / dt)
+        self._record(inlet)
 
-    def _solve_step(self, dt: float, d_supplied: float) -> list[float] | None:
-        """One backward Euler step, or None when it must be shorter.
+    def _solve_step(
+        self, dt: float, d_supplied: float
+    ) -> tuple[list[float], list[tuple[float, float]], float] | None:
+        """One backward Euler step: the new volumes, (p, dp/dv) of each segment there
+        and the manifold pressure; or None when the step must be shorter.
 
         With conductances c_i = 1/R_i, C = sum c_i, the manifold pressure is
         p_m = (Q + sum c_j p_j) / C and segment i fills at c_i (p_m - p_i). Newton on
         r_i = w_i - w_i,old - dt c_i (p_m - p_i), whose Jacobian
         diag(1 + dt c_i k_i) - (dt c_i / C) (c k)^T is solved by Sherman-Morrison.
         """
-        curves, c, old = self._curves, self._conductances, self._w
+        c, old = self._conductances, self._w
         total_c = self._total_conductance
         flow = d_supplied / dt
-        slopes_old = [cv.pressure_and_slope(wi)[1] for cv, wi in zip(curves, old, strict=True)]
+        slopes_old = [k for _, k in self._evaluated]
         # an unstable (softening) mode grows at rate ~ -c k; a backward Euler step longer
         # than ~1/rate would damp it into a false equilibrium
         if dt * max(max(0.0, -k) * ci for k, ci in zip(slopes_old, c, strict=True)) > 0.5:
             return None
         w = [wi + d_supplied * ci / total_c for wi, ci in zip(old, c, strict=True)]
+        # the plant takes tens of thousands of steps a run: the element-wise products
+        # go through map in C rather than Python-level generators, in the same order
+        dt_c = [dt * ci for ci in c]
+        dt_c_over_total = [a / total_c for a in dt_c]
         for _ in range(30):
-            evaluated = [cv.pressure_and_slope(wi) for cv, wi in zip(curves, w, strict=True)]
-            p_m = (flow + sum(ci * p for ci, (p, _) in zip(c, evaluated, strict=True))) / total_c
+            evaluated = self._evaluate(w)
+            p, k = zip(*evaluated, strict=True)
+            p_m = self._inlet_kpa(flow, p)
             residual = [
-                wi - oi - dt * ci * (p_m - p)
-                for wi, oi, ci, (p, _) in zip(w, old, c, evaluated, strict=True)
+                wi - oi - a * (p_m - pi) for wi, oi, a, pi in zip(w, old, dt_c, p, strict=True)
             ]
-            if max(abs(r) for r in residual) < 1e-11:
-                return w
-            diagonal = [1.0 + dt * ci * k for ci, (_, k) in zip(c, evaluated, strict=True)]
-            if min(abs(d) for d in diagonal) < 1e-12:
+            if max(map(abs, residual)) < 1e-11:
+                return w, evaluated, p_m
+            diagonal = [1.0 + a * ki for a, ki in zip(dt_c, k, strict=True)]
+            if min(map(abs, diagonal)) < 1e-12:
                 return None
-            d_inv_r = [r / d for r, d in zip(residual, diagonal, strict=True)]
-            d_inv_u = [dt * ci / total_c / d for ci, d in zip(c, diagonal, strict=True)]
-            ck = [ci * k for ci, (_, k) in zip(c, evaluated, strict=True)]
-            denominator = 1.0 - sum(a * b for a, b in zip(ck, d_inv_u, strict=True))
+            d_inv_r = list(map(truediv, residual, diagonal))
+            d_inv_u = list(map(truediv, dt_c_over_total, diagonal))
+            ck = list(map(mul, c, k))
+            denominator = 1.0 - sum(map(mul, ck, d_inv_u))
             if abs(denominator) < 1e-12:
                 return None
-            factor = sum(a * b for a, b in zip(ck, d_inv_r, strict=True)) / denominator
+            factor = sum(map(mul, ck, d_inv_r)) / denominator
             w = [wi - (x + y * factor) for wi, x, y in zip(w, d_inv_r, d_inv_u, strict=True)]
         return None
 

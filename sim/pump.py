@@ -31,6 +31,7 @@ import collections
 import logging
 import os
 import random
+import re
 import select
 import threading
 import time
@@ -47,6 +48,7 @@ log = logging.getLogger(__name__)
 LOAD_CHECK_S = 0.1  # clock seconds between load (stall) checks while the plunger moves
 IDLE_WAIT_S = 0.1  # real seconds the server waits at most (commands wake it at once)
 _GARBAGE = bytes(range(0x80, 0x100)) + b"#%&~^|"
+_LINE_END = re.compile(rb"[\r\n]")
 _PROMPTS = {
     PumpState.IDLE: ":",
     PumpState.INFUSING: ">",
@@ -123,6 +125,7 @@ class PumpEmulator:
         self._inbuf = bytearray()
         self._after_cr = False
         self._motion_timer = None
+        self._motion_due: float | None = None  # when the motion timer is set to fire
         self._timer_lock = threading.Lock()  # the motion timer's own: taken with no other
 
     # ---- lifecycle ---------------------------------------------------------------
@@ -253,11 +256,12 @@ class PumpEmulator:
             return b""
 
     def _receive(self, data: bytes) -> None:
-        """Split the input into command lines at CR, LF or CR LF."""
+        """Split the input into command lines at CR, LF or CR LF (found by ``re`` in C:
+        a status poll is three commands, and a byte-by-byte scan in Python cost more
+        than executing them)."""
         self._inbuf += data
-        while (
-            end := next((i for i, b in enumerate(self._inbuf) if b in b"\r\n"), None)
-        ) is not None:
+        while (found := _LINE_END.search(self._inbuf)) is not None:
+            end = found.start()
             line, separator = bytes(self._inbuf[:end]), self._inbuf[end]
             del self._inbuf[: end + 1]
             if separator == ord("\n") and self._after_cr and not line:
@@ -299,14 +303,18 @@ class PumpEmulator:
         """Set the timer of the plunger's next event: its target stop, or the next load
         check, whichever comes first (none while it stands still)."""
         with self._timer_lock:
+            now = self.clock.now()
+            due = None
+            if self.firmware.running:
+                due = min(self.firmware.target_stop_s, now + LOAD_CHECK_S)
+            if due is not None and due == self._motion_due and due > now:
+                return  # set for that instant already (each command of a poll asks again)
             if self._motion_timer is not None:
                 self._motion_timer.cancel()
                 self._motion_timer = None
-            if not self.firmware.running:
-                return
-            now = self.clock.now()
-            due = min(self.firmware.target_stop_s, now + LOAD_CHECK_S)
-            self._motion_timer = self.clock.call_at(due, self._motion_event)
+            self._motion_due = due
+            if due is not None:
+                self._motion_timer = self.clock.call_at(due, self._motion_event)
 
     def _motion_event(self) -> None:
         self.firmware.tick(self.clock.now())
@@ -333,7 +341,8 @@ class PumpEmulator:
         size = self._chunk_bytes or len(data)
         for k, i in enumerate(range(0, len(data), size)):
             self._outgoing.append((due + k * self._chunk_gap_s, data[i : i + size]))
-        self._wake()
+        if threading.current_thread() is not self._thread:
+            self._wake()  # the serving thread itself sends what is due before it waits
 
     def _send_due(self) -> None:
         now = time.monotonic()
