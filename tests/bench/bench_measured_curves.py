@@ -113,6 +113,17 @@ def main() -> None:
                 print(row(folder, label, 1.0 / per_ml, step, noise, clean))
 
 
+def tabled(clean, spacing_ml, seed, **table) -> list:
+    """Each clean curve sampled as a table (``sample_table``, segment k with seed + k)
+    and read back as a measured curve."""
+    return [
+        curve_from_table(
+            sample_table(c, spacing_ml, seed=seed + k, **table), name=c.name, where=c.name
+        )
+        for k, c in enumerate(clean)
+    ]
+
+
 def synthetic_rates(seeds=(1, 2, 3), cases=40) -> None:
     counts = {"same": 0, "spurious": 0, "missed": 0}
     unresolved = 0  # clean fold pairs whose slope deficit the rows cannot resolve
@@ -123,16 +134,7 @@ def synthetic_rates(seeds=(1, 2, 3), cases=40) -> None:
                 shapes, noise, spacing, rounding, table_seed = noisy_synthetic_pair(seed, case)
             except AssertionError:  # equal peaks: not drawn further
                 continue
-            curves = [
-                curve_from_table(
-                    sample_table(
-                        c, spacing, round_to_kpa=rounding, noise_kpa=noise, seed=table_seed + k
-                    ),
-                    name=c.name,
-                    where=c.name,
-                )
-                for k, c in enumerate(shapes)
-            ]
+            curves = tabled(shapes, spacing, table_seed, round_to_kpa=rounding, noise_kpa=noise)
             # a clean fold pair whose slope deficit the measured rows do not resolve is
             # not a snap those tables can show (``transitions``): not counted as missed
             tables = table_resolution(Actuator(curves))
@@ -214,16 +216,7 @@ def staircase_sweep(draws: int = 200, seed: int = 12345) -> None:
             uniform = bool(rng.integers(0, 2))
             table_seed = int(rng.integers(0, 1000))
             clean = [analytical_segment(name) for name in names]
-            curves = [
-                curve_from_table(
-                    sample_table(
-                        c, spacing, uniform=uniform, round_to_kpa=step, seed=table_seed + k
-                    ),
-                    name=c.name,
-                    where=c.name,
-                )
-                for k, c in enumerate(clean)
-            ]
+            curves = tabled(clean, spacing, table_seed, uniform=uniform, round_to_kpa=step)
             tables = table_resolution(Actuator(curves))
             unmatched = list(snap_details(clean))
             got = snap_volumes(curves)
