@@ -7,8 +7,10 @@ window around it, which uses the anti-aliased edge pixels a binary mask throws a
 
 Per frame it looks only inside a window around each marker's last position and searches
 the whole frame only when a marker is lost, so tracking costs well under a millisecond
-per frame while the markers are held. A marker that is lost, or two that merged into
-one blob, give NaN and ``ok=False``: a wrong length is worse than none.
+per frame while the markers are held; a batch of frames (``track_many``) has the held
+markers' windows of all its frames searched and centred in one pass. A marker that is
+lost, or two that merged into one blob, give NaN and ``ok=False``: a wrong length is
+worse than none.
 
 Pixel coordinates follow OpenCV: the centre of pixel (column i, row j) is at (i, j).
 This module knows nothing of cameras, files or clocks (``labrig.drivers.camera``).
