@@ -101,9 +101,12 @@ class Timing:
 
     pressure_period_s: float = 0.2
     pump_period_s: float = 0.2
-    # a live camera's frames are measured as they come (its reader thread) and recorded
-    # in batches this often
-    camera_period_s: float = 0.2
+    # a live camera's frames are taken from its reader thread and tracked and recorded
+    # in batches this often: a batch's tracking costs mostly its calls, not its pixels,
+    # so a second's 30 frames cost little more than 0.2 s's 6 (the combined actuator
+    # at 30 fps: 8.0 s of the camera loop's CPU at 0.2 s, 5.4 s at 1 s); the markers-lost
+    # interlock, which allows 10 s, trips at most this much later than its frame
+    camera_period_s: float = 1.0
     progress_period_s: float = 0.5
     max_marker_loss_s: float = 10.0
     target_grace_s: float = 5.0

@@ -14,9 +14,11 @@ import pytest
 from simrig import run_sim, short_protocol, when_volume_exceeds
 
 from labrig.errors import InputError
+from labrig.runner import Timing
 from labrig.storage import open_run, read_log, repetition_statuses
 
-PRESSURE_PERIOD_S = 0.2  # the runner reads the DAQ every 0.2 s of rig time
+PRESSURE_PERIOD_S = Timing.pressure_period_s  # the runner reads the DAQ this often
+CAMERA_PERIOD_S = Timing.camera_period_s  # and records the camera's frames this often
 
 
 def recorded_until_s(path, log="pressure"):
@@ -103,10 +105,20 @@ def test_lost_markers_fault_the_run_after_the_allowed_gap(tmp_path):
     ok = length.fields["ok"]
     assert ok[0] and not ok[-1]
     assert np.all(np.isnan(length.fields["value"][~ok]))  # NaN, never a wrong number
-    lost_s = length.time_s[-1] - length.time_s[np.flatnonzero(ok)[-1] + 1]
-    # tripped at the frame exactly 10 s after the first frame without markers (2 fps)
-    assert lost_s == pytest.approx(10.0, abs=1e-9)
-    assert len(length) == np.flatnonzero(ok)[-1] + 1 + 21  # every frame: 10 s at 2 fps + 1
+    first_lost = np.flatnonzero(ok)[-1] + 1
+    # tripped at the frame exactly 10 s after the first frame without markers (2 fps):
+    # every frame up to it is recorded, and so are the frames of its batch after it
+    trip = first_lost + 20  # 10 s at 2 fps
+    assert len(length) > trip
+    assert length.time_s[trip] - length.time_s[first_lost] == pytest.approx(10.0, abs=1e-9)
+    assert outcome.result.reason.startswith("camera: markers lost for 10.0 s")
+    assert np.all(np.diff(length.time_s) == pytest.approx(0.5))  # no frame missing
+    batch_frames = round(CAMERA_PERIOD_S * 2)
+    assert len(length) - (trip + 1) < batch_frames
+    t_pump, _ = recorded_until_s(outcome.path, "pump")
+    # the pump stopped by the end of the batch that held the trip frame
+    trip_s = length.time_s[trip]
+    assert trip_s < pump_stopped_at(outcome, t_pump) <= trip_s + CAMERA_PERIOD_S + 0.2
 
 
 def test_overpressure_trips_at_the_first_sample_above_the_limit(tmp_path):
