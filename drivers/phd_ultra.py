@@ -94,6 +94,9 @@ NVRAM_OFF_COMMANDS = ("nvram off", "nvram none", "rsave off")
 # Readbacks agree with what was sent to within the 4-decimal formatting.
 READBACK_REL_TOL = 1e-3
 _RUNNING = (PumpState.INFUSING, PumpState.WITHDRAWING)
+# The volume counters, and the one each motion moves.
+_COUNTERS = ("ivolume", "wvolume")
+_MOVING_COUNTER = {PumpState.INFUSING: "ivolume", PumpState.WITHDRAWING: "wvolume"}
 
 
 @dataclass(frozen=True)
@@ -165,6 +168,12 @@ class PhdUltra:
         self._no_stop_pending.set()
         self._stops_waiting = 0
         self._stops_lock = threading.Lock()
+        # what ``status()`` last read of each counter; a counter is stale (read again at
+        # the next poll) after any command and while or after it moved
+        self._status_lock = threading.Lock()
+        self._counters_ml = dict.fromkeys(_COUNTERS, 0.0)
+        self._stale_counters = set(_COUNTERS)
+        self._last_state: PumpState | None = None
 
     # ---- opening and closing -------------------------------------------------------
 
@@ -432,10 +441,10 @@ class PhdUltra:
 
     def volumes_ml(self) -> tuple[float, float]:
         """(infused, withdrawn) since the last clear; withdrawn is 0 on an infuse-only pump."""
-        return parse_volume_ml(self._query("ivolume").text), self._withdrawn_ml()
-
-    def _withdrawn_ml(self) -> float:
-        return parse_volume_ml(self._query("wvolume").text) if self.can_withdraw else 0.0
+        infused_ml = parse_volume_ml(self._query("ivolume").text)
+        return infused_ml, parse_volume_ml(
+            self._query("wvolume").text
+        ) if self.can_withdraw else 0.0
 
     def _verify(self, what: str, got: float | None, wanted: float, unit: str) -> None:
         if got is None or not math.isclose(got, wanted, rel_tol=READBACK_REL_TOL):
@@ -487,24 +496,43 @@ class PhdUltra:
 
     def status(self) -> PumpStatus:
         """State (prompt and status flags) and volumes, stamped on the clock at the
-        middle of the query of the counter that is moving: the other one is constant,
-        so that is the moment the net volume describes (a stamp across both queries
-        would be late by a quarter of the exchange time, which a fast simulated clock
-        turns into hundredths of a mL)."""
-        line, prompt_state = self.read_status_line()
-        state = _state(line, prompt_state)
-        t0_s = self.clock.now()
-        infused_ml = parse_volume_ml(self._query("ivolume").text)
-        t1_s = self.clock.now()
-        withdrawn_ml = self._withdrawn_ml()
-        t2_s = self.clock.now()
-        moving_query = (t1_s, t2_s) if state is PumpState.WITHDRAWING else (t0_s, t1_s)
-        return PumpStatus(
-            t_s=0.5 * sum(moving_query),
-            state=state,
-            infused_ml=infused_ml,
-            withdrawn_ml=withdrawn_ml,
-        )
+        middle of the query of the counter that is moving (a stamp across several
+        queries would be late by part of the exchange time, which a fast simulated clock
+        turns into hundredths of a mL); with none moving, the counters are constant and
+        the stamp is the middle of the status query.
+
+        A counter changes only while the motor runs its way, so a poll asks only for
+        what may have changed: the moving counter, and a resting one whose last reading
+        may be out of date (``_stale_counters``). Polls in motion are two exchanges
+        instead of three, polls at rest the status line alone: each exchange is a round
+        trip on the port, and the runner polls five times a second."""
+        with self._status_lock:
+            t0_s = self.clock.now()
+            line, prompt_state = self.read_status_line()
+            state = _state(line, prompt_state)
+            t_s = 0.5 * (t0_s + self.clock.now())
+            if state is not self._last_state:
+                # whatever happened between the polls (a run from the keypad that
+                # ended) may have moved either counter
+                self._stale_counters.update(_COUNTERS)
+            self._last_state = state
+            moving = _MOVING_COUNTER.get(state)
+            for counter in _COUNTERS if self.can_withdraw else _COUNTERS[:1]:
+                if counter != moving and counter not in self._stale_counters:
+                    continue
+                t0_s = self.clock.now()
+                self._counters_ml[counter] = parse_volume_ml(self._query(counter).text)
+                if counter == moving:
+                    t_s = 0.5 * (t0_s + self.clock.now())
+                    self._stale_counters.add(counter)  # read again once it has stopped
+                else:
+                    self._stale_counters.discard(counter)
+            return PumpStatus(
+                t_s=t_s,
+                state=state,
+                infused_ml=self._counters_ml["ivolume"],
+                withdrawn_ml=self._counters_ml["wvolume"],
+            )
 
     def wait_until_stopped(
         self, *, poll_s: float = 1.0, timeout_s: float | None = None, on_status=None
@@ -576,6 +604,10 @@ class PhdUltra:
             self._discard_for(self.timeout_s)
             self._resync_due = False
         self._discard_pending()
+        if not expect_payload:
+            # a command (a run, a stop, a clear; a setting too, to keep this simple) may
+            # change the counters: status() reads them again
+            self._stale_counters.update(_COUNTERS)
         self._write(frame_command(command, address=self.address, address_form=self.address_form))
         deadline = time.monotonic() + self.timeout_s
         raw = b""

@@ -126,6 +126,52 @@ def test_the_run_stops_at_the_target_volume(pump, clock, emulator):
     assert pump.status().state is PumpState.IDLE
 
 
+def test_a_poll_asks_only_for_the_counters_that_may_have_moved(pump, clock, emulator):
+    """Each status equals a fresh reading of both counters, through a run, its target,
+    a hold, a withdrawal, a clear and a run started at the pump's keypad; in motion a
+    poll is the status line and the moving counter, at rest the status line alone."""
+    asked = []
+
+    def poll():
+        emulator.received.clear()
+        status = pump.status()
+        asked.append(list(emulator.received))
+        assert (status.infused_ml, status.withdrawn_ml) == pump.volumes_ml()
+        return status
+
+    start_run(pump, clock, rate_ml_min=30.0, target_ml=1.0)  # 2 s
+    assert poll().state is PumpState.INFUSING
+    assert asked[-1] == ["status", "ivolume", "wvolume"]  # commands were sent: both
+    clock.sleep(0.5)
+    assert poll().state is PumpState.INFUSING
+    assert asked[-1] == ["status", "ivolume"]
+    clock.sleep(2.0)
+    assert poll().state is PumpState.TARGET_REACHED
+    assert asked[-1] == ["status", "ivolume", "wvolume"]  # the state changed: both
+    clock.sleep(0.5)
+    assert poll().infused_ml == pytest.approx(1.0, abs=DISPLAY_ML)
+    assert asked[-1] == ["status"]  # nothing moves: nothing else to ask
+    start_run(pump, clock, rate_ml_min=30.0, direction="withdraw", target_ml=0.5)
+    poll()
+    clock.sleep(0.5)
+    assert poll().state is PumpState.WITHDRAWING
+    assert asked[-1] == ["status", "wvolume"]
+    clock.sleep(2.0)
+    assert poll().withdrawn_ml == pytest.approx(0.5, abs=DISPLAY_ML)
+    pump.clear_volumes()
+    assert poll().withdrawn_ml == 0.0
+    # a run started at the keypad (no command from the driver) is seen by its state
+    emulator.firmware.execute("irun")
+    clock.sleep(0.5)
+    assert poll().state is PumpState.INFUSING
+    clock.sleep(0.5)
+    emulator.firmware.execute("stop")  # and stopped there
+    clock.sleep(0.5)
+    final = poll()
+    assert final.state is PumpState.IDLE and final.infused_ml == pytest.approx(0.5, abs=0.01)
+    assert asked[-1] == ["status", "ivolume", "wvolume"]
+
+
 def test_stop_mid_run_freezes_the_volume(pump, clock, emulator):
     rate_ml_s = 0.1
     started = start_run(pump, clock, rate_ml_min=rate_ml_s * 60)
@@ -273,7 +319,7 @@ def test_a_second_program_on_the_same_pump_gets_a_clear_error(pump, emulator):
 
 
 def test_stop_goes_before_the_rest_of_a_status_poll(pump, emulator):
-    emulator.slow_replies(0.15)  # status() is three exchanges: 0.45 s
+    emulator.slow_replies(0.15)  # a first status() is three exchanges: 0.45 s
     poller = threading.Thread(target=pump.status)
     poller.start()
     while "status" not in emulator.received:
