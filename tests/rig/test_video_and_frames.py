@@ -234,3 +234,24 @@ def test_a_real_cameras_frames_go_to_the_encoder_as_pixels(tmp_path):
         for _ in range(2000):  # the encoder's failure reaches a later hand-over
             broken.add(images[0])
     assert broken.close() == 0 and "cannot write" in str(broken.error)
+
+
+@pytest.mark.parametrize("suffix", [".avi", ".mkv", ".mp4"])
+@pytest.mark.parametrize("colour", [False, True])
+def test_every_container_holds_every_frame_at_its_rate(tmp_path, suffix, colour):
+    """Motion-JPEG frames encoded by OpenCV and muxed as they are (AVI, Matroska) or
+    MPEG-4 encoded by FFmpeg: each decodes, in order, at the nominal rate (to within
+    4 grey levels: MPEG-4's colour frames go through limited-range YUV)."""
+    from labrig.video import VideoRecorder
+
+    path = tmp_path / f"frames{suffix}"
+    recorder = VideoRecorder(path, fps=25)
+    shape = (96, 128, 3) if colour else (96, 128)
+    levels = [12 * k + 10 for k in range(20)]
+    for level in levels:
+        recorder.add(np.full(shape, level, dtype=np.uint8))
+    assert recorder.close() == 20 and recorder.error is None
+    count, frames = decoded_frames(path)
+    assert count == 20
+    assert cv2.VideoCapture(str(path)).get(cv2.CAP_PROP_FPS) == pytest.approx(25)
+    assert [float(frames[k].mean()) for k in range(20)] == pytest.approx(levels, abs=4)
