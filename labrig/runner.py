@@ -516,14 +516,15 @@ class Runner:
         repetition = self._current_repetition()
         self.writer.append_length(repetition, *columns, np.array([s.ok for s in samples]))
         if self.video is not None:
-            shown = []  # the frames handed to the video, whose times the file keeps
+            framed = [s for s in samples if s.image is not None]
+            handed_before = self.video.n_frames
             try:
-                for sample in (s for s in samples if s.image is not None):
-                    self.video.add(sample.image)
-                    shown.append(sample.t_s)
-            finally:
+                self.video.add_many([s.image for s in framed])
+            finally:  # the times of the frames handed to the video, also if it failed
+                shown = self.video.n_frames - handed_before
                 if shown:
-                    self.writer.append_video_frame(repetition, np.array(shown))
+                    times = np.array([s.t_s for s in framed[:shown]])
+                    self.writer.append_video_frame(repetition, times)
         for sample in samples:
             self._check_markers(sample)
 

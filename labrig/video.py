@@ -36,6 +36,8 @@ import sys
 from fractions import Fraction
 from pathlib import Path
 
+import numpy as np
+
 FOURCC = {".avi": "MJPG", ".mkv": "MJPG", ".mp4": "mp4v"}
 _CONTAINERS = {".avi": "avi", ".mkv": "matroska", ".mp4": "mp4"}
 # Motion-JPEG quality (OpenCV's scale, 0-100): as close to the frame as FFmpeg's MJPEG
@@ -77,20 +79,37 @@ class VideoRecorder:
 
     def add(self, image) -> None:
         """Hand one frame over (an array, or a frame with a ``video_recipe()``)."""
+        self.add_many([image])
+
+    def add_many(self, images) -> None:
+        """Hand frames over, in order: each run of frames that describe themselves as
+        one message (the encoder draws and encodes a batch at once), others as pixels.
+        ``n_frames`` counts what was handed over, also when a hand-over fails."""
         if self.error is not None:
             raise self.error
         if self._encoder is None:
             raise RuntimeError(f"{self.path}: the video was closed")
-        recipe = getattr(image, "video_recipe", None)
-        if recipe is not None:
-            renderer, item = recipe()
+        scenes: list = []
+        for image in images:
+            recipe = getattr(image, "video_recipe", None)
+            renderer, item = recipe() if recipe is not None else (None, None)
+            if scenes and (recipe is None or renderer is not self._renderer):
+                self._send_scenes(scenes)
+            if recipe is None:
+                self._send(("pixels", image))
+                self.n_frames += 1
+                continue
             if renderer is not self._renderer:
                 self._send(("renderer", renderer))
                 self._renderer = renderer
-            self._send(("scene", item))
-        else:
-            self._send(("pixels", image))
-        self.n_frames += 1
+            scenes.append(item)
+        if scenes:
+            self._send_scenes(scenes)
+
+    def _send_scenes(self, scenes: list) -> None:
+        self._send(("scenes", list(scenes)))
+        self.n_frames += len(scenes)
+        scenes.clear()
 
     def _send(self, message: tuple) -> None:
         try:
@@ -150,10 +169,15 @@ def _serve() -> None:
             if kind == "renderer":
                 renderer = item
                 continue
-            image = renderer(item) if kind == "scene" else item
-            writer = writer or _Writer(path, fps, image)
-            writer.write(image)
-            written += 1
+            if kind == "scenes":
+                frames = [renderer.frame(scene) for scene in item]
+                writer = writer or _Writer(path, fps, frames[0].shape)
+                writer.write_scenes(frames, renderer)
+                written += len(frames)
+            else:
+                writer = writer or _Writer(path, fps, item.shape)
+                writer.write(item)
+                written += 1
     except OSError as exc:
         error = str(exc)
     finally:
@@ -171,14 +195,17 @@ class _Writer:
     640x360 against 0.7-0.8 ms for FFmpeg's own MJPEG encoder behind OpenCV's
     ``VideoWriter``, which takes no encoded frames. MPEG-4 is encoded by FFmpeg."""
 
-    def __init__(self, path: Path, fps: float, image) -> None:
+    def __init__(self, path: Path, fps: float, shape: tuple[int, ...]) -> None:
         import av  # only a run with a video needs them
         import cv2
 
+        from labrig.jpeg_rows import RowJpeg
+
         self._cv2 = cv2
         self._av = av
-        height, width = image.shape[:2]
+        height, width = shape[:2]
         self._jpeg = FOURCC[path.suffix] == "MJPG"
+        self._rows = RowJpeg(width, height, len(shape) == 3, JPEG_QUALITY) if self._jpeg else None
         self._path = path
         with self._errors():
             self._container = av.open(str(path), "w", format=_CONTAINERS[path.suffix])
@@ -189,7 +216,7 @@ class _Writer:
         if not self._jpeg:  # FFmpeg's default (200 kbit/s) blurs the markers' edges
             self._stream.bit_rate = max(MPEG4_MIN_BIT_RATE, round(width * height * fps))
         self._time_base = 1 / rate
-        self._colour = image.ndim == 3
+        self._colour = len(shape) == 3
         self._n = 0
 
     @contextlib.contextmanager
@@ -204,6 +231,32 @@ class _Writer:
         with self._errors():
             self._write(image)
 
+    def write_scenes(self, frames: list, renderer) -> None:
+        """Frames that render where they are read, with a renderer that knows which
+        of their rows repeat (``row_keys``) and draws rows of many frames at once
+        (``render_rows``): as Motion-JPEG, only the rows not seen before are drawn and
+        encoded (``labrig.jpeg_rows``); otherwise each frame is drawn whole."""
+        keys = [renderer.row_keys(f, self._rows.row_px) if self._jpeg else None for f in frames]
+        keyed = [i for i, k in enumerate(keys) if k is not None]
+        with self._errors():
+            jpegs = dict(zip(keyed, self._rows.frames(
+                [keys[i] for i in keyed],
+                lambda spans: renderer.render_rows([frames[i] for i in keyed], spans),
+            ) if keyed else [], strict=True))  # fmt: skip
+            for i, frame in enumerate(frames):
+                if i in jpegs:
+                    self._mux_jpeg(jpegs[i])
+                else:
+                    self._write(np.asarray(frame))
+
+    def _mux_jpeg(self, jpeg) -> None:
+        packet = self._av.Packet(jpeg)
+        packet.stream, packet.time_base = self._stream, self._time_base
+        packet.pts = packet.dts = self._n
+        packet.is_keyframe = True
+        self._container.mux(packet)
+        self._n += 1
+
     def _write(self, image) -> None:
         if self._jpeg:
             ok, jpeg = self._cv2.imencode(
@@ -211,16 +264,10 @@ class _Writer:
             )
             if not ok:
                 raise OSError("OpenCV could not encode a frame as JPEG")
-            packet = self._av.Packet(jpeg)
-            packet.stream, packet.time_base = self._stream, self._time_base
-            packet.pts = packet.dts = self._n
-            packet.is_keyframe = True
-            self._container.mux(packet)
-        else:
-            frame = self._av.VideoFrame.from_ndarray(
-                image, format="bgr24" if self._colour else "gray"
-            )
-            self._container.mux(self._stream.encode(frame))
+            self._mux_jpeg(jpeg)
+            return
+        frame = self._av.VideoFrame.from_ndarray(image, format="bgr24" if self._colour else "gray")
+        self._container.mux(self._stream.encode(frame))
         self._n += 1
 
     def release(self) -> None:

@@ -35,6 +35,10 @@ import numpy as np
 from labrig.clock import Clock
 
 _NOISE_MARGIN_PX = 32  # noise frames are this much larger, to be read at random offsets
+# ... that are multiples of a JPEG MCU's height and width: a frame's rows of MCUs away
+# from the markers then repeat across frames, and a video encodes each such row once
+# (``labrig.jpeg_rows``); 32 offsets of 2 noise frames still look fresh at 30 fps
+_NOISE_STEP_PX = 8
 V4L2_DEFAULT_SIZE = (640, 480)  # what a UVC camera streams until the driver sets a size
 # The light reaching the sensor in the first frames after the stream starts, while the
 # auto exposure settles (a webcam's first frame is nearly black).
@@ -180,7 +184,9 @@ class SimCamera:
         if self._noise is not None:
             if not self._noise_picks:
                 # drawn a block at a time: one generator call per 256 frames, not two a frame
-                picks = self._rng.integers((2, _NOISE_MARGIN_PX, _NOISE_MARGIN_PX), size=(256, 3))
+                steps = _NOISE_MARGIN_PX // _NOISE_STEP_PX
+                picks = self._rng.integers((2, steps, steps), size=(256, 3))
+                picks *= (1, _NOISE_STEP_PX, _NOISE_STEP_PX)
                 self._noise_picks = [tuple(pick) for pick in reversed(picks.tolist())]
             noise = self._noise_picks.pop()
         return SimFrame(
@@ -353,12 +359,43 @@ class SimCamera:
 
     def render_scene(self, scene: tuple) -> np.ndarray:
         """The whole frame that ``SimFrame.scene`` describes."""
+        return np.asarray(self.scene_frame(scene))
+
+    def scene_frame(self, scene: tuple) -> SimFrame:
+        """The frame that ``SimFrame.scene`` describes."""
         t_s, centres, gain, hidden, noise, resized_to = scene
         frame = SimFrame(self, t_s=t_s, gain=gain, hidden=frozenset(hidden), noise=noise)
         frame._centres = np.array(centres, dtype=float).reshape(2, 2)
         if resized_to is not None:
             frame.resized(resized_to)
-        return np.asarray(frame)
+        return frame
+
+    def row_keys(self, frame: SimFrame, row_px: int) -> list[tuple | None] | None:
+        """For each band of ``row_px`` pixel rows of the frame (the last one may be
+        shorter), a key that is equal for two bands exactly when their pixels are, or
+        None where a marker's dot reaches into the band (drawn at sub-pixel positions:
+        never the same twice). None for a frame at another streaming size (scaled)."""
+        if frame._resized_to is not None:
+            return None
+        background, specimen, _ = frame.palette()
+        (bx0, by0, bx1, by1), dots = frame.layout()
+        bx0, bx1 = max(bx0, 0), min(bx1, self.width)
+        k, dy, dx = frame.noise if frame.noise is not None else (None, 0, 0)
+        keys: list[tuple | None] = []
+        for y0 in range(0, self.height, row_px):
+            y1 = min(y0 + row_px, self.height)
+            if any(dot[1] < y1 and y0 < dot[3] for *_, dot in dots):
+                keys.append(None)
+                continue
+            band_y0, band_y1 = max(by0, y0), min(by1, y1)
+            band = (
+                (bx0, bx1, band_y0 - y0, band_y1 - y0, specimen)
+                if bx0 < bx1 and band_y0 < band_y1
+                else None
+            )
+            noise = None if k is None else (k, dy + y0, dx)
+            keys.append((y1 - y0, background, band, noise))
+        return keys
 
     # -- a capture --------------------------------------------------------------------------------
 
@@ -598,10 +635,42 @@ class SceneRenderer:
     def __setstate__(self, state: dict) -> None:
         self.spec, self._camera = state["spec"], None
 
-    def __call__(self, scene: tuple) -> np.ndarray:
+    @property
+    def camera(self) -> SimCamera:
         if self._camera is None:
             self._camera = SimCamera(None, None, **self.spec)  # draws only: no clock
-        return self._camera.render_scene(scene)
+        return self._camera
+
+    def __call__(self, scene: tuple) -> np.ndarray:
+        return np.asarray(self.frame(scene))
+
+    def frame(self, scene: tuple) -> SimFrame:
+        """The scene's frame, rendered where it is read (a video's encoder reads only
+        the rows that ``row_keys`` does not know)."""
+        return self.camera.scene_frame(scene)
+
+    def row_keys(self, frame: SimFrame, row_px: int) -> list[tuple | None] | None:
+        """Which bands of rows of the frame repeat (``SimCamera.row_keys``)."""
+        return self.camera.row_keys(frame, row_px)
+
+    def render_rows(
+        self, frames: Sequence[SimFrame], spans: Sequence[tuple[int, int, int]]
+    ) -> list[np.ndarray]:
+        """For each span (i, y0, y1), the pixel rows [y0, y1) of ``frames[i]``, full
+        width: spans of one height rendered as one stack (``SimCamera.render_stack``)."""
+        camera = self.camera
+        out: list[np.ndarray | None] = [None] * len(spans)
+        by_height: dict[int, list[int]] = {}
+        for j, (_, y0, y1) in enumerate(spans):
+            by_height.setdefault(y1 - y0, []).append(j)
+        for js in by_height.values():
+            stack = camera.render_stack(
+                [frames[spans[j][0]] for j in js],
+                [(0, spans[j][1], camera.width, spans[j][2]) for j in js],
+            )
+            for j, pixels in zip(js, stack, strict=True):
+                out[j] = pixels
+        return out
 
 
 @functools.lru_cache(maxsize=8)
