@@ -8,15 +8,17 @@ Each frame's time on the run's clock is stored in the run file (``/entry/video/t
 time i.
 
 Encoding runs in a process of its own (``python -c 'labrig.video._serve()'``), fed
-through a pipe: a frame costs the camera loop one pickled write, and the encoding runs
-on another core instead of taking the run's interpreter lock. A frame that can describe
-itself (``video_recipe()``: a simulated frame, a few numbers) is sent as that description
-and drawn in the encoder process (0.13-0.26 ms at 640x360 grey, then 0.33 ms to encode:
-0.6-0.7 ms of the encoder's CPU a frame in all, 2026-12-02, 2-core AMD EPYC VM); any
-other frame (a real camera's) is sent as its pixels. When the encoder falls
-behind by the pipe's buffer the write waits: on the simulated rig's virtual clock the
-camera loop then holds time still and costs only wall time; the encoder process never
-waits on the clock, so it can neither move nor hold time.
+through a pipe: a batch of frames costs the camera loop one pickled write, and the
+encoding runs on another core instead of taking the run's interpreter lock. Frames that
+can describe themselves (``video_recipe()``: a simulated frame, a few numbers) are sent
+as those descriptions, a batch at a time, and drawn in the encoder process: only the
+rows of MCUs that were not seen before are drawn and encoded, the others copied
+(``labrig.jpeg_rows``; 0.15-0.2 ms of the encoder's CPU a frame at 640x360 grey against
+0.45-0.5 ms to draw and encode each frame whole, 2026-12-03, 2-core AMD EPYC VM). Any
+other frame (a real camera's) is sent as its pixels and encoded whole. When the encoder
+falls behind by the pipe's buffer the write waits: on the simulated rig's virtual clock
+the camera loop then holds time still and costs only wall time; the encoder process
+never waits on the clock, so it can neither move nor hold time.
 
 AVI and Matroska are written front to back with the frames in order, so a killed run's
 video opens and plays up to what the writer had passed to the file. A run killed outright
@@ -46,8 +48,8 @@ _CONTAINERS = {".avi": "avi", ".mkv": "matroska", ".mp4": "mp4"}
 JPEG_QUALITY = 75
 # MPEG-4's bit rate: a bit a pixel a frame (7 Mbit/s at 640x360 and 30 fps), at least this
 MPEG4_MIN_BIT_RATE = 2_000_000
-# the camera loop's writes are buffered up to this many bytes (a frame's description is
-# ~200 bytes: about a second of frames); pixels go through at once
+# the pipe's buffer: a batch of frames' descriptions (~80 bytes a frame) is written
+# and flushed as one; pixels go through at once
 PIPE_BUFFER_BYTES = 8192
 _ENCODER = "from labrig.video import _serve; _serve()"
 
@@ -107,13 +109,15 @@ class VideoRecorder:
             self._send_scenes(scenes)
 
     def _send_scenes(self, scenes: list) -> None:
-        self._send(("scenes", list(scenes)))
+        self._send(("scenes", list(scenes)), flush=True)
         self.n_frames += len(scenes)
         scenes.clear()
 
-    def _send(self, message: tuple) -> None:
+    def _send(self, message: tuple, flush: bool = False) -> None:
         try:
             pickle.dump(message, self._encoder.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+            if flush:  # the encoder starts on the batch now; a killed run loses none of it
+                self._encoder.stdin.flush()
         except (BrokenPipeError, OSError):
             self._finish()  # the encoder stopped: its report says why
             if self.error is None:
