@@ -383,20 +383,18 @@ class SimCamera:
         (bx0, by0, bx1, by1), dots = frame.layout()
         bx0, bx1 = max(bx0, 0), min(bx1, self.width)
         k, dy, dx = frame.noise if frame.noise is not None else (None, 0, 0)
+        height = self.height
         keys: list[tuple | None] = []
-        for y0 in range(0, self.height, row_px):
-            y1 = min(y0 + row_px, self.height)
-            if any(dot[1] < y1 and y0 < dot[3] for *_, dot in dots):
-                keys.append(None)
-                continue
-            band_y0, band_y1 = max(by0, y0), min(by1, y1)
-            band = (
-                (bx0, bx1, band_y0 - y0, band_y1 - y0, specimen)
-                if bx0 < bx1 and band_y0 < band_y1
-                else None
-            )
-            noise = None if k is None else (k, dy + y0, dx)
-            keys.append((y1 - y0, background, band, noise))
+        for y0 in range(0, height, row_px):
+            y1 = min(y0 + row_px, height)
+            if by0 < y1 and y0 < by1 and bx0 < bx1:
+                band = (bx0, bx1, max(by0, y0) - y0, min(by1, y1) - y0, specimen)
+            else:
+                band = None
+            keys.append((y1 - y0, background, band, None if k is None else (k, dy + y0, dx)))
+        for *_, (_, top, _, bottom) in dots:  # the rows a dot reaches into
+            for row in range(top // row_px, (bottom - 1) // row_px + 1) if top < bottom else ():
+                keys[row] = None
         return keys
 
     # -- a capture --------------------------------------------------------------------------------
