@@ -243,10 +243,14 @@ class _Writer:
         keys = [renderer.row_keys(f, self._rows.row_px) if self._jpeg else None for f in frames]
         keyed = [i for i, k in enumerate(keys) if k is not None]
         with self._errors():
-            jpegs = dict(zip(keyed, self._rows.frames(
-                [keys[i] for i in keyed],
-                lambda spans: renderer.render_rows([frames[i] for i in keyed], spans),
-            ) if keyed else [], strict=True))  # fmt: skip
+            jpegs = {}
+            if keyed:
+                keyed_frames = [frames[i] for i in keyed]
+                encoded = self._rows.frames(
+                    [keys[i] for i in keyed],
+                    lambda spans: renderer.render_rows(keyed_frames, spans),
+                )
+                jpegs = dict(zip(keyed, encoded, strict=True))
             for i, frame in enumerate(frames):
                 if i in jpegs:
                     self._mux_jpeg(jpegs[i])

@@ -359,10 +359,6 @@ class SimCamera:
             self._renderer = SceneRenderer(self._spec)
         return self._renderer
 
-    def render_scene(self, scene: tuple) -> np.ndarray:
-        """The whole frame that ``SimFrame.scene`` describes."""
-        return np.asarray(self.scene_frame(scene))
-
     def scene_frame(self, scene: tuple) -> SimFrame:
         """The frame that ``SimFrame.scene`` describes."""
         t_s, centres, gain, hidden, noise, resized_to = scene
@@ -374,9 +370,11 @@ class SimCamera:
 
     def row_keys(self, frame: SimFrame, row_px: int) -> list[tuple | None] | None:
         """For each band of ``row_px`` pixel rows of the frame (the last one may be
-        shorter), a key that is equal for two bands exactly when their pixels are, or
-        None where a marker's dot reaches into the band (drawn at sub-pixel positions:
-        never the same twice). None for a frame at another streaming size (scaled)."""
+        shorter), a key such that two bands of equal keys, of any frames of this camera,
+        have equal pixels: the band's height, the fill levels, the specimen band's edges
+        in it and the noise's row and offset. None where a marker's dot reaches into the
+        band (drawn at sub-pixel positions: never the same twice), and None for a frame
+        at another streaming size (scaled)."""
         if frame._resized_to is not None:
             return None
         background, specimen, _ = frame.palette()
@@ -567,7 +565,7 @@ class SimFrame:
     @property
     def scene(self) -> tuple:
         """The frame as a few numbers (time, marker centres, light, hidden markers, the
-        noise's pick, the streaming size): all ``SimCamera.render_scene`` needs."""
+        noise's pick, the streaming size): all ``SimCamera.scene_frame`` needs."""
         centres = tuple(float(v) for v in self.centres.ravel())
         return (self.t_s, centres, self.gain, tuple(sorted(self.hidden)), self.noise,
                 self._resized_to)  # fmt: skip
