@@ -155,9 +155,16 @@ def _side_windows(a: np.ndarray, gap: int, span: int) -> tuple[np.ndarray, np.nd
 
 
 def _medians(windows: np.ndarray) -> np.ndarray:
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN windows at motion ends
-        return np.nanmedian(windows, axis=1)
+    """``np.nanmedian(windows, axis=1)`` (NaN for an all-NaN window, as at a motion's
+    ends), from one sort of the rows: each row's middle value, or the mean of its middle
+    two, NaN sorted last. numpy's own takes masked arrays for rows this short, ~10x
+    slower: a long run's analysis spent a quarter of its time there."""
+    ordered = np.sort(windows, axis=1)
+    count = windows.shape[1] - np.isnan(windows).sum(axis=1)
+    rows = np.arange(len(ordered))
+    lower = ordered[rows, np.maximum((count - 1) // 2, 0)]
+    upper = ordered[rows, count // 2]
+    return 0.5 * (lower + upper)
 
 
 def _extrapolated(windows: np.ndarray, at: float) -> np.ndarray:
