@@ -27,6 +27,7 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
+from labrig.arrays import nanmedian_rows
 from labrig.errors import InputError
 
 # A marker's blob is round: it fills about pi/4 of its bounding box, which is about square.
@@ -271,7 +272,8 @@ class MarkerTracker:
         signal = 255.0 - patches[np.arange(n), top_px, left_px].astype(np.float32)
         inside = r2[None] <= (r_in * r_in)[:, None, None]
         ring = ~inside & (r2[None] <= ((r_in + 3.0) ** 2)[:, None, None])
-        background = _ring_medians(signal, ring)
+        # the median of each ring (its pixels kept, the rest NaN)
+        background = nanmedian_rows(np.where(ring, signal, np.nan).reshape(n, -1))
         weights = (signal - background.astype(np.float32)[:, None, None]) * inside
         weights = weights.astype(np.float64)
         m00 = weights.sum(axis=(1, 2))
@@ -445,17 +447,6 @@ def _window_masks(half: int, r_in: float) -> tuple[np.ndarray, np.ndarray]:
     inside = r2 <= r_in * r_in
     r_out = r_in + 3.0
     return inside.astype(np.float32), np.flatnonzero(~inside & (r2 <= r_out * r_out))
-
-
-def _ring_medians(signal: np.ndarray, ring: np.ndarray) -> np.ndarray:
-    """Per frame, the median of ``signal`` over ``ring`` (both (n, p, p)), as
-    ``_median`` takes it: the middle value, or the mean of the middle two."""
-    values = np.sort(np.where(ring, signal, np.inf).reshape(len(signal), -1), axis=1)
-    count = ring.reshape(len(ring), -1).sum(axis=1)
-    rows = np.arange(len(values))
-    upper = values[rows, np.maximum(count // 2, 0)].astype(np.float64)
-    lower = values[rows, np.maximum(count // 2 - 1, 0)].astype(np.float64)
-    return np.where(count % 2 == 1, upper, 0.5 * (lower + upper))
 
 
 def _stack_regions(frames: list, boxes: list) -> np.ndarray:

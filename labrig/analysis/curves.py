@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from labrig.arrays import runs_of_true
+
 INFLATE = 1
 DEFLATE = -1
 PHASES = {INFLATE: "inflate", DEFLATE: "deflate"}
@@ -39,12 +41,6 @@ MIN_MOVE_ML = 1e-6
 
 # polls next to a motion's start or end used to estimate its rate there
 RATE_POLLS = 5
-
-
-def runs_of_true(mask: np.ndarray) -> list[tuple[int, int]]:
-    """(first, last) indices of the runs of True in ``mask``."""
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1, strict=True))
 
 
 def with_motion_corners(pump_t_s: np.ndarray, pump_v_ml: np.ndarray):

@@ -51,7 +51,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from labrig.analysis.curves import motion_at, runs_of_true, volume_at
+from labrig.analysis.curves import motion_at, volume_at
+from labrig.arrays import nanmedian_rows, runs_of_true
 
 
 @dataclass(frozen=True)
@@ -154,19 +155,6 @@ def _side_windows(a: np.ndarray, gap: int, span: int) -> tuple[np.ndarray, np.nd
     return windows[:n], windows[after : after + n]
 
 
-def _medians(windows: np.ndarray) -> np.ndarray:
-    """``np.nanmedian(windows, axis=1)`` (NaN for an all-NaN window, as at a motion's
-    ends), from one sort of the rows: each row's middle value, or the mean of its middle
-    two, NaN sorted last. numpy's own takes masked arrays for rows this short, ~10x
-    slower: a long run's analysis spent a quarter of its time there."""
-    ordered = np.sort(windows, axis=1)
-    count = windows.shape[1] - np.isnan(windows).sum(axis=1)
-    rows = np.arange(len(ordered))
-    lower = ordered[rows, np.maximum((count - 1) // 2, 0)]
-    upper = ordered[rows, count // 2]
-    return 0.5 * (lower + upper)
-
-
 def _extrapolated(windows: np.ndarray, at: float) -> np.ndarray:
     """The least-squares line through each window (x = 0..span-1, NaN ignored) at x =
     ``at``; NaN for windows less than half full."""
@@ -194,7 +182,7 @@ def bump_excess(steepness: np.ndarray, gap: int, span: int) -> np.ndarray:
     """The excess of the steepness over the trends on both sides (module docstring):
     the smaller of the excess over the side medians and over the side lines."""
     before, after = _side_windows(steepness, gap, span)
-    over_medians = _beyond(steepness, _medians(before), _medians(after))
+    over_medians = _beyond(steepness, nanmedian_rows(before), nanmedian_rows(after))
     over_lines = _beyond(
         steepness, _extrapolated(before, span + gap), _extrapolated(after, -gap - 1.0)
     )
@@ -218,7 +206,7 @@ def _onset_time(
     excess peaks at ``peak``, first crosses ``fraction`` of the way from its median
     level before the bump to the bump's extreme (linear between samples). Returns that
     time and the bump's sign (+1 above the level before, -1 below)."""
-    base = _medians(_side_windows(steepness, gap, span)[0][peak : peak + 1])[0]
+    base = nanmedian_rows(_side_windows(steepness, gap, span)[0][peak : peak + 1])[0]
     if not np.isfinite(base):
         return float(t[peak]), 0.0
     sign = 1.0 if steepness[peak] >= base else -1.0

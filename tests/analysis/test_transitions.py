@@ -1,18 +1,13 @@
 """Transitions in measurements: the detector's parts against independent computations,
 and the whole detector against the simulated plant's own snap-throughs."""
 
-import warnings
-
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from labrig.analysis.runfile import load_run
 from labrig.analysis.transitions import (
     AgreedTransition,
     MeasuredTransition,
-    _medians,
     agreed_transitions,
     bump_excess,
     detect_transitions,
@@ -126,23 +121,3 @@ def test_the_fig2_pair_snaps_with_a_pressure_drop(snap_run):
 def test_a_single_segment_under_volume_control_never_snaps(segment_run):
     """Past its peak and valley a lone segment stays on its curve: no transition."""
     assert _detect(segment_run) == []
-
-
-@settings(max_examples=200, deadline=None)
-@given(
-    st.integers(1, 40),
-    st.integers(1, 25),
-    st.floats(0.0, 1.0),
-    st.integers(0, 2**32 - 1),
-)
-def test_the_side_medians_are_numpys_nanmedian(n, span, nan_fraction, seed):
-    """``_medians`` (one sort of the rows) against ``np.nanmedian`` on windows with NaN
-    anywhere, all-NaN rows, repeated values and infinities: equal to the bit."""
-    rng = np.random.default_rng(seed)
-    windows = rng.choice([-2.0, 0.0, 1.5, 3.0, np.inf, -np.inf], (n, span))
-    windows = np.where(rng.random((n, span)) < 0.8, rng.normal(size=(n, span)), windows)
-    windows[rng.random((n, span)) < nan_fraction] = np.nan
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows
-        expected = np.nanmedian(windows, axis=1)
-    np.testing.assert_array_equal(_medians(windows), expected)
