@@ -48,6 +48,7 @@ import numpy as np
 from labrig.clock import Clock, ClockThread
 from labrig.devices import LengthSample
 from labrig.drivers.markers import MarkerFix, MarkerTracker, mm_per_px_from_reference
+from labrig.drivers.tracker_process import TrackerProcess
 from labrig.errors import DeviceError, InputError
 
 DEVICE_PATH = re.compile(r"^/dev/video\d+$")
@@ -333,6 +334,8 @@ class CameraLength:
         self.tracker = tracker or MarkerTracker()
         self.mm_per_px = mm_per_px
         self.reference_distance_mm = reference_distance_mm
+        self._process: TrackerProcess | None = None  # started by the first batch
+        self._in_hand: list[Frame] = []  # the frames of the batch being tracked there
 
     @property
     def waits_for_frames(self) -> bool:
@@ -345,11 +348,33 @@ class CameraLength:
         return None if frame is None else self._measure(frame)
 
     def read_new(self) -> list[LengthSample]:
-        """Every frame of a live camera since the last call, measured now as one batch
-        (``MarkerTracker.track_many``), oldest first (``FrameSource.take_frames``);
-        never waits."""
+        """Every frame of a live camera up to the call before this one, measured; never
+        waits for the camera.
+
+        The frames taken now (``FrameSource.take_frames``) are handed as one batch to
+        the tracker's own process (``TrackerProcess``, ``MarkerTracker.track_many``),
+        which measures them while the caller goes on; the samples returned are those of
+        the batch handed over at the previous call, oldest first (waiting for them if
+        they are not done yet). ``read_rest`` returns the batch still in hand."""
         frames = self.frames.take_frames()
-        fixes = self.tracker.track_many([frame.image for frame in frames])
+        done = self._collect()
+        if frames:
+            if self._process is None:
+                self._process = TrackerProcess(self.tracker, f"{self.frames.name} tracker")
+            self._process.submit([frame.image for frame in frames])
+            self._in_hand = frames
+        return done
+
+    def read_rest(self) -> list[LengthSample]:
+        """``read_new``, then the frames it handed over, waited for: every frame taken so
+        far, measured."""
+        return self.read_new() + self._collect()
+
+    def _collect(self) -> list[LengthSample]:
+        frames, self._in_hand = self._in_hand, []
+        if not frames:
+            return []
+        fixes = self._process.collect()
         return [self._sample(frame, fix) for frame, fix in zip(frames, fixes, strict=True)]
 
     def _measure(self, frame: Frame) -> LengthSample:
@@ -371,4 +396,13 @@ class CameraLength:
         )
 
     def close(self) -> None:
+        """Stop the camera and the tracker's process."""
         self.frames.close()
+        self.close_tracker()
+
+    def close_tracker(self) -> None:
+        """End the tracker's process (a batch in hand is dropped: ``read_rest`` first)."""
+        process, self._process = self._process, None
+        self._in_hand = []
+        if process is not None:
+            process.close()

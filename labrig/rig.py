@@ -232,6 +232,7 @@ def _build_real_rig(protocol: Protocol, config: RigConfig) -> Rig:
                 mm_per_px=config.camera.mm_per_px,
                 reference_distance_mm=config.camera.reference_distance_mm,
             )
+            stack.callback(length.close_tracker)
         closer = stack.pop_all()
     return Rig(clock, pump, pressure, length, rig_config_text(config), closer.close)
 
@@ -357,6 +358,7 @@ def _build_sim_rig(protocol: Protocol, config: RigConfig) -> Rig:
                 mm_per_px=wanted.mm_per_px,
                 reference_distance_mm=wanted.reference_distance_mm,
             )
+            stack.callback(length.close_tracker)
         closer = stack.pop_all()
     simulation = SimulatedParts(plant, emulator, camera, daq_tasks)
     return Rig(clock, pump, pressure, length, rig_config_text(config), closer.close, simulation)

@@ -22,6 +22,7 @@ volume it reports.
 
 from __future__ import annotations
 
+import bisect
 import contextlib
 import math
 import os
@@ -101,11 +102,12 @@ class Timing:
 
     pressure_period_s: float = 0.2
     pump_period_s: float = 0.2
-    # a live camera's frames are taken from its reader thread and tracked and recorded
-    # in batches this often: a batch's tracking costs mostly its calls, not its pixels,
-    # so a second's 30 frames cost little more than 0.2 s's 6 (the combined actuator
-    # at 30 fps: 8.0 s of the camera loop's CPU at 0.2 s, 5.4 s at 1 s); the markers-lost
-    # interlock, which allows 10 s, trips at most this much later than its frame
+    # a live camera's frames are taken from its reader thread in batches this often,
+    # each tracked in the tracker's process while the next is taken, and recorded when
+    # the next is taken: a batch's tracking costs mostly its calls, not its pixels, so a
+    # second's 30 frames cost little more than 0.2 s's 6 (the combined actuator at
+    # 30 fps: 8.0 s of tracking CPU at 0.2 s, 5.4 s at 1 s); the markers-lost interlock,
+    # which allows 10 s, trips at most two periods later than its frame
     camera_period_s: float = 1.0
     progress_period_s: float = 0.5
     max_marker_loss_s: float = 10.0
@@ -157,6 +159,9 @@ class Runner:
         )
         self.latest = _Latest()
         self._repetition = 1
+        # when each repetition started, in order (frames are recorded after the fact)
+        self._repetition_starts_s: list[float] = []
+        self._repetitions_started: list[int] = []
         self._volume_lock = threading.Lock()
         self._stop_loops = threading.Event()
         self._stopped_at_s = math.inf  # when the loops were last told to stop
@@ -337,6 +342,8 @@ class Runner:
             self._leave_repetition("complete")
         self._repetition = repetition
         self._repetition_started = True
+        self._repetition_starts_s.append(self.clock.now())
+        self._repetitions_started.append(repetition)
         self.writer.set_repetition_status(repetition, "running", t_start_s=self.clock.now())
 
     def _leave_repetition(self, status: str, reason: str = "") -> None:
@@ -396,6 +403,13 @@ class Runner:
     def _current_repetition(self) -> int:
         return self._repetition
 
+    def _repetition_at(self, t_s: float) -> int:
+        """The repetition that was running at ``t_s`` (the first one before any)."""
+        i = bisect.bisect_right(self._repetition_starts_s, t_s) - 1
+        if not self._repetitions_started:
+            return self._repetition
+        return self._repetitions_started[max(i, 0)]
+
     def _pressure_loop(self) -> None:
         self._device_loop("pressure", self.timing.pressure_period_s, self._read_pressure)
 
@@ -416,10 +430,10 @@ class Runner:
                 "camera", self.timing.camera_period_s, lambda: self._read_lengths(since_s)
             )
             if self._stop_loops.is_set() and not self._hurry:
-                # the frames measured since the last batch, up to the stop (a loop that
-                # ended on a camera fault has already reported it)
+                # the batch still being measured and the frames since, up to the stop
+                # (a loop that ended on a camera fault has already reported it)
                 with contextlib.suppress(LabrigError, OSError):
-                    self._read_lengths(since_s, self._stopped_at_s)
+                    self._read_lengths(since_s, self._stopped_at_s, rest=True)
         else:
             self._device_loop(
                 "camera", 1.0 / self.protocol.acquisition.camera_fps, self._read_length
@@ -500,20 +514,35 @@ class Runner:
             # a frame that came after the loops were told to stop is not recorded
             self._record_lengths([sample])
 
-    def _read_lengths(self, since_s: float, until_s: float = math.inf) -> None:
-        """Record the frames measured since the last batch; frames from before this
-        loop started (the camera streams on while acquisition pauses) are not."""
-        samples = [s for s in self.rig.length.read_new() if since_s <= s.t_s <= until_s]
+    def _read_lengths(self, since_s: float, until_s: float = math.inf, rest=False) -> None:
+        """Record the batch of frames measured since the last call (``read_new``: the
+        frames taken one camera period before; ``rest``: every frame taken); frames from
+        before this loop started (the camera streams on while acquisition pauses) are
+        not recorded."""
+        length = self.rig.length
+        new = length.read_rest() if rest else length.read_new()
+        samples = [s for s in new if since_s <= s.t_s <= until_s]
         if samples:
             self._record_lengths(samples)
 
     def _record_lengths(self, samples: list[LengthSample]) -> None:
-        """A batch of frames into the run file as one block (and the video), then the
-        markers-lost interlock over them in order."""
+        """A batch of frames into the run file (and the video), each frame in the
+        repetition that was running when it was taken (a batch is recorded a camera
+        period or two after its frames), then the markers-lost interlock over them in
+        order."""
+        repetitions = [self._repetition_at(s.t_s) for s in samples]
+        start = 0
+        for end in range(1, len(samples) + 1):
+            if end == len(samples) or repetitions[end] != repetitions[start]:
+                self._record_repetition_lengths(repetitions[start], samples[start:end])
+                start = end
+        for sample in samples:
+            self._check_markers(sample)
+
+    def _record_repetition_lengths(self, repetition: int, samples: list[LengthSample]) -> None:
         columns = np.array(
             [(s.t_s, s.length_mm, s.x1_px, s.y1_px, s.x2_px, s.y2_px) for s in samples]
         ).T
-        repetition = self._current_repetition()
         self.writer.append_length(repetition, *columns, np.array([s.ok for s in samples]))
         if self.video is not None:
             framed = [s for s in samples if s.image is not None]
@@ -525,8 +554,6 @@ class Runner:
                 if shown:
                     times = np.array([s.t_s for s in framed[:shown]])
                     self.writer.append_video_frame(repetition, times)
-        for sample in samples:
-            self._check_markers(sample)
 
     def _check_markers(self, sample: LengthSample) -> None:
         if sample.ok:

@@ -10,7 +10,7 @@ time i.
 Encoding runs in a process of its own (``python -c 'labrig.video._serve()'``), fed
 through a pipe: a batch of frames costs the camera loop one pickled write, and the
 encoding runs on another core instead of taking the run's interpreter lock. Frames that
-can describe themselves (``video_recipe()``: a simulated frame, a few numbers) are sent
+can describe themselves (``recipe()``: a simulated frame, a few numbers) are sent
 as those descriptions, a batch at a time, and drawn in the encoder process: only the
 rows of MCUs that were not seen before are drawn and encoded, the others copied
 (``labrig.jpeg_rows``; 0.15-0.2 ms of the encoder's CPU a frame at 640x360 grey against
@@ -80,7 +80,7 @@ class VideoRecorder:
         )
 
     def add(self, image) -> None:
-        """Hand one frame over (an array, or a frame with a ``video_recipe()``)."""
+        """Hand one frame over (an array, or a frame with a ``recipe()``)."""
         self.add_many([image])
 
     def add_many(self, images) -> None:
@@ -93,7 +93,7 @@ class VideoRecorder:
             raise RuntimeError(f"{self.path}: the video was closed")
         scenes: list = []
         for image in images:
-            recipe = getattr(image, "video_recipe", None)
+            recipe = getattr(image, "recipe", None)
             renderer, item = recipe() if recipe is not None else (None, None)
             if scenes and (recipe is None or renderer is not self._renderer):
                 self._send_scenes(scenes)

@@ -354,7 +354,8 @@ class SimCamera:
 
     def renderer(self) -> SceneRenderer:
         """A picklable stand-in for this camera's drawing: given a frame's ``scene``
-        it renders the same pixels in another process (the run's video encoder)."""
+        it renders the same pixels in another process (the run's video encoder, the
+        marker tracker's process)."""
         if self._renderer is None:
             self._renderer = SceneRenderer(self._spec)
         return self._renderer
@@ -570,9 +571,10 @@ class SimFrame:
         return (self.t_s, centres, self.gain, tuple(sorted(self.hidden)), self.noise,
                 self._resized_to)  # fmt: skip
 
-    def video_recipe(self) -> tuple[SceneRenderer, tuple]:
-        """(renderer, scene): how a video encoder draws this frame itself, in its own
-        process, instead of being handed its pixels (``labrig.video``)."""
+    def recipe(self) -> tuple[SceneRenderer, tuple]:
+        """(renderer, scene): how another process draws this frame itself instead of
+        being handed its pixels (the run's video encoder, ``labrig.video``; the marker
+        tracker's process, ``labrig.drivers.tracker_process``)."""
         return self.camera.renderer(), self.scene
 
     def __getitem__(self, key):

@@ -109,7 +109,9 @@ def test_a_slow_reader_gets_the_newest_frame_not_the_oldest_buffered():
 
 def test_every_frame_is_kept_by_the_reader_and_measured_in_batches():
     """``read_new``: the reader thread keeps every frame until taken; a caller polling
-    every 0.2 s gets every frame once, in order, none lost between batches."""
+    every 0.2 s gets every frame once, in order, none lost between batches, each batch
+    measured in the tracker's process while the caller waits for the next; ``read_rest``
+    returns the last one."""
     clock = VirtualClock()
     # the test takes part in the clock's time: the camera streams only while it waits
     with clock.participate():
@@ -117,18 +119,23 @@ def test_every_frame_is_kept_by_the_reader_and_measured_in_batches():
         frames = live_source(clock, cam, width=640, height=360, fps=30.0)
         length = CameraLength(frames, mm_per_px=MM_PER_PX)
         assert length.read_new() == []  # starts the reader; nothing streamed yet
-        batches = []
+        batches, taken = [], []
         for _ in range(10):
             clock.sleep(0.2)
             batches.append(length.read_new())
+            taken.append(frames.n_frames)
+        batches.append(length.read_rest())
+        # each call returns the frames taken by the call before it
+        assert batches[0] == []
+        assert [len(b) for b in batches[1:]] == list(np.diff([0, *taken]))
         samples = [s for batch in batches for s in batch]
         t_s = np.array([s.t_s for s in samples])
-        assert all(4 <= len(batch) <= 8 for batch in batches[1:])
+        assert all(4 <= len(batch) <= 8 for batch in batches[2:])
         np.testing.assert_allclose(np.diff(t_s), 1 / 30, atol=1e-9)  # every frame, once
         assert t_s[-1] <= clock.now() and len(samples) == frames.n_frames
         assert all(s.ok for s in samples)
         np.testing.assert_allclose([s.length_mm for s in samples], 30.0 + t_s, atol=0.01)
-        frames.close()
+        length.close()
 
 
 def test_a_batched_camera_that_is_unplugged_is_a_device_error():
@@ -139,11 +146,12 @@ def test_a_batched_camera_that_is_unplugged_is_a_device_error():
         length = CameraLength(live_source(clock, cam, width=640, height=360), mm_per_px=MM_PER_PX)
         length.read_new()
         clock.sleep(0.5)
-        assert length.read_new()
+        assert length.read_rest()
         cam.release()  # unplugged
         clock.sleep(0.2)
         with pytest.raises(DeviceError, match="returned no frame: is it still connected"):
             length.read_new()
+        length.close()
 
 
 def test_a_size_rate_or_exposure_the_camera_cannot_do_is_refused_in_one_line():
@@ -169,7 +177,7 @@ def first_sample(length, clock, batched):
         return length.read()
     length.read_new()
     clock.sleep(0.2)
-    return length.read_new()[0]
+    return length.read_rest()[0]
 
 
 @pytest.mark.parametrize("batched", [False, True])

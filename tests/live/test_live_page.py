@@ -91,6 +91,9 @@ def test_page_shows_data_growing_the_model_and_a_transition(live_run, browser):
     first = int(page.locator("#pv").get_attribute("data-points"))
     waiting(page, run, page.wait_for_function, f"{points} > {first}")
     assert count(page, "#pv polyline.current") == 1
+    # the camera's frames come in batches, each a camera period or two after it was
+    # taken (measured in the tracker's process meanwhile)
+    waiting(page, run, page.wait_for_selector, "#lv polyline.current")
     assert count(page, "#lv polyline.current") == 1
 
     # the model's curve, dashed, with its predicted transitions

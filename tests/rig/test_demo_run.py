@@ -65,3 +65,17 @@ def test_length_matches_the_plant_within_tracking_error(demo):
             # frames carry their exposure time; the tracker is good to ~0.001 mm
             assert np.median(np.abs(error)) < 0.01
             assert np.max(np.abs(error)) < 0.05
+
+
+def test_each_frame_is_recorded_in_the_repetition_it_was_taken_in(demo):
+    """A batch of frames is recorded a camera period or two after it was taken (it is
+    measured in the tracker's process meanwhile): each frame still goes to the
+    repetition that was running when it was taken, and none is lost or doubled where
+    one repetition ends and the next begins."""
+    with open_run(demo.path) as run:
+        starts = run["entry/repetitions/t_start"][:]
+        times = [read_log(run, rep, "length").time_s for rep in (1, 2, 3)]
+    for rep in (1, 2):
+        assert times[rep - 1][-1] < starts[rep] <= times[rep][0]
+        assert times[rep][0] - starts[rep] < 1 / 30
+    np.testing.assert_allclose(np.diff(np.concatenate(times)), 1 / 30, atol=1e-9)
