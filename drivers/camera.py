@@ -334,8 +334,12 @@ class CameraLength:
         self.tracker = tracker or MarkerTracker()
         self.mm_per_px = mm_per_px
         self.reference_distance_mm = reference_distance_mm
-        self._process: TrackerProcess | None = None  # started by the first batch
+        # a live camera's frames are tracked in a process of their own (``read_new``),
+        # started now: its start-up (~0.2 s) overlaps the caller's before the first batch
+        self._process: TrackerProcess | None = None
         self._in_hand: list[Frame] = []  # the frames of the batch being tracked there
+        if self.waits_for_frames:
+            self._process = TrackerProcess(self.tracker, f"{frames.name} tracker")
 
     @property
     def waits_for_frames(self) -> bool:
@@ -360,7 +364,7 @@ class CameraLength:
         done = self._collect()
         if frames:
             if self._process is None:
-                self._process = TrackerProcess(self.tracker, f"{self.frames.name} tracker")
+                raise DeviceError(f"{self.frames.name}: its tracker was closed")
             self._process.submit([frame.image for frame in frames])
             self._in_hand = frames
         return done

@@ -37,8 +37,11 @@ from labrig.errors import DeviceError
 # A batch (a second of frames) is tracked in milliseconds; no answer for this long
 # (host seconds, a busy machine included) means the child hung.
 REPLY_TIMEOUT_S = 60.0
-# how much lower the child runs than the run (``os.nice``)
-TRACKER_NICENESS = 10
+# How much lower the child runs than the run (``os.nice``). Not much: beside two
+# CPU-bound processes, a child at niceness 10 got so little of the machine that the
+# run waited for it (the combined actuator: 69 s, against 24-29 s at 0-6 and 49 s for
+# tracking in the run's own process; 2 cores, 2026-12-03).
+TRACKER_NICENESS = 4
 _CHILD = "from labrig.drivers.tracker_process import _serve; _serve()"
 
 
@@ -138,10 +141,9 @@ def _serve() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the run's to handle
     import cv2
 
-    # below the run's priority: a batch has a camera period to be tracked in, while the
-    # run's threads hand over to each other and to the kernel (a serial exchange on a
-    # pseudo-terminal) many times a millisecond; on 2 cores, at equal priority, those
-    # wake-ups waited behind this process (the combined actuator: 12.2 s against 11.0 s)
+    # a little below the run's priority: a batch has a camera period to be tracked in,
+    # while the run's threads hand over to each other and to the kernel (a serial
+    # exchange on a pseudo-terminal) many times a millisecond
     os.nice(TRACKER_NICENESS)
 
     # one thread: OpenCV would split each small window's work over the cores, costing

@@ -404,6 +404,10 @@ def _check_real_camera(config: CameraConfig, clock: Clock) -> DeviceCheck:
         length = CameraLength(
             frames, mm_per_px=config.mm_per_px, reference_distance_mm=config.reference_distance_mm
         )
+    except InputError:
+        frames.close()
+        raise
+    try:
         return check_camera(length, config, source)
     finally:
-        frames.close()
+        length.close()
