@@ -567,7 +567,7 @@ class SimFrame:
     def scene(self) -> tuple:
         """The frame as a few numbers (time, marker centres, light, hidden markers, the
         noise's pick, the streaming size): all ``SimCamera.scene_frame`` needs."""
-        centres = tuple(float(v) for v in self.centres.ravel())
+        centres = tuple(self.centres.ravel().tolist())
         return (self.t_s, centres, self.gain, tuple(sorted(self.hidden)), self.noise,
                 self._resized_to)  # fmt: skip
 
