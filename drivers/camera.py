@@ -28,10 +28,13 @@ reads them back: a camera that silently stays at 640x480 would make a scale meas
 after the stream starts are dropped: a webcam's auto exposure settles over them (its
 first frame is nearly black, and a scale taken from it would fail).
 
-``CameraLength`` = frames + ``MarkerTracker`` + a pixel-to-mm scale. The scale is given
-(``mm_per_px``) or taken from the first frame, whose markers are a known distance apart
-(``reference_distance_mm``). It assumes the markers move in a plane square to the
-camera's axis, where one scale holds across the frame.
+``CameraLength`` = frames + ``MarkerTracker`` + a pixel-to-mm scale. A live camera's
+batches (``read_new``) are tracked in a process of their own (``TrackerProcess``), each
+while the next is taken, so the tracking runs on another core instead of taking the
+run's interpreter lock; a single frame (``read``, a video file) is tracked in place.
+The scale is given (``mm_per_px``) or taken from the first frame, whose markers are a
+known distance apart (``reference_distance_mm``). It assumes the markers move in a plane
+square to the camera's axis, where one scale holds across the frame.
 """
 
 from __future__ import annotations

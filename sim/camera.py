@@ -16,7 +16,9 @@ exposure and focus. ``write_video`` writes frames to a real MJPG/AVI file.
 Frames are rendered where they are read (``SimFrame``): the tracker reads two small
 windows per frame, and a batch of frames has its windows rendered together
 (``SimFrame.stack_regions``), so a 30 fps run costs little more than a 2 fps one. A
-video's frames are drawn by the video's encoder process from their ``scene``
+run tracks its frames in the marker tracker's process, which draws those windows from
+each frame's ``scene`` (``recipe``, ``SceneRenderer``). A video's frames are drawn by
+the video's encoder process from their ``scene``
 (``SceneRenderer``), and only in their rows that were not seen before: the noise is read
 at offsets that are multiples of 8 pixels, so the rows away from the markers repeat
 (``SimCamera.row_keys``, ``labrig.jpeg_rows``).
