@@ -24,12 +24,14 @@ from __future__ import annotations
 
 import bisect
 import contextlib
+import itertools
 import math
 import os
 import signal
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from operator import itemgetter
 from pathlib import Path
 
 import numpy as np
@@ -159,9 +161,9 @@ class Runner:
         )
         self.latest = _Latest()
         self._repetition = 1
-        # when each repetition started, in order (frames are recorded after the fact)
-        self._repetition_starts_s: list[float] = []
-        self._repetitions_started: list[int] = []
+        # (start time, repetition) of each repetition entered, in order: frames are
+        # recorded after the fact, into the repetition of their time
+        self._repetition_starts: list[tuple[float, int]] = []
         self._volume_lock = threading.Lock()
         self._stop_loops = threading.Event()
         self._stopped_at_s = math.inf  # when the loops were last told to stop
@@ -342,8 +344,7 @@ class Runner:
             self._leave_repetition("complete")
         self._repetition = repetition
         self._repetition_started = True
-        self._repetition_starts_s.append(self.clock.now())
-        self._repetitions_started.append(repetition)
+        self._repetition_starts.append((self.clock.now(), repetition))
         self.writer.set_repetition_status(repetition, "running", t_start_s=self.clock.now())
 
     def _leave_repetition(self, status: str, reason: str = "") -> None:
@@ -405,10 +406,10 @@ class Runner:
 
     def _repetition_at(self, t_s: float) -> int:
         """The repetition that was running at ``t_s`` (the first one before any)."""
-        i = bisect.bisect_right(self._repetition_starts_s, t_s) - 1
-        if not self._repetitions_started:
+        if not self._repetition_starts:
             return self._repetition
-        return self._repetitions_started[max(i, 0)]
+        i = bisect.bisect_right(self._repetition_starts, t_s, key=itemgetter(0))
+        return self._repetition_starts[max(i - 1, 0)][1]
 
     def _pressure_loop(self) -> None:
         self._device_loop("pressure", self.timing.pressure_period_s, self._read_pressure)
@@ -530,12 +531,8 @@ class Runner:
         repetition that was running when it was taken (a batch is recorded a camera
         period or two after its frames), then the markers-lost interlock over them in
         order."""
-        repetitions = [self._repetition_at(s.t_s) for s in samples]
-        start = 0
-        for end in range(1, len(samples) + 1):
-            if end == len(samples) or repetitions[end] != repetitions[start]:
-                self._record_repetition_lengths(repetitions[start], samples[start:end])
-                start = end
+        for repetition, group in itertools.groupby(samples, lambda s: self._repetition_at(s.t_s)):
+            self._record_repetition_lengths(repetition, list(group))
         for sample in samples:
             self._check_markers(sample)
 
