@@ -201,6 +201,63 @@ def energy(tables, i, v):
 
 
 @njit(**LEAF)
+def energy_between(tables, i, v_from, v_to):
+    """E(v_to) - E(v_from) of segment i, mJ, summed from small terms (model-notes, trap
+    3): the pieces' integrals between the two volumes, never the difference of two
+    cumulative energies (~10^3 mJ), which would hide the differences below 1e-9 mJ that
+    decide a minimum near a peak."""
+    sign = 1.0
+    if v_to < v_from:
+        v_from, v_to, sign = v_to, v_from, -1.0
+    ends = tables[ENDS]
+    total = 0.0
+    compensation = 0.0
+    if v_from < ends[i, V_FIRST]:  # the linear continuation below the table
+        a = v_from - ends[i, V_FIRST]
+        b = min(v_to, ends[i, V_FIRST]) - ends[i, V_FIRST]
+        term = ends[i, P_FIRST] * (b - a) + 0.5 * ends[i, SLOPE_FIRST] * (b * b - a * a)
+        total, compensation = _neumaier_add(total, compensation, term)
+    if v_to > ends[i, V_LAST]:  # the linear continuation past the table
+        a = max(v_from, ends[i, V_LAST]) - ends[i, V_LAST]
+        b = v_to - ends[i, V_LAST]
+        term = ends[i, P_LAST] * (b - a) + 0.5 * ends[i, SLOPE_LAST] * (b * b - a * a)
+        total, compensation = _neumaier_add(total, compensation, term)
+    lo = max(v_from, ends[i, V_FIRST])
+    hi = min(v_to, ends[i, V_LAST])
+    if hi > lo:
+        x, c = tables[BREAKPOINTS], tables[COEFFS]
+        ja, jb = piece_index(tables, i, lo), piece_index(tables, i, hi)
+        head = piece_integral(c, i, ja, lo - x[i, ja])
+        if ja == jb:
+            term = piece_integral(c, i, ja, hi - x[i, ja]) - head
+            total, compensation = _neumaier_add(total, compensation, term)
+        else:
+            pieces = tables[PIECE_ENERGY]
+            total, compensation = _neumaier_add(total, compensation, pieces[i, ja] - head)
+            for j in range(ja + 1, jb):
+                total, compensation = _neumaier_add(total, compensation, pieces[i, j])
+            term = piece_integral(c, i, jb, hi - x[i, jb])
+            total, compensation = _neumaier_add(total, compensation, term)
+    return sign * (total + compensation)
+
+
+@njit(**LEAF)
+def reduced_energy_change(x, tables, previous, v):
+    """Eq. 4's reduced energy at x = (v_1..v_{n-1}), v_n = v - sum(x) (Eq. 2), as a
+    difference from the state ``previous`` (all n volumes), summed from small terms."""
+    n = len(previous)
+    last = v - compensated_sum(x)
+    total = 0.0
+    compensation = 0.0
+    for i in range(n - 1):
+        term = energy_between(tables, i, previous[i], x[i])
+        total, compensation = _neumaier_add(total, compensation, term)
+    term = energy_between(tables, n - 1, previous[n - 1], last)
+    total, compensation = _neumaier_add(total, compensation, term)
+    return total + compensation
+
+
+@njit(**LEAF)
 def length(tables, i, v):
     """l(v) in mm; constant past the table's ends."""
     v = min(max(v, tables[ENDS][i, V_FIRST]), tables[ENDS][i, V_LAST])

@@ -49,17 +49,10 @@ class CurveKernel:
         # per branch: its slope profile (``slope_profile``), computed on first use
         self._profiles: dict[int, tuple[list[float], list[float]]] = {}
         self.tables = curve_tables.pack([self])
-        # exact integral of each cubic piece (model-notes, trap 3; ``curve_tables``)
-        self.piece_energy = self.tables[curve_tables.PIECE_ENERGY][
-            0, : self.last_piece + 1
-        ].tolist()
 
     # --- forward evaluation ----------------------------------------------------------
     def _piece(self, v: float) -> int:
         return curve_tables.piece_index(self.tables, 0, v)
-
-    def _piece_integral(self, j: int, t: float) -> float:
-        return curve_tables.piece_integral(self.tables[curve_tables.COEFFS], 0, j, t)
 
     def pressure(self, v: float) -> float:
         return curve_tables.pressure_and_slope(self.tables, 0, v)[0]
@@ -76,26 +69,7 @@ class CurveKernel:
 
     def energy_between(self, v_from: float, v_to: float) -> float:
         """E(v_to) - E(v_from), summed piece by piece from small terms (trap 3)."""
-        if v_to < v_from:
-            return -self.energy_between(v_to, v_from)
-        total = 0.0
-        if v_from < self.v_first:  # the linear continuation below the table
-            a, b = v_from - self.v_first, min(v_to, self.v_first) - self.v_first
-            total += self.p_first * (b - a) + 0.5 * self.slope_first * (b * b - a * a)
-        if v_to > self.v_last:  # the linear continuation past the table
-            a, b = max(v_from, self.v_last) - self.v_last, v_to - self.v_last
-            total += self.p_last * (b - a) + 0.5 * self.slope_last * (b * b - a * a)
-        lo, hi = max(v_from, self.v_first), min(v_to, self.v_last)
-        if hi > lo:
-            ja, jb = self._piece(lo), self._piece(hi)
-            head = self._piece_integral(ja, lo - self.x[ja])
-            if ja == jb:
-                total += self._piece_integral(ja, hi - self.x[ja]) - head
-            else:
-                total += self.piece_energy[ja] - head
-                total += math.fsum(self.piece_energy[ja + 1 : jb])
-                total += self._piece_integral(jb, hi - self.x[jb])
-        return total
+        return curve_tables.energy_between(self.tables, 0, v_from, v_to)
 
     def length(self, v: float) -> float:
         """l(v) in mm; constant past the table's ends."""

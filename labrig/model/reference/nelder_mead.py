@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from labrig.model.actuator.curve_tables import reduced_energy_change, tables_of
 from labrig.model.actuator.equilibria import Actuator
 
 
@@ -69,6 +70,7 @@ def reference_path(
     from scipy.optimize import minimize  # heavy: only the reference needs it
 
     kernels = actuator.kernels
+    tables = tables_of(tuple(kernels))
     n = actuator.n
     jump_ml = 3.0 * math.sqrt(dv_ml) if jump_ml is None else jump_ml
     steps = math.ceil(v_end_ml / dv_ml - 1e-9)
@@ -83,20 +85,12 @@ def reference_path(
         v = volumes[j]
         direction = 1 if v > volumes[j - 1] else -1
         previous = list(w)
-
-        def energy_change(x, previous=previous, v=v):
-            # Eq. 4 as a difference from the previous state: v_n = v - sum(x) (Eq. 2)
-            last = v - math.fsum(x)
-            total = math.fsum(
-                kern.energy_between(a, b) for kern, a, b in zip(kernels, previous, x, strict=False)
-            )
-            return total + kernels[-1].energy_between(previous[-1], last)
-
         x0 = np.array(previous[:-1])
         simplex = np.vstack([x0, x0 + simplex_fraction * dv_ml * np.eye(n - 1)])
         result = minimize(
-            energy_change,
+            reduced_energy_change,
             x0,
+            args=(tables, np.array(previous), v),
             method="Nelder-Mead",
             options={"initial_simplex": simplex, "xatol": 1e-8, "fatol": 1e-12, "maxiter": 20_000},
         )
