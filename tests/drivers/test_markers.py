@@ -150,7 +150,8 @@ def test_a_batch_of_held_markers_is_measured_as_frame_by_frame(monochrome):
         return [cam.frame_at(k / 30) for k in range(180)]
 
     single, batched, batched_tracker = one_by_one_and_batched(frames, 6)
-    truth = np.array([frames()[0].camera.marker_centres_px(k / 30) for k in range(180)])
+    scene = frames()[0].camera
+    truth = np.array([scene.marker_centres_px(k / 30) for k in range(180)])
     assert all(f.ok for f in batched)
     got = np.array([centres(f) for f in batched])
     assert np.max(np.abs(got - truth)) < 0.05
