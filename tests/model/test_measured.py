@@ -7,7 +7,11 @@ import pytest
 from labrig.errors import InputError
 from labrig.model.segments.library import analytical_segment
 from labrig.model.segments.measured import load_csv, write_csv
-from labrig.model.segments.shape_fit import isotonic_blocks, prefix_isotonic_sse
+from labrig.model.segments.shape_fit import (
+    fit_rise_fall_rise,
+    isotonic_blocks,
+    prefix_isotonic_sse,
+)
 
 HEADER = "volume_ml,pressure_kpa,length_mm"
 GAIN, OFFSET_KPA = 1.02, 0.8
@@ -163,3 +167,42 @@ def test_isotonic_regression_matches_scipy():
         for k in (1, 50, 299, 300):
             best = isotonic_regression(y[:k], weights=w[:k], increasing=increasing).x
             assert sse[k] == pytest.approx(np.sum(w[:k] * (y[:k] - best) ** 2), rel=1e-9)
+
+
+def _isotonic_sse(y, w, increasing):
+    from scipy.optimize import isotonic_regression
+
+    if len(y) == 0:
+        return 0.0
+    best = isotonic_regression(y, weights=w, increasing=increasing).x
+    return float(np.sum(w * (y - best) ** 2))
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_the_rise_fall_rise_fit_is_the_least_squares_one_of_all_breakpoints(seed):
+    """The fit (whose search stops early where no breakpoint can do better) against every
+    pair of breakpoints tried, each branch fitted by scipy's isotonic regression: the
+    same least squared error, to rounding."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(12, 40))
+    x = np.linspace(0, 1, n)
+    peak, valley = np.sort(rng.uniform(0.2, 0.9, 2))  # a rise-fall-rise, noisy
+    y = np.interp(x, [0, peak, valley, 1], [0, 3, 1, 4]) + rng.normal(0, 0.4, n)
+    if seed % 2:
+        y = np.round(y * 2) / 2  # quantised: ties everywhere
+    w = rng.uniform(0.5, 3, n)
+    fit = fit_rise_fall_rise(y, w, noise_kpa=0.0)  # three branches, whatever the dip
+    assert len(fit.branches) == 3
+    fitted = np.empty(n)
+    for branch in fit.branches:
+        for first, end, value in branch:
+            fitted[first:end] = value
+    found = float(np.sum(w * (y - fitted) ** 2))
+    every = min(
+        _isotonic_sse(y[:i], w[:i], True)
+        + _isotonic_sse(y[i:j], w[i:j], False)
+        + _isotonic_sse(y[j:], w[j:], True)
+        for i in range(1, n - 1)
+        for j in range(i + 1, n)
+    )
+    assert found == pytest.approx(every, rel=1e-9, abs=1e-12)

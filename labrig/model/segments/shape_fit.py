@@ -72,12 +72,19 @@ def isotonic_blocks(y, w, increasing: bool = True):
     return [(int(b[0]), int(b[1]), b[3] / b[2]) for b in blocks]
 
 
-def prefix_isotonic_sse(y, w, increasing: bool = True) -> np.ndarray:
+def prefix_isotonic_sse(
+    y, w, increasing: bool = True, *, offset: float = 0.0, stop_at: float = np.inf
+) -> np.ndarray:
     """sse[k] = weighted squared error of the best monotone fit to y[:k], for every k,
     in one pass (pool-adjacent-violators is online: a new sample only merges blocks at
-    the end)."""
+    the end).
+
+    sse[k] never falls as k grows, so a caller after the least ``offset + sse[k] + c``
+    (c >= 0) over k, that already has one of ``stop_at``, need not look past the first
+    k where ``offset + sse[k]`` reaches it: those entries are left at infinity."""
     sign = 1.0 if increasing else -1.0
-    sse = np.zeros(len(y) + 1)
+    sse = np.full(len(y) + 1, np.inf)
+    sse[0] = 0.0
     weights: list[float] = []
     sums: list[float] = []
     squares: list[float] = []
@@ -92,6 +99,8 @@ def prefix_isotonic_sse(y, w, increasing: bool = True) -> np.ndarray:
         sums.append(sb)
         squares.append(qb)
         total += qb - sb * sb / wb
+        if offset + total >= stop_at:
+            break
         sse[k + 1] = total
     return sse
 
@@ -189,7 +198,11 @@ def fit_rise_fall_rise(
     suffix_rising = prefix_isotonic_sse(y[::-1], w[::-1], increasing=False)[::-1]
     best = (np.inf, 0, 0)
     for i in range(1, n - 1):  # rising y[:i], falling y[i:j], rising y[j:]
-        falling = prefix_isotonic_sse(y[i:], w[i:], increasing=False)[1 : n - i]
+        if rising[i] >= best[0]:
+            break  # the rising fit alone costs more from here on (it never falls with i)
+        falling = prefix_isotonic_sse(
+            y[i:], w[i:], increasing=False, offset=rising[i], stop_at=best[0]
+        )[1 : n - i]
         total = rising[i] + falling + suffix_rising[i + 1 : n]
         j = int(np.argmin(total))
         if total[j] < best[0]:
