@@ -3,6 +3,8 @@ clean curve the noise was added to, and a lossless CSV round trip."""
 
 import numpy as np
 import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 
 from labrig.errors import InputError
 from labrig.model.segments.library import analytical_segment
@@ -206,3 +208,70 @@ def test_the_rise_fall_rise_fit_is_the_least_squares_one_of_all_breakpoints(seed
         for j in range(i + 1, n)
     )
     assert found == pytest.approx(every, rel=1e-9, abs=1e-12)
+
+
+ODD_FIELDS = [
+    "",
+    " ",
+    " 1.5 ",
+    '"2.0"',
+    "1_0",
+    "nan",
+    "inf",
+    "-1",
+    "0x10",
+    "1e1",
+    "1.0.0",
+    "a",
+    "\t3",
+]
+FIELDS = st.one_of(
+    st.floats(0, 50, allow_nan=False).map(repr),
+    st.integers(0, 50).map(str),
+    st.sampled_from(ODD_FIELDS),
+)
+ROWS = st.lists(st.lists(FIELDS, min_size=2, max_size=4), min_size=0, max_size=14)
+
+
+def _csv_text(rows, blank_every):
+    lines = [HEADER] + [",".join(row) for row in rows]
+    if blank_every:
+        lines = [
+            x for k, line in enumerate(lines) for x in ([line, ""] if k % blank_every else [line])
+        ]
+    return "\n".join(lines) + "\n"
+
+
+def _monotone_rows(n):
+    return [[repr(0.1 * k), repr(k * k / 10), repr(30 + k)] for k in range(n)]
+
+
+@settings(max_examples=300)
+@example(rows=_monotone_rows(10), blank_every=0, spoil=(4, 1, "nan"))
+@example(rows=_monotone_rows(10), blank_every=3, spoil=(9, 1, "inf"))
+@example(rows=_monotone_rows(10), blank_every=0, spoil=(6, 2, "-1"))
+@given(
+    rows=st.one_of(ROWS, st.integers(8, 14).map(_monotone_rows)),
+    blank_every=st.sampled_from([0, 0, 3, 5]),
+    spoil=st.one_of(
+        st.none(), st.tuples(st.integers(0, 13), st.integers(0, 2), st.sampled_from(ODD_FIELDS))
+    ),
+)
+def test_parsing_at_once_reads_what_the_row_by_row_reader_reads(rows, blank_every, spoil):
+    """Two parsers of the same file: numpy's, at once, for well-formed files, and the
+    row-by-row reader that names faults. Whatever the first takes, the second takes to the
+    same numbers; whatever the second refuses, the first leaves to it."""
+    from labrig.model.segments.measured import _parsed_at_once, _parsed_row_by_row
+
+    if spoil and spoil[0] < len(rows) and spoil[1] < len(rows[spoil[0]]):
+        rows[spoil[0]][spoil[1]] = spoil[2]
+    text = _csv_text(rows, blank_every)
+    fast = _parsed_at_once(text)
+    try:
+        slow = _parsed_row_by_row(text, "t.csv")
+    except InputError:
+        assert fast is None
+    else:
+        assert fast is None or np.array_equal(fast, slow)
+        if rows == _monotone_rows(len(rows)) and not blank_every % 5:
+            assert fast is not None  # a clean file takes the fast path
