@@ -123,6 +123,9 @@ GOOD_ROWS = [f"{0.1 * k:.1f},{2.0 * k:.1f},20.0" for k in range(12)]
         ),
         (HEADER + "\n3.0,0,20\n" + "\n".join(GOOD_ROWS[4:]), "first volume_ml must be"),
         (HEADER + "\n" + "\n".join([*GOOD_ROWS[:3], "0.3,6,-1"]), "column length_mm: must be > 0"),
+        # long enough to be parsed at once: the line still named, blank lines counted
+        (HEADER + "\n\n" + "\n".join([*GOOD_ROWS, "0.5,6,20"]), "line 15: volume_ml 0.5 does not"),
+        (HEADER + "\n" + "\n".join([*GOOD_ROWS, "1.2,6,0"]), "line 14, column length_mm"),
     ],
 )
 def test_bad_files_are_refused_with_one_line(tmp_path, text, message):
@@ -258,17 +261,18 @@ def _monotone_rows(n):
     ),
 )
 def test_parsing_at_once_reads_what_the_row_by_row_reader_reads(rows, blank_every, spoil):
-    """Two parsers of the same file: numpy's, at once, for well-formed files, and the
-    row-by-row reader that names faults. Whatever the first takes, the second takes to the
-    same numbers; whatever the second refuses, the first leaves to it."""
-    from labrig.model.segments.measured import _parsed_at_once, _parsed_row_by_row
+    """Two parsers of the same data rows: numpy's, at once, and the row-by-row reader
+    that names faults. Whatever the first takes, the second takes to the same numbers;
+    whatever the second refuses, the first leaves to it."""
+    from labrig.model.segments.measured import _numbers_at_once, _numbers_row_by_row
 
     if spoil and spoil[0] < len(rows) and spoil[1] < len(rows[spoil[0]]):
         rows[spoil[0]][spoil[1]] = spoil[2]
     text = _csv_text(rows, blank_every)
-    fast = _parsed_at_once(text)
+    data = [(n, line) for n, line in enumerate(text.splitlines(), start=1) if line][1:]
+    fast = _numbers_at_once(data)
     try:
-        slow = _parsed_row_by_row(text, "t.csv")
+        slow = _numbers_row_by_row(data, "t.csv")
     except InputError:
         assert fast is None
     else:
