@@ -13,7 +13,9 @@ fixture ``compiled_path_cached`` does that once, in that worker, before any scan
 worker processes start (each would compile it at the same time, two cores for one
 result; the cache written here is the one they load: measured, no new cache file).
 
-Every module of labrig is imported before the first test (``_import_every_module``):
+Every module of labrig is imported before the first test (``_import_every_module``), in
+each process that runs tests (xdist's controller runs none, so it imports no labrig: the
+fixtures import ``simulated_runs`` when first used):
 hypothesis draws a few of its values from the constants of the local modules already
 in ``sys.modules``, so a property test's examples, derandomized or not, would otherwise
 depend on which tests ran before it in its process; with workers handing out work
@@ -27,7 +29,6 @@ import shutil
 
 import pytest
 from hypothesis import settings
-from simulated_runs import killed_run, simulate_run, tiny_run
 
 # node ids (prefixes) of the longest work units, longest first (a group's tests count
 # together; seconds on the idle 2-core machine, warm numba cache, one process): these
@@ -82,7 +83,17 @@ def _import_every_module() -> None:
                 importlib.import_module(module.name)
 
 
-_import_every_module()
+def pytest_configure(config):
+    """Every module of labrig imported where tests run: not in xdist's controller,
+    which hands out work and runs none (~3 s of CPU it need not spend)."""
+    controller = (
+        not hasattr(config, "workerinput")
+        and config.getoption("dist", "no") != "no"
+        and not config.getoption("collectonly")
+    )
+    if not controller:
+        _import_every_module()
+
 
 # every property test draws the same examples on every run and on every machine
 # (derandomized, no example database): a new example found by chance on a busy CI
@@ -148,6 +159,8 @@ def snap_run(tmp_path_factory):
     """B46-T20 + B46-T22 (the paper's Fig. 2 pair) inflated at 20 mL/min to 22 mL, five
     times, through water-like flow resistance (R = 1 kPa s/mL): the plant snaps through
     on inflation; pressure noise 0.3 kPa, the top of the issue's range."""
+    from simulated_runs import simulate_run
+
     path = tmp_path_factory.mktemp("runs") / "snap.h5"
     return simulate_run(path, ("B46-T20", "B46-T22"), volume_ml=22.0, noise_kpa=0.3, seed=11)
 
@@ -156,6 +169,8 @@ def snap_run(tmp_path_factory):
 def library_run(tmp_path_factory):
     """B44-T22 + B50-T20 in the slow limit (R = 0.05 kPa s/mL), where the plant follows
     the model's quasi-static path: one snap on inflation, one on deflation."""
+    from simulated_runs import simulate_run
+
     path = tmp_path_factory.mktemp("runs") / "library.h5"
     return simulate_run(
         path,
@@ -171,6 +186,8 @@ def library_run(tmp_path_factory):
 def segment_run(tmp_path_factory):
     """A single segment, B46-T20, past its valley onto the stiffening wall; the third
     repetition faulted (so the mean is of repetitions 1, 2, 4 and 5)."""
+    from simulated_runs import simulate_run
+
     path = tmp_path_factory.mktemp("runs") / "segment.h5"
     statuses = ("complete", "complete", "faulted", "complete", "complete")
     return simulate_run(
@@ -193,10 +210,14 @@ def copy_of(tmp_path):
 @pytest.fixture
 def tiny_file(tmp_path):
     """A small complete run (2 repetitions of 2 mL, p = 5 v, l = 30 + v)."""
+    from simulated_runs import tiny_run
+
     return tiny_run(tmp_path / "tiny.h5")
 
 
 @pytest.fixture
 def killed_file(tmp_path):
     """A run file left by a SIGKILLed writer: flagged open, status running."""
+    from simulated_runs import killed_run
+
     return killed_run(tmp_path)

@@ -1,5 +1,6 @@
 """SimCamera: the rendered truth, lighting and noise, the capture interface, video files."""
 
+import functools
 import math
 
 import cv2
@@ -240,7 +241,7 @@ def test_any_region_a_tracker_reads_is_that_region_of_the_full_frame(t, box, see
     """Whatever box is read (cut by the edges, empty, across dots and band), the lazily
     rendered pixels are the full frame's (the tracker must see the frame the video
     records)."""
-    cam = _SHARED[seed]
+    cam = _shared(seed)
     frame = cam.frame_at(t)
     full = np.asarray(frame)
     y0, x0, h, w = box
@@ -262,7 +263,7 @@ def test_frames_rendered_as_a_batch_are_each_frame_bit_for_bit(
     """A batch of frames (a run tracks its frames in batches: each frame's window on
     each marker) rendered together gives each frame's pixels exactly, whatever the
     boxes, the frames' light and noise, and a marker hidden part way through."""
-    cam = _SHARED[seed]
+    cam = _shared(seed)
     frames = []
     for k in range(n):
         cam.hide_marker(0, k >= hidden_from)
@@ -276,10 +277,14 @@ def test_frames_rendered_as_a_batch_are_each_frame_bit_for_bit(
         np.testing.assert_array_equal(pixels, np.asarray(frame)[y0:y1, x0:x1])
 
 
-_SHARED = [camera(length_mm_at=lambda t: 40.0 + t, seed=s, mm_per_px=0.05) for s in range(4)] + [
-    camera(length_mm_at=lambda t: 40.0 + t, seed=s, mm_per_px=0.05, monochrome=True)
-    for s in range(2)
-]
+@functools.cache
+def _shared(seed):
+    """Six cameras (seeds 0-3 in colour, 4-5 grey as seeds 0-1) that a property test's
+    examples share: each makes its noise once (~0.1 s), when first asked for."""
+    grey = seed >= 4
+    return camera(
+        length_mm_at=lambda t: 40.0 + t, seed=seed - 4 * grey, mm_per_px=0.05, monochrome=grey
+    )
 
 
 @pytest.mark.parametrize("monochrome", [True, False])
