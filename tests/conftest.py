@@ -49,7 +49,9 @@ LONG_FIRST = (
 )
 # tests that share something costly, each group run by one worker: the compiled path
 # (see the module docstring), the demo's run (a session fixture, rig/conftest.py), the
-# browser (a module fixture) and the simulated runs of this file (session fixtures)
+# browser and the demo with video (module fixtures) and the simulated runs of this file
+# (session fixtures); a fixture's scope is per process, so a module's tests spread over
+# two workers made its fixture twice (seen: the video run, 3 s of CPU each)
 COMPILED_GROUP = "compiled_path"
 GROUPS = {
     "tests/cli/test_bench.py::": COMPILED_GROUP,
@@ -61,6 +63,7 @@ GROUPS = {
     "tests/rig/test_demo_run.py::": "demo_run",
     "tests/rig/test_determinism.py::": "demo_run",
     "tests/live/test_live_page.py::": "browser",
+    "tests/rig/test_video_and_frames.py::": "video_run",
     "tests/analysis/test_compare.py::": "simulated_runs",
     "tests/analysis/test_results.py::": "simulated_runs",
     "tests/analysis/test_transitions.py::": "simulated_runs",
