@@ -461,6 +461,56 @@ def singular_distance(tables, i, branch, p):
     return 1.0 if distance == math.inf else distance
 
 
+# fractions of a sample interval at which slope profiles close in on an extremum
+TOWARD_END = np.array([0.5, 0.25, 0.1, 0.03, 0.01, 0.003, 0.001])
+
+
+@njit(**LEAF)
+def slope_profile_points(tables, i, branch, toward_end, p_out, r_out):
+    """The points of segment i's slope profile on ``branch`` (``CurveKernel.
+    slope_profile`` says which), unsorted, into ``p_out`` and ``r_out``; returns how
+    many. The outputs need room for 2 per sample interval, 2 * len(toward_end) + 1
+    more. Compiled: a profile evaluates p, dp/dv and the extremum distance at every
+    sample and more (~200 points a branch), and these calls from Python were most of
+    the time spent building the solver's tables for a new curve."""
+    first = tables[BRANCH_FIRST][i, branch]
+    last = tables[BRANCH_LAST][i, branch]
+    rising = tables[BRANCH_RISING][i, branch]
+    x = tables[BREAKPOINTS]
+    c = tables[COEFFS]
+    count = 0
+    for j in range(first, last):
+        h = x[i, j + 1] - x[i, j]
+        count = _profile_point(tables, i, branch, rising, x[i, j], p_out, r_out, count)
+        c3, c2 = c[i, 0, j], c[i, 1, j]
+        if c3 != 0.0:
+            t = -c2 / (3.0 * c3)
+            if 0.0 < t < h:  # the slope's extremum inside the interval
+                count = _profile_point(tables, i, branch, rising, x[i, j] + t, p_out, r_out, count)
+        if j == first and first > 0:  # leaving an extremum sample
+            for f in toward_end:
+                count = _profile_point(
+                    tables, i, branch, rising, x[i, j] + h * f, p_out, r_out, count
+                )
+        if j == last - 1 and last < tables[LAST_PIECE][i] + 1:  # arriving at one
+            for f in toward_end:
+                count = _profile_point(
+                    tables, i, branch, rising, x[i, j + 1] - h * f, p_out, r_out, count
+                )
+    return _profile_point(tables, i, branch, rising, x[i, last], p_out, r_out, count)
+
+
+@njit(**INTERNAL_LEAF)
+def _profile_point(tables, i, branch, rising, v, p_out, r_out, count):
+    """One profile point at v, if the slope there has the branch's sign."""
+    p, k = pressure_and_slope(tables, i, v)
+    if (k > 0.0) == rising and k != 0.0:
+        p_out[count] = p
+        r_out[count] = math.sqrt(singular_distance(tables, i, branch, p)) / k
+        count += 1
+    return count
+
+
 @njit(**INTERNAL)
 def fold_screen(tables, profiles, branches, p_from, p_to, margin):
     """Pressures strictly between p_from and p_to, in the order the path meets them,

@@ -13,15 +13,13 @@ counterpart of ``volume_on_branch`` here and the tests hold them equal.
 
 from __future__ import annotations
 
-import math
 import weakref
 from functools import cached_property
 
+import numpy as np
+
 from labrig.model.actuator import curve_tables
 from labrig.model.segments.curve import SegmentCurve
-
-# fractions of a sample interval at which slope profiles close in on an extremum
-_TOWARD_END = (0.5, 0.25, 0.1, 0.03, 0.01, 0.003, 0.001)
 
 
 class CurveKernel:
@@ -47,7 +45,7 @@ class CurveKernel:
         self.peak_branch = curve.peak_branch
         self.extremum_volumes = [b.v_hi_ml for b in self.branches[:-1]]
         # per branch: its slope profile (``slope_profile``), computed on first use
-        self._profiles: dict[int, tuple[list[float], list[float]]] = {}
+        self._profiles: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.tables = curve_tables.pack([self])
 
     # --- forward evaluation ----------------------------------------------------------
@@ -92,7 +90,7 @@ class CurveKernel:
         """On the pressure peak's falling branch or later; never, without a peak."""
         return self.peak_branch is not None and branch >= self.peak_branch
 
-    def slope_profile(self, branch: int) -> tuple[list[float], list[float]]:
+    def slope_profile(self, branch: int) -> tuple[np.ndarray, np.ndarray]:
         """(p, 1/k * sqrt(d(p))) along a branch, sorted by p, d the pressure distance to
         the nearer extremum end of the branch (``singular_weight``). Near an extremum
         1/k grows like 1/sqrt(d), so the weighted value is smooth and linear
@@ -105,27 +103,13 @@ class CurveKernel:
         if cached is not None:
             return cached
         b = self.branches[branch]
-        volumes = []
-        for j in range(b.first, b.last):
-            h = self.x[j + 1] - self.x[j]
-            volumes.append(self.x[j])
-            c3, c2 = self.c3[j], self.c2[j]
-            if c3 != 0.0:
-                t = -c2 / (3.0 * c3)
-                if 0.0 < t < h:
-                    volumes.append(self.x[j] + t)
-            if j == b.first and b.first > 0:  # leaving an extremum sample
-                volumes.extend(self.x[j] + h * f for f in _TOWARD_END)
-            if j == b.last - 1 and b.last < len(self.x) - 1:  # arriving at one
-                volumes.extend(self.x[j + 1] - h * f for f in _TOWARD_END)
-        volumes.append(self.x[b.last])
-        points = []
-        for v in volumes:
-            p, k = self.pressure_and_slope(v)
-            if (k > 0.0) == b.rising and k != 0.0:
-                points.append((p, math.sqrt(self.singular_distance(branch, p)) / k))
-        points.sort()
-        profile = ([p for p, _ in points], [r for _, r in points])
+        room = 2 * (b.last - b.first) + 2 * len(curve_tables.TOWARD_END) + 1
+        p, r = np.empty(room), np.empty(room)
+        count = curve_tables.slope_profile_points(
+            self.tables, 0, branch, curve_tables.TOWARD_END, p, r
+        )
+        order = np.lexsort((r[:count], p[:count]))  # by p, then by value
+        profile = (p[:count][order], r[:count][order])
         self._profiles[branch] = profile
         return profile
 
