@@ -169,3 +169,32 @@ def test_kernel_energy_differences_are_the_integral_of_pressure():
         assert kernel.energy(b) - kernel.energy(a) == pytest.approx(exact, rel=1e-8, abs=1e-12)
     assert kernel.energy(25.0) == pytest.approx(float(seg.energy_mj(25.0)), rel=1e-12)
     assert kernel.length(7.5) == pytest.approx(float(seg.length_mm(7.5)), rel=1e-12)
+
+
+def test_slope_profiles_are_the_weighted_inverse_slopes_at_every_sample():
+    """Each branch's slope profile, from the compiled tables, against the curve itself
+    (scipy's PCHIP and its derivative): sorted in p, every value sqrt(d(p)) / k(v) with d
+    the distance to the branch's extremum ends, and every sample of the branch in it."""
+    rng = np.random.default_rng(3)
+    for seg in [cubic_segment("A", 4.0, 10.0, 30.0, samples=97), random_cubic(rng, "B")]:
+        kernel = CurveKernel(seg)
+        for branch in seg.branches:
+            p, r = kernel.slope_profile(branch.index)
+            assert np.all(np.diff(p) >= 0.0) and len(p) >= branch.last - branch.first
+            ends = [seg.p_kpa[i] for i in (branch.first, branch.last)]
+            extremum = [branch.first > 0, branch.last < len(seg.v_ml) - 1]
+            d = np.min(
+                [
+                    np.abs(p - e) if x else np.full(len(p), np.inf)
+                    for e, x in zip(ends, extremum, strict=True)
+                ],
+                axis=0,
+            )
+            d = np.where(np.isinf(d), 1.0, d)
+            _, k = seg.volume_on_branch(branch.index, p)
+            keep = np.abs(k) > 1e-6  # at an extremum sample itself k is 0 to rounding
+            # p -> v is ill-conditioned next to an extremum (k -> 0): 1e-4, not rounding
+            np.testing.assert_allclose(r[keep], np.sqrt(d[keep]) / k[keep], rtol=1e-4)
+            samples = seg.p_kpa[branch.first : branch.last + 1]
+            inner = samples[1:-1] if branch.first > 0 else samples[:-1]
+            assert np.all(np.isin(inner, p))
