@@ -142,7 +142,7 @@ def test_the_compiled_nelder_mead_is_scipys(n, monkeypatch):
                 "maxiter": MAXITER,
             },
         )
-        x, evaluations, _ = minimise_energy_change(
+        x, evaluations = minimise_energy_change(
             simplex, tables, previous, v, XATOL_ML, FATOL_MJ, MAXITER
         )
         assert scipys.success

@@ -462,17 +462,29 @@ def singular_distance(tables, i, branch, p):
 
 
 # fractions of a sample interval at which slope profiles close in on an extremum
-TOWARD_END = np.array([0.5, 0.25, 0.1, 0.03, 0.01, 0.003, 0.001])
+_TOWARD_END = np.array([0.5, 0.25, 0.1, 0.03, 0.01, 0.003, 0.001])
+
+
+def slope_profile(tables, i, branch) -> tuple[np.ndarray, np.ndarray]:
+    """Segment i's slope profile on ``branch`` (``CurveKernel.slope_profile``): its
+    points sorted by p, then by value."""
+    room = 2 * int(tables[BRANCH_LAST][i, branch] - tables[BRANCH_FIRST][i, branch])
+    room += 2 * len(_TOWARD_END) + 1
+    p, r = np.empty(room), np.empty(room)
+    count = slope_profile_points(tables, i, branch, _TOWARD_END, p, r)
+    p, r = p[:count], r[:count]
+    order = np.lexsort((r, p))
+    return p[order], r[order]
 
 
 @njit(**LEAF)
 def slope_profile_points(tables, i, branch, toward_end, p_out, r_out):
-    """The points of segment i's slope profile on ``branch`` (``CurveKernel.
-    slope_profile`` says which), unsorted, into ``p_out`` and ``r_out``; returns how
-    many. The outputs need room for 2 per sample interval, 2 * len(toward_end) + 1
-    more. Compiled: a profile evaluates p, dp/dv and the extremum distance at every
-    sample and more (~200 points a branch), and these calls from Python were most of
-    the time spent building the solver's tables for a new curve."""
+    """The points of segment i's slope profile on ``branch``, unsorted, into ``p_out``
+    and ``r_out``; returns how many. The outputs need room for 2 per sample interval,
+    2 * len(toward_end) + 1 more (``slope_profile``). Compiled: a profile evaluates p,
+    dp/dv and the extremum distance at every sample and more (~200 points a branch),
+    and these calls from Python were most of the time spent building the solver's
+    tables for a new curve."""
     first = tables[BRANCH_FIRST][i, branch]
     last = tables[BRANCH_LAST][i, branch]
     rising = tables[BRANCH_RISING][i, branch]

@@ -44,8 +44,6 @@ class CurveKernel:
         self.n_branches = len(self.branches)
         self.peak_branch = curve.peak_branch
         self.extremum_volumes = [b.v_hi_ml for b in self.branches[:-1]]
-        # per branch: its slope profile (``slope_profile``), computed on first use
-        self._profiles: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.tables = curve_tables.pack([self])
 
     # --- forward evaluation ----------------------------------------------------------
@@ -98,20 +96,9 @@ class CurveKernel:
         peaks make the sum of two large terms of opposite sign. The points: every
         sample, the slope's extremum inside each sample interval (PCHIP's slope is a
         quadratic there and can dip below both ends, e.g. next to the contact kink),
-        and points closing in on an extremum sample. Computed once per branch."""
-        cached = self._profiles.get(branch)
-        if cached is not None:
-            return cached
-        b = self.branches[branch]
-        room = 2 * (b.last - b.first) + 2 * len(curve_tables.TOWARD_END) + 1
-        p, r = np.empty(room), np.empty(room)
-        count = curve_tables.slope_profile_points(
-            self.tables, 0, branch, curve_tables.TOWARD_END, p, r
-        )
-        order = np.lexsort((r[:count], p[:count]))  # by p, then by value
-        profile = (p[:count][order], r[:count][order])
-        self._profiles[branch] = profile
-        return profile
+        and points closing in on an extremum sample. Computed once per kernel, for
+        ``profile_tables``."""
+        return curve_tables.slope_profile(self.tables, 0, branch)
 
     @cached_property
     def profile_tables(self) -> tuple:

@@ -100,7 +100,7 @@ def reference_path(
         previous = list(w)
         x0 = np.array(previous[:-1])
         simplex = np.vstack([x0, x0 + simplex_fraction * dv_ml * np.eye(n - 1)])
-        found, _, _ = minimise_energy_change(
+        found, _ = minimise_energy_change(
             simplex, tables, np.array(previous), v, XATOL_ML, FATOL_MJ, MAXITER
         )
         x = [float(a) for a in found]
@@ -127,7 +127,7 @@ def minimise_energy_change(simplex, tables, previous, v, xatol, fatol, maxiter):
     """The minimum of ``reduced_energy_change(x, tables, previous, v)`` near
     ``simplex[0]``, by scipy's Nelder-Mead from the initial simplex ``simplex`` (N+1, N)
     with its options ``xatol``, ``fatol`` and ``maxiter`` (no ``maxfev``). Returns (x,
-    evaluations, iterations).
+    the number of evaluations).
 
     scipy's coefficients (rho 1, chi 2, psi 1/2, sigma 1/2) are written out in its own
     products, so that no rounding differs. Rows are copied element by element: numba
@@ -187,7 +187,7 @@ def minimise_energy_change(simplex, tables, previous, v, xatol, fatol, maxiter):
                     evaluations += 1
         iterations += 1
         _order_vertices(sim, fsim)
-    return sim[0].copy(), evaluations, iterations
+    return sim[0].copy(), evaluations
 
 
 @njit(**INTERNAL_LEAF)
