@@ -48,11 +48,11 @@ from typing import Any, Literal
 import cv2
 import numpy as np
 
-from labrig.clock import Clock, ClockThread
-from labrig.devices import LengthSample
 from labrig.drivers.markers import MarkerFix, MarkerTracker, mm_per_px_from_reference
 from labrig.drivers.tracker_process import TrackerProcess
 from labrig.errors import DeviceError, InputError
+from labrig.rig.devices import LengthSample
+from labrig.time.clock import Clock, ClockThread
 
 DEVICE_PATH = re.compile(r"^/dev/video\d+$")
 # V4L2 exposure modes as OpenCV passes them (CAP_PROP_AUTO_EXPOSURE)

@@ -451,7 +451,7 @@ def _window_masks(half: int, r_in: float) -> tuple[np.ndarray, np.ndarray]:
 
 def _stack_regions(frames: list, boxes: list) -> np.ndarray:
     """Box i (x0, y0, x1, y1, all of one size) of frame i, stacked: (n, h, w[, 3]). A
-    frame type that renders only what is read (``labrig.sim.camera.SimFrame``) renders
+    frame type that renders only what is read (``labrig.sim.camera_frame.SimFrame``) renders
     them together."""
     stack_regions = getattr(type(frames[0]), "stack_regions", None)
     stack = stack_regions(frames, boxes) if stack_regions is not None else None

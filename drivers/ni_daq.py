@@ -36,10 +36,10 @@ from typing import Any
 
 import numpy as np
 
-from labrig.clock import Clock
-from labrig.devices import PressureBlock
 from labrig.drivers import mpx5100
 from labrig.errors import DeviceError, InputError
+from labrig.rig.devices import PressureBlock
+from labrig.time.clock import Clock
 
 # DAQmx error codes the driver explains (nidaqmx.error_codes.DAQmxErrors).
 SAMPLES_NOT_YET_AVAILABLE = -200284  # read timeout

@@ -1,6 +1,6 @@
 """Harvard Apparatus PHD ULTRA syringe pump over serial: the rig's only actuator.
 
-The driver implements ``labrig.devices.Pump`` in mL, mL/min and mm. It does exactly
+The driver implements ``labrig.rig.devices.Pump`` in mL, mL/min and mm. It does exactly
 what it is told and checks that it happened: every setting is read back, every run
 command must show the matching prompt, every reply is parsed as value + unit and
 converted, and the pump's error texts become typed exceptions
@@ -41,8 +41,8 @@ from dataclasses import dataclass
 
 import serial
 
-from labrig.clock import Clock, RealClock
-from labrig.devices import PumpState, PumpStatus
+from labrig.rig.devices import PumpState, PumpStatus
+from labrig.time.clock import Clock, RealClock
 
 from .phd_ultra_errors import (
     PumpCommandError,

@@ -23,7 +23,7 @@ import math
 import re
 from dataclasses import dataclass
 
-from labrig.devices import PumpState
+from labrig.rig.devices import PumpState
 
 from .phd_ultra_errors import (
     PumpArgumentError,

@@ -4,7 +4,7 @@ interpreter lock.
 
 A ``TrackerProcess`` owns a ``MarkerTracker`` in a child process
 (``python -c 'labrig.drivers.tracker_process._serve()'``), fed through a pipe as the
-run's video encoder is (``labrig.video``). ``submit`` hands a batch over and returns at
+run's video encoder is (``labrig.recording.video``). ``submit`` hands a batch over and returns at
 once; ``collect`` waits for the fixes of the batch handed over before. A caller that
 submits batch k and then collects batch k-1 has each batch tracked while it goes on
 with its own work: on the simulated rig that is the next second of the run, in which

@@ -4,3 +4,15 @@ The pump emulator answers the PHD Ultra protocol on a pseudo-terminal, the DAQ s
 implements the part of the nidaqmx Task API the driver uses, and the camera simulator
 renders frames; all of them are driven by a plant built on the stability model.
 """
+
+from labrig.exports import lazy_exports
+
+__getattr__, __dir__ = lazy_exports(
+    "labrig.sim",
+    {
+        "plant": ["Plant"],
+        "pump": ["PumpEmulator"],
+        "daq": ["SimAnalogMultiChannelReader", "SimDaqTask"],
+        "camera": ["SimCamera"],
+    },
+)

@@ -21,14 +21,12 @@ each frame's ``scene`` (``recipe``, ``SceneRenderer``). A video's frames are dra
 the video's encoder process from their ``scene``
 (``SceneRenderer``), and only in their rows that were not seen before: the noise is read
 at offsets that are multiples of 8 pixels, so the rows away from the markers repeat
-(``SimCamera.row_keys``, ``labrig.jpeg_rows``).
+(``SimCamera.row_keys``, ``labrig.recording.jpeg_rows``).
 """
 
 from __future__ import annotations
 
-import functools
 import math
-import struct
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,12 +34,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from labrig.clock import Clock
+from labrig.time.clock import Clock
+
+from .camera_frame import SimFrame
+from .camera_scene import SceneRenderer, blend, blur_matrix, fill, grey_level, to_float32
 
 _NOISE_MARGIN_PX = 32  # noise frames are this much larger, to be read at random offsets
 # ... that are multiples of a JPEG MCU's height and width: a frame's rows of MCUs away
 # from the markers then repeat across frames, and a video encodes each such row once
-# (``labrig.jpeg_rows``); 32 offsets of 2 noise frames still look fresh at 30 fps
+# (``labrig.recording.jpeg_rows``); 32 offsets of 2 noise frames still look fresh at 30 fps
 _NOISE_STEP_PX = 8
 V4L2_DEFAULT_SIZE = (640, 480)  # what a UVC camera streams until the driver sets a size
 # The light reaching the sensor in the first frames after the stream starts, while the
@@ -132,7 +133,7 @@ class SimCamera:
         self._dot_half_px = math.ceil(self.radius_px + 4 * self.blur_px + 2)
         # a monochrome sensor sees the colours' grey levels (OpenCV's BGR-to-grey weights)
         self.marker_bgr, self.specimen_bgr, self.background_bgr = (
-            np.array(bgr if not monochrome else [_grey_level(bgr)], dtype=np.float32)
+            np.array(bgr if not monochrome else [grey_level(bgr)], dtype=np.float32)
             for bgr in (marker_bgr, specimen_bgr, background_bgr)
         )
         self._marker_channels, self._specimen_channels, self._background_channels = (
@@ -216,11 +217,11 @@ class SimCamera:
         for i, (frame, (x0, y0, x1, y1)) in enumerate(zip(frames, boxes, strict=True)):
             background, specimen, _ = frame.palette()
             band, _ = frame.layout()
-            _fill(out[i], 0, 0, x1 - x0, y1 - y0, background)
+            fill(out[i], 0, 0, x1 - x0, y1 - y0, background)
             bx0, by0 = max(band[0], x0), max(band[1], y0)
             bx1, by1 = min(band[2], x1), min(band[3], y1)
             if bx0 < bx1 and by0 < by1:
-                _fill(out[i], bx0 - x0, by0 - y0, bx1 - x0, by1 - y0, specimen)
+                fill(out[i], bx0 - x0, by0 - y0, bx1 - x0, by1 - y0, specimen)
         for index in (0, 1):  # marker 0's dot first: where the two overlap, 1 is on top
             self._draw_dots(out, frames, boxes, index)
         noisy = [i for i, frame in enumerate(frames) if frame.noise is not None]
@@ -250,12 +251,12 @@ class SimCamera:
         each channel times the gain in single precision (as numpy multiplies a float32
         colour), the fills rounded half to even; in plain Python, as a frame asks for
         it once and numpy's calls on 1-3 values cost more than the arithmetic."""
-        g = _to_float32(gain)
+        g = to_float32(gain)
         background, specimen = (
-            tuple(min(max(float(round(_to_float32(c * g))), 0.0), 255.0) for c in bgr)
+            tuple(min(max(float(round(to_float32(c * g))), 0.0), 255.0) for c in bgr)
             for bgr in (self._background_channels, self._specimen_channels)
         )
-        marker = [min(max(_to_float32(c * g), 0.0), 255.0) for c in self._marker_channels]
+        marker = [min(max(to_float32(c * g), 0.0), 255.0) for c in self._marker_channels]
         return background, specimen, np.array(marker, dtype=np.float32)
 
     def layout(self, centres: np.ndarray, hidden: frozenset) -> tuple[tuple, list]:
@@ -317,7 +318,7 @@ class SimCamera:
         np.maximum(coverage, 0.0, out=coverage)
         np.minimum(coverage, 1.0, out=coverage)
         if self.blur_px > 0:
-            rows, cols = _blur_matrix(bh, self.blur_px), _blur_matrix(bw, self.blur_px)
+            rows, cols = blur_matrix(bh, self.blur_px), blur_matrix(bw, self.blur_px)
             coverage = (rows @ coverage @ cols.T).astype(np.float32)
         if out.ndim == 4:
             coverage = coverage[..., None]
@@ -331,12 +332,12 @@ class SimCamera:
         markers = np.array([dot[4] for dot in dots])  # float32: (n, 3), or (n, 1) grey
         if all(view.shape[:2] == (bh, bw) for view in views):
             shape = (len(dots), 1, 1, 3) if out.ndim == 4 else (len(dots), 1, 1)
-            blended = _blend(np.stack(views), coverage, markers.reshape(shape))
+            blended = blend(np.stack(views), coverage, markers.reshape(shape))
             for view, pixels in zip(views, blended, strict=True):
                 view[:] = pixels
             return
         for view, cut, c, marker in zip(views, cuts, coverage, markers, strict=True):
-            view[:] = _blend(view, c[cut], marker if out.ndim == 4 else marker[0])
+            view[:] = blend(view, c[cut], marker if out.ndim == 4 else marker[0])
 
     def _dot_box(self, x: float, y: float) -> tuple[int, int, int, int]:
         """The box [x0, x1) x [y0, y1) a dot centred at (x, y) covers, cut to the frame."""
@@ -359,7 +360,7 @@ class SimCamera:
         it renders the same pixels in another process (the run's video encoder, the
         marker tracker's process)."""
         if self._renderer is None:
-            self._renderer = SceneRenderer(self._spec)
+            self._renderer = SceneRenderer(type(self), self._spec)
         return self._renderer
 
     def scene_frame(self, scene: tuple) -> SimFrame:
@@ -503,221 +504,3 @@ class SimCamera:
             centres_px=np.array([self.marker_centres_px(float(t)) for t in t_s]),
             length_mm=np.array([float(self.length_mm_at(float(t))) for t in t_s]),
         )
-
-
-class SimFrame:
-    """A frame of ``SimCamera`` that renders only the pixels that are read.
-
-    It answers ``shape``, ``ndim``, ``size`` and ``dtype`` like the ndarray it stands
-    for; slicing it (``frame[y0:y1, x0:x1]``) renders just that region, and
-    ``np.asarray(frame)`` the whole frame. The tracker reads two small windows per frame,
-    so a frame it tracks costs a few tenths of a millisecond instead of a full render;
-    the region's pixels are those of the full frame, bit for bit.
-    """
-
-    dtype = np.dtype(np.uint8)
-
-    def __init__(self, camera: SimCamera, *, t_s, gain, hidden, noise) -> None:
-        self.camera = camera
-        self.t_s = t_s
-        self.gain = gain
-        self._centres = None
-        self.hidden = hidden
-        self.noise = noise
-        self._palette = None
-        self._layout = None
-        self._resize((camera.width, camera.height))
-        self._resized_to: tuple[int, int] | None = None
-        self._full: np.ndarray | None = None
-        self._regions: list[tuple[int, int, int, int, np.ndarray]] = []  # last rendered
-
-    def resized(self, size: tuple[int, int]) -> SimFrame:
-        """This frame as the camera's scaler delivers it at another streaming size."""
-        self._resized_to = size
-        self._resize(size)
-        return self
-
-    def _resize(self, size: tuple[int, int]) -> None:
-        channels = self.camera.channels
-        self.shape = (size[1], size[0], channels)[: 2 if channels == 1 else 3]
-        self.ndim = len(self.shape)
-        self.size = size[0] * size[1] * channels
-
-    @property
-    def centres(self) -> np.ndarray:
-        """Where the markers are, asked of the length source when first rendered: a
-        frame measured a little after it was taken (a run measures its frames in
-        batches) reads the simulated specimen's recorded past instead of making it take
-        a step to the frame's time."""
-        if self._centres is None:
-            self._centres = self.camera.marker_centres_px(self.t_s)
-        return self._centres
-
-    def palette(self):
-        """The frame's colours under its light (``SimCamera._palette``), made once."""
-        if self._palette is None:
-            self._palette = self.camera._palette(self.gain)
-        return self._palette
-
-    def layout(self) -> tuple[tuple, list]:
-        """Where the band and the dots are (``SimCamera.layout``), worked out once."""
-        if self._layout is None:
-            self._layout = self.camera.layout(self.centres, self.hidden)
-        return self._layout
-
-    @property
-    def scene(self) -> tuple:
-        """The frame as a few numbers (time, marker centres, light, hidden markers, the
-        noise's pick, the streaming size): all ``SimCamera.scene_frame`` needs."""
-        centres = tuple(self.centres.ravel().tolist())
-        return (self.t_s, centres, self.gain, tuple(sorted(self.hidden)), self.noise,
-                self._resized_to)  # fmt: skip
-
-    def recipe(self) -> tuple[SceneRenderer, tuple]:
-        """(renderer, scene): how another process draws this frame itself instead of
-        being handed its pixels (the run's video encoder, ``labrig.video``; the marker
-        tracker's process, ``labrig.drivers.tracker_process``)."""
-        return self.camera.renderer(), self.scene
-
-    def __getitem__(self, key):
-        h, w = self.shape[:2]
-        if self._resized_to is None and isinstance(key, tuple) and len(key) >= 2:
-            rows, cols = key[0], key[1]
-            if isinstance(rows, slice) and isinstance(cols, slice):
-                y0, y1, dy = rows.indices(h)
-                x0, x1, dx = cols.indices(w)
-                if dy == dx == 1:
-                    region = self._region(x0, y0, max(x1, x0), max(y1, y0))
-                    return region if len(key) == 2 else region[(slice(None), slice(None), *key[2:])]
-        return np.asarray(self)[key]
-
-    @staticmethod
-    def stack_regions(frames: Sequence, boxes: Sequence[tuple]) -> np.ndarray | None:
-        """Box i (x0, y0, x1, y1: [y0:y1, x0:x1], all of one size) of frame i, stacked
-        (what a tracker reads from a batch of frames), rendered all at once; None unless
-        they are one camera's frames at its sensor size."""
-        camera = frames[0].camera
-        if all(
-            isinstance(f, SimFrame) and f.camera is camera and f._resized_to is None for f in frames
-        ):
-            return camera.render_stack(frames, boxes)
-        return None
-
-    def _region(self, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
-        """The pixels of a box: cut from a box rendered before that holds it (the
-        tracker's centroid windows lie inside its search windows), else rendered."""
-        for bx0, by0, bx1, by1, pixels in self._regions:
-            if bx0 <= x0 and by0 <= y0 and x1 <= bx1 and y1 <= by1:
-                return pixels[y0 - by0 : y1 - by0, x0 - bx0 : x1 - bx0].copy()
-        pixels = self.camera._render_box(self, x0, y0, x1, y1)
-        self._regions = [*self._regions[-3:], (x0, y0, x1, y1, pixels)]
-        return pixels.copy()
-
-    def __array__(self, dtype=None, copy=None) -> np.ndarray:
-        if self._full is None:
-            camera = self.camera
-            full = camera._render_box(self, 0, 0, camera.width, camera.height)
-            if self._resized_to is not None:
-                full = cv2.resize(full, self._resized_to, interpolation=cv2.INTER_AREA)
-            self._full = full
-        return self._full if dtype is None else self._full.astype(dtype)
-
-
-class SceneRenderer:
-    """Draws a ``SimCamera``'s frames from their scenes, wherever it is unpickled: the
-    camera is rebuilt from its settings (the seed gives the same noise) on first use."""
-
-    def __init__(self, spec: dict) -> None:
-        self.spec = spec
-        self._camera: SimCamera | None = None
-
-    def __getstate__(self) -> dict:
-        return {"spec": self.spec}
-
-    def __setstate__(self, state: dict) -> None:
-        self.spec, self._camera = state["spec"], None
-
-    @property
-    def camera(self) -> SimCamera:
-        if self._camera is None:
-            self._camera = SimCamera(None, None, **self.spec)  # draws only: no clock
-        return self._camera
-
-    def __call__(self, scene: tuple) -> np.ndarray:
-        return np.asarray(self.frame(scene))
-
-    def frame(self, scene: tuple) -> SimFrame:
-        """The scene's frame, rendered where it is read (a video's encoder reads only
-        the rows that ``row_keys`` does not know)."""
-        return self.camera.scene_frame(scene)
-
-    def row_keys(self, frame: SimFrame, row_px: int) -> list[tuple | None] | None:
-        """Which bands of rows of the frame repeat (``SimCamera.row_keys``)."""
-        return self.camera.row_keys(frame, row_px)
-
-    def render_rows(
-        self, frames: Sequence[SimFrame], spans: Sequence[tuple[int, int, int]]
-    ) -> list[np.ndarray]:
-        """For each span (i, y0, y1), the pixel rows [y0, y1) of ``frames[i]``, full
-        width: spans of one height rendered as one stack (``SimCamera.render_stack``)."""
-        camera = self.camera
-        out: list[np.ndarray | None] = [None] * len(spans)
-        by_height: dict[int, list[int]] = {}
-        for j, (_, y0, y1) in enumerate(spans):
-            by_height.setdefault(y1 - y0, []).append(j)
-        for js in by_height.values():
-            stack = camera.render_stack(
-                [frames[spans[j][0]] for j in js],
-                [(0, spans[j][1], camera.width, spans[j][2]) for j in js],
-            )
-            for j, pixels in zip(js, stack, strict=True):
-                out[j] = pixels
-        return out
-
-
-@functools.lru_cache(maxsize=8)
-def _blur_matrix(size: int, sigma_px: float) -> np.ndarray:
-    """The Gaussian blur of a line of ``size`` pixels as a matrix: OpenCV's kernel for
-    ``sigma_px`` (as ``cv2.GaussianBlur`` takes it for float images) with its reflecting
-    border. A stack of dots is blurred by two matrix products, each dot alone as in any
-    stack."""
-    taps = round(sigma_px * 8 + 1) | 1
-    kernel = cv2.getGaussianKernel(taps, sigma_px, cv2.CV_64F).ravel()
-    matrix = np.zeros((size, size))
-    for i in range(size):
-        for t, weight in enumerate(kernel):
-            j = i + t - taps // 2
-            while not 0 <= j < size:  # reflected about the end pixels, not repeating them
-                j = 0 if size == 1 else -j if j < 0 else 2 * (size - 1) - j
-            matrix[i, j] += weight
-    return matrix
-
-
-def _blend(pixels: np.ndarray, coverage: np.ndarray, marker: np.ndarray) -> np.ndarray:
-    """Pixels under a dot: a blend of their level and the marker's by the coverage, in
-    single precision, + 0.5 so that truncating to uint8 rounds (both are in 0-255)."""
-    blend = pixels.astype(np.float32)
-    blend *= 1 - coverage
-    blend += marker * coverage
-    blend += 0.5
-    return blend
-
-
-def _to_float32(value: float) -> float:
-    """``value`` rounded to the nearest single-precision float (ties to even)."""
-    return _FLOAT32.unpack(_FLOAT32.pack(value))[0]
-
-
-_FLOAT32 = struct.Struct("f")
-
-
-def _grey_level(bgr: tuple[int, int, int]) -> float:
-    """A colour's grey level as ``cv2.cvtColor(..., COLOR_BGR2GRAY)`` weighs it."""
-    b, g, r = bgr
-    return 0.114 * b + 0.587 * g + 0.299 * r
-
-
-def _fill(image: np.ndarray, x0: int, y0: int, x1: int, y1: int, colour: tuple) -> None:
-    """Fill [x0, x1) x [y0, y1) of one image with one colour (cv2 does it ~30x faster
-    than numpy)."""
-    cv2.rectangle(image, (x0, y0), (x1 - 1, y1 - 1), colour, thickness=cv2.FILLED)

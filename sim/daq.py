@@ -51,8 +51,8 @@ from nidaqmx.constants import (
 from nidaqmx.error_codes import DAQmxErrors
 from nidaqmx.errors import DaqError, DaqReadError
 
-from labrig.clock import Clock
 from labrig.drivers import mpx5100
+from labrig.time.clock import Clock
 
 ADC_BITS = 14  # differential
 RSE_ADC_BITS = 13

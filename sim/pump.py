@@ -38,8 +38,8 @@ import time
 import tty
 from collections.abc import Callable
 
-from labrig.clock import Clock
-from labrig.devices import PumpState
+from labrig.rig.devices import PumpState
+from labrig.time.clock import Clock
 
 from .pump_firmware import DEFAULT_DIAMETER_MM, DEFAULT_SYRINGE_ML, MAX_FORCE_N, PumpFirmware
 

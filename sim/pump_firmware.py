@@ -31,9 +31,9 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from labrig.clock import Clock
-from labrig.devices import PumpState
 from labrig.drivers.phd_ultra_protocol import ADDRESS_FORMS, rate_limits_ml_min
+from labrig.rig.devices import PumpState
+from labrig.time.clock import Clock
 
 from .syringe_drive import INFUSE, WITHDRAW, SyringeDrive
 

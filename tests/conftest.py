@@ -1,4 +1,4 @@
-"""Shared fixtures: simulated run files, written once per session (see simulated_runs);
+"""Shared fixtures: simulated run files, written once per session (see support/simulated_runs.py);
 and the order of the suite on pytest-xdist's three workers (pyproject.toml's addopts).
 
 The order: the suite runs on three processes (``-n 3 --dist loadgroup``), which hand out
@@ -8,14 +8,14 @@ front so that no worker is left with one of them at the end while the others idl
 The tests of the compiled path (scans and the compiled path itself, in-process or
 through ``labrig model scan``) form one group: on a fresh clone the first of them
 compiles ``labrig.model.actuator.compiled_path`` (~1 min of one core: 56 s of CPU,
-tests/bench/bench_compile.py; 1.5-3 min before: labrig.model.actuator.jit), and the
+tests/benchmarks/bench_compile.py; 1.5-3 min before: labrig.model.actuator.jit), and the
 fixture ``compiled_path_cached`` does that once, in that worker, before any scan's own
 worker processes start (each would compile it at the same time, two cores for one
 result; the cache written here is the one they load: measured, no new cache file).
 
 Every module of labrig is imported before the first test (``_import_every_module``), in
 each process that runs tests (xdist's controller runs none, so it imports no labrig: the
-fixtures import ``simulated_runs`` when first used):
+fixtures import ``support.simulated_runs`` when first used):
 hypothesis draws a few of its values from the constants of the local modules already
 in ``sys.modules``, so a property test's examples, derandomized or not, would otherwise
 depend on which tests ran before it in its process; with workers handing out work
@@ -34,18 +34,18 @@ from hypothesis import settings
 # together; seconds on the idle 2-core machine, warm numba cache, one process): these
 # start first, in this order (--no-loadscope-reorder: xdist would order by test count)
 LONG_FIRST = (
-    "tests/cli/test_bench.py::",  # the compiled path's group: ~60, +60-95 cold
+    "tests/cli/test_benchmark.py::",  # the compiled path's group: ~60, +60-95 cold
     "tests/rig/test_determinism.py::test_same_seed_same_data_beside_two_cpu_burners",
     "tests/rig/test_demo_run.py::",  # the demo's group: ~30 with the one above
     "tests/live/test_watch.py::",  # 19
     "tests/live/test_api_state.py::",  # 23 before, 15 now
     "tests/live/test_live_page.py::",  # 16
     "tests/analysis/test_compare.py::",  # the simulated runs' group: ~25
-    "tests/model/test_reference.py::test_the_papers_named_combinations",  # 12
+    "tests/model/baselines/test_nelder_mead.py::test_the_papers_named_combinations",  # 12
     "tests/cli/test_model_scan.py::test_ctrl_c_keeps",  # 8
     "tests/rig/test_video_and_frames.py::",  # 10
     "tests/rig/test_faults.py::",
-    "tests/model/test_reference.py::",
+    "tests/model/baselines/test_nelder_mead.py::",
 )
 # tests that share something costly, each group run by one worker: the compiled path
 # (see the module docstring), the demo's run (a session fixture, rig/conftest.py), the
@@ -54,12 +54,12 @@ LONG_FIRST = (
 # two workers made its fixture twice (seen: the video run, 3 s of CPU each)
 COMPILED_GROUP = "compiled_path"
 GROUPS = {
-    "tests/cli/test_bench.py::": COMPILED_GROUP,
-    "tests/model/test_compiled_path.py::": COMPILED_GROUP,
-    "tests/model/test_jit.py::": COMPILED_GROUP,
-    "tests/model/test_scan.py::": COMPILED_GROUP,
-    "tests/model/test_scan_distributed.py::": COMPILED_GROUP,
-    "tests/model/test_scan_failures.py::": COMPILED_GROUP,
+    "tests/cli/test_benchmark.py::": COMPILED_GROUP,
+    "tests/model/actuator/test_compiled_path.py::": COMPILED_GROUP,
+    "tests/model/actuator/test_jit.py::": COMPILED_GROUP,
+    "tests/model/scan/test_scan.py::": COMPILED_GROUP,
+    "tests/model/scan/test_scan_distributed.py::": COMPILED_GROUP,
+    "tests/model/scan/test_scan_failures.py::": COMPILED_GROUP,
     "tests/rig/test_demo_run.py::": "demo_run",
     "tests/rig/test_determinism.py::": "demo_run",
     "tests/live/test_live_page.py::": "browser",
@@ -145,7 +145,7 @@ def compiled_path_cached():
     if not jit.COMPILED:
         return
     from labrig.model.scan.scan import ScanLibrary, solve_actuator
-    from labrig.model.segments.library import analytical_segment
+    from labrig.model.segments.catalog import analytical_segment
 
     names = ("B46-T20", "B46-T22")
     solve_actuator(ScanLibrary("warm-up", tuple(analytical_segment(n) for n in names)), (0, 1))
@@ -162,7 +162,7 @@ def snap_run(tmp_path_factory):
     """B46-T20 + B46-T22 (the paper's Fig. 2 pair) inflated at 20 mL/min to 22 mL, five
     times, through water-like flow resistance (R = 1 kPa s/mL): the plant snaps through
     on inflation; pressure noise 0.3 kPa, the top of the issue's range."""
-    from simulated_runs import simulate_run
+    from support.simulated_runs import simulate_run
 
     path = tmp_path_factory.mktemp("runs") / "snap.h5"
     return simulate_run(path, ("B46-T20", "B46-T22"), volume_ml=22.0, noise_kpa=0.3, seed=11)
@@ -172,7 +172,7 @@ def snap_run(tmp_path_factory):
 def library_run(tmp_path_factory):
     """B44-T22 + B50-T20 in the slow limit (R = 0.05 kPa s/mL), where the plant follows
     the model's quasi-static path: one snap on inflation, one on deflation."""
-    from simulated_runs import simulate_run
+    from support.simulated_runs import simulate_run
 
     path = tmp_path_factory.mktemp("runs") / "library.h5"
     return simulate_run(
@@ -189,7 +189,7 @@ def library_run(tmp_path_factory):
 def segment_run(tmp_path_factory):
     """A single segment, B46-T20, past its valley onto the stiffening wall; the third
     repetition faulted (so the mean is of repetitions 1, 2, 4 and 5)."""
-    from simulated_runs import simulate_run
+    from support.simulated_runs import simulate_run
 
     path = tmp_path_factory.mktemp("runs") / "segment.h5"
     statuses = ("complete", "complete", "faulted", "complete", "complete")
@@ -213,7 +213,7 @@ def copy_of(tmp_path):
 @pytest.fixture
 def tiny_file(tmp_path):
     """A small complete run (2 repetitions of 2 mL, p = 5 v, l = 30 + v)."""
-    from simulated_runs import tiny_run
+    from support.simulated_runs import tiny_run
 
     return tiny_run(tmp_path / "tiny.h5")
 
@@ -221,6 +221,6 @@ def tiny_file(tmp_path):
 @pytest.fixture
 def killed_file(tmp_path):
     """A run file left by a SIGKILLed writer: flagged open, status running."""
-    from simulated_runs import killed_run
+    from support.simulated_runs import killed_run
 
     return killed_run(tmp_path)

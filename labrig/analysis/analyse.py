@@ -181,7 +181,7 @@ def analyse(
 
 
 def _comparison(record, segments, library_dir, grid_ml, mean_p, mean_l, agreed, settings, v_max):
-    from labrig.model.segments.library import load_segment
+    from labrig.model.segments.catalog import load_segment
 
     names = list(segments) if segments is not None else list(record.protocol.specimen.segments)
     deflate = bool(np.any(np.isfinite(mean_p[DEFLATE].mean)))

@@ -4,10 +4,11 @@ The run writer keeps the file consistent on disk at every flush (SWMR), so a kil
 leaves a file holding everything up to its last flush, with two marks of the crash: the
 superblock's "open for writing" flag, which makes HDF5 (and every tool built on it)
 refuse to open the file normally, and the status "running" of the run and its current
-repetition. ``recover_run`` clears the flag (``labrig.storage.clear_write_flag``, what
-``h5clear -s`` does), records that the run was cut short, and stores the analysis of
-what was recorded, so the file then reads like any finished run. Each step says what it
-did; a file that needs nothing is left untouched.
+repetition. ``recover_run`` clears the flag
+(``labrig.recording.repair.clear_write_flag``, what ``h5clear -s`` does), records that the
+run was cut short, and stores the analysis of what was recorded, so the file then reads
+like any finished run. Each step says what it did; a file that needs nothing is left
+untouched.
 """
 
 from __future__ import annotations
@@ -18,7 +19,9 @@ import h5py
 
 from labrig.analysis.results import now_iso
 from labrig.analysis.runfile import load_run
-from labrig.storage import REASON_SIZE, clear_write_flag, decode
+from labrig.recording.repair import clear_write_flag
+from labrig.recording.run_layout import REASON_SIZE
+from labrig.recording.run_reader import decode
 
 
 def recover_run(path: Path, *, analyse: bool = True) -> list[str]:

@@ -17,7 +17,7 @@ from rich.text import Text
 from labrig.analysis.curves import DEFLATE, INFLATE, PHASES
 from labrig.analysis.results import AnalysisResult
 from labrig.analysis.runfile import RunRecord
-from labrig.protocol import plan
+from labrig.config.protocol import plan
 
 DIRECTION = {INFLATE: "inflate", DEFLATE: "deflate"}
 

@@ -25,7 +25,7 @@ from labrig.analysis.compare import Comparison, PredictedTransition, Prediction,
 from labrig.analysis.curves import PHASES, MeanCurve
 from labrig.analysis.transitions import AgreedTransition, DetectionSettings, MeasuredTransition
 from labrig.errors import InputError
-from labrig.storage import repetition_name
+from labrig.recording.run_layout import repetition_name
 
 LAYOUT_VERSION = 1
 UNITS = {"_ml": "mL", "_kpa": "kPa", "_mm": "mm", "_s": "s", "_ml_s": "mL/s"}

@@ -1,7 +1,7 @@
 """A run file read back for review and analysis, every piece checked and every absence
 named.
 
-``labrig.storage`` writes the layout and knows how to open a file a killed writer left;
+``labrig.recording`` writes the layout and knows how to open a file a killed writer left;
 this module reads what the analysis needs into plain arrays and turns whatever is wrong
 with a file into one ``InputError`` line: a file that is not HDF5, one cut short (a copy
 that stopped early), a foreign HDF5 file, a repetition or a field that is missing, a
@@ -17,9 +17,10 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from labrig.config.protocol import Protocol, parse_protocol
 from labrig.errors import InputError
-from labrig.protocol import Protocol, parse_protocol
-from labrig.storage import LogSeries, decode, open_run, repetition_name
+from labrig.recording.run_layout import repetition_name
+from labrig.recording.run_reader import LogSeries, decode, open_run
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 

@@ -21,7 +21,7 @@ from labrig.errors import LabrigError
 # name -> "module:attribute" of a click command or group. Only what is built is listed:
 # the CLI never shows a command that would pretend.
 COMMANDS: dict[str, tuple[str, str]] = {
-    "bench": ("labrig.cli.bench", "bench"),
+    "bench": ("labrig.cli.benchmark", "bench"),
     "compare": ("labrig.cli.review", "compare_command"),
     "export": ("labrig.cli.review", "export"),
     "frames": ("labrig.cli.frames", "frames"),

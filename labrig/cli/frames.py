@@ -44,21 +44,21 @@ def frames(
     volumes = _volumes(at_volumes)
     if not out.parent.is_dir():
         raise InputError(f"-o {out}: the folder {out.parent} does not exist")
-    from labrig.analysis import strip
+    from labrig.analysis import frame_strip
     from labrig.analysis.runfile import load_run
 
     record = load_run(file)
-    video = strip.video_index(file)
+    video = frame_strip.video_index(file)
     if at_transitions:
         from labrig.cli.review import load
 
         _, result, _ = load(file, compare_model=False)
-        tiles = strip.transition_tiles(record, result, video)
+        tiles = frame_strip.transition_tiles(record, result, video)
         columns = 2
     else:
-        tiles = strip.volume_tiles(record, video, volumes, repetition)
+        tiles = frame_strip.volume_tiles(record, video, volumes, repetition)
         columns = len(tiles)
-    image = strip.write_strip(record, video, tiles, columns, out)
+    image = frame_strip.write_strip(record, video, tiles, columns, out)
     click.echo(
         f"{out}: {len(tiles)} frames of {video.path.name} ({image.shape[1]}x{image.shape[0]})"
     )

@@ -28,7 +28,7 @@ def add(run: Path, name: str, directory: Path | None, replace: bool) -> None:
     """Turn the single-segment run RUN into measured segment NAME: the mean inflation
     curve of its averaged repetitions, fitted to the segment's shape, as CSV with its
     provenance."""
-    from labrig.segment_library import add_from_run
+    from labrig.analysis.measured_library import add_from_run
 
     segment = add_from_run(run, name, directory, replace=replace)
     curve = segment.provenance["curve"]
@@ -45,7 +45,7 @@ def add(run: Path, name: str, directory: Path | None, replace: bool) -> None:
 @LIBRARY_OPTION
 def list_command(directory: Path | None) -> None:
     """List the measured segments in the library."""
-    from labrig.segment_library import list_measured, resolve_library_dir
+    from labrig.analysis.measured_library import list_measured, resolve_library_dir
 
     segments = list_measured(directory)
     folder = resolve_library_dir(directory)

@@ -25,7 +25,7 @@ def _extremum(extremum) -> dict | None:
 
 def _contact_ml(spec: str) -> float | None:
     """Volume at which the braids touch the tube, for an analytical library segment."""
-    from labrig.model.segments.library import LIBRARY_NAMES, library_geometry
+    from labrig.model.segments.catalog import LIBRARY_NAMES, library_geometry
 
     if spec.strip().upper() not in LIBRARY_NAMES:
         return None
@@ -142,7 +142,7 @@ def plot_curve(curve, contact_ml: float | None, path: Path) -> None:
 def curve(seg: str, as_json: bool, plot_path: Path | None) -> None:
     """Show the pressure-volume and length-volume curve of one segment SEG: a library
     name (B46-T20), gent-a/b/c, or a CSV with volume_ml,pressure_kpa,length_mm."""
-    from labrig.model.segments.library import load_segment
+    from labrig.model.segments.catalog import load_segment
 
     if plot_path is not None and not plot_path.parent.is_dir():
         raise InputError(f"--plot {plot_path}: the folder {plot_path.parent} does not exist")

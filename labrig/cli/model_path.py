@@ -118,7 +118,7 @@ def path(
     from labrig.model.actuator.equilibria import Actuator
     from labrig.model.actuator.path import quasi_static_path, sample_path
     from labrig.model.actuator.transitions import transitions
-    from labrig.model.segments.library import load_segment
+    from labrig.model.segments.catalog import load_segment
 
     actuator = Actuator([load_segment(s) for s in segs])
     started = time.perf_counter()

@@ -14,7 +14,7 @@ def protocol() -> None:
 @click.argument("file", type=click.Path(dir_okay=False, path_type=str))
 def validate(file: str) -> None:
     """Check FILE against the protocol schema; print a summary or what is wrong."""
-    from labrig.protocol import load_protocol, plan
+    from labrig.config.protocol import load_protocol, plan
 
     loaded = load_protocol(file)
     summary = plan(loaded.protocol)
@@ -28,6 +28,6 @@ def validate(file: str) -> None:
 @protocol.command()
 def schema() -> None:
     """Print the protocol format as JSON Schema (for YAML language servers)."""
-    from labrig.protocol import protocol_json_schema
+    from labrig.config.protocol import protocol_json_schema
 
     click.echo(protocol_json_schema())

@@ -256,9 +256,9 @@ def emulate(
     """Serve an emulated PHD ULTRA on a pseudo-terminal.
 
     Prints the device path to connect to, then serves until Ctrl-C."""
-    from labrig.clock import RealClock, ScaledClock
     from labrig.sim.pump import PumpEmulator
     from labrig.sim.pump_firmware import manual_address_form
+    from labrig.time.clock import RealClock, ScaledClock
 
     address = ctx.obj["address"] if emulated_address is None else emulated_address
     clock = RealClock() if speed == 1 else ScaledClock(speed)

@@ -29,7 +29,7 @@ def load(path: Path, *, compare_model: bool = True):
     from labrig.analysis.analyse import analyse, settings_for
     from labrig.analysis.results import read_analysis
     from labrig.analysis.runfile import load_run
-    from labrig.storage import open_run
+    from labrig.recording.run_reader import open_run
 
     record = load_run(path)
     with open_run(path) as run:

@@ -25,10 +25,10 @@ def rig() -> None:
 def check(rig_file: Path | None, sim: bool, fault: str | None) -> None:
     """Connect to every device of RIG_FILE (or of the simulated rig) and read it;
     nothing moves. Exit 0 when every device passes, 2 otherwise."""
+    from labrig.config.rig_file import RigConfig
+    from labrig.config.yaml_schema import parse_yaml_model
     from labrig.errors import InputError
-    from labrig.rig import RigConfig
-    from labrig.rig_check import check_rig, report
-    from labrig.yamlmodel import parse_yaml_model
+    from labrig.rig.check import check_rig, report
 
     if rig_file is None and not sim:
         raise InputError("rig check: give a rig file (RIG.yaml) or --sim")
@@ -43,7 +43,7 @@ def check(rig_file: Path | None, sim: bool, fault: str | None) -> None:
     if fault is not None and not simulated:
         raise InputError("--fault applies to the simulated rig only (use --sim)")
     if simulated:
-        from labrig.rig_check_sim import check_sim_rig, simulated_config
+        from labrig.rig.check_sim import check_sim_rig, simulated_config
 
         checks = check_sim_rig(simulated_config(bench), fault)
     else:

@@ -65,9 +65,9 @@ def run(
     live_hold: float,
 ) -> None:
     """Run PROTOCOL_FILE on the rig and record it in one HDF5 file."""
-    from labrig.dry_run import dry_run_report
-    from labrig.protocol import load_protocol
-    from labrig.rig import load_rig_config
+    from labrig.config.protocol import load_protocol
+    from labrig.config.rig_file import load_rig_config
+    from labrig.run.dry_run import dry_run_report
 
     loaded = load_protocol(protocol_file)
     rig_config = load_rig_config(loaded, force_sim=sim, speed=speed, seed=seed)
@@ -94,8 +94,8 @@ def _run(loaded, rig_config, out_path: Path, live_view=None) -> None:
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn
 
-    from labrig.rig import build_rig
-    from labrig.runner import Runner
+    from labrig.rig.assembly import build_rig
+    from labrig.run.runner import Runner
 
     console = Console(stderr=True)
     rig = build_rig(loaded.protocol, rig_config)

@@ -1,6 +1,6 @@
 """Follow a run file that another process is recording, for ``labrig watch``.
 
-The writer (``labrig.storage.RunWriter``) creates the whole layout, then switches the
+The writer (``labrig.recording.run_writer.RunWriter``) creates the whole layout, then switches the
 file to HDF5's SWMR mode and only appends. A reader opened with ``swmr=True`` sees the
 file as of the writer's last flush (at most half a second old); each poll refreshes the
 datasets and feeds only the rows it has not seen to the same ``LiveState.tap`` the
@@ -21,10 +21,11 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from labrig.config.protocol import Protocol, parse_protocol, plan
 from labrig.errors import InputError
 from labrig.live.state import FINAL_STATUSES, LiveState, Step
-from labrig.protocol import Protocol, parse_protocol, plan
-from labrig.storage import LOG_FIELDS, decode, repetition_name
+from labrig.recording.run_layout import LOG_FIELDS, repetition_name
+from labrig.recording.run_reader import decode
 
 POLL_S = 0.25
 STEP_BY_PUMP_STATE = {"infusing": "infuse", "withdrawing": "withdraw", "stalled": "stalled"}

@@ -14,7 +14,7 @@ import threading
 
 import numpy as np
 
-from labrig.protocol import Protocol, plan
+from labrig.config.protocol import Protocol, plan
 
 
 def _values(a: np.ndarray, digits: int) -> list:
@@ -25,7 +25,7 @@ def prediction_json(protocol: Protocol) -> dict:
     """The prediction as the page draws it (``ready`` true; ``error`` if none)."""
     from labrig.analysis.compare import predict
     from labrig.errors import LabrigError
-    from labrig.model.segments.library import load_segment
+    from labrig.model.segments.catalog import load_segment
 
     the_plan = plan(protocol)
     segments = list(protocol.specimen.segments)

@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import time
 
+from labrig.config.protocol import Protocol, plan
 from labrig.live.model import BackgroundPrediction
 from labrig.live.server import LiveServer
 from labrig.live.state import LiveState, RunInfo
-from labrig.protocol import Protocol, plan
 
 
 def run_info(protocol: Protocol, title: str | None = None) -> RunInfo:

@@ -93,7 +93,7 @@ class LiveState:
         self._inbox.put((repetition, log, columns))
 
     def progress(self, snapshot) -> None:
-        """The runner's progress callback (``labrig.runner.Progress``)."""
+        """The runner's progress callback (``labrig.run.runner.Progress``)."""
         self._step = Step(
             snapshot.step, snapshot.repetition, snapshot.elapsed_s, snapshot.remaining_s
         )

@@ -14,7 +14,7 @@ from labrig.analysis.compare import (
 )
 from labrig.analysis.curves import DEFLATE, INFLATE
 from labrig.analysis.transitions import AgreedTransition
-from labrig.model.segments.library import analytical_segment
+from labrig.model.segments.catalog import analytical_segment
 
 
 def test_rmse_by_hand_over_the_points_both_have():

@@ -12,7 +12,7 @@ from labrig.analysis import analyse_run
 from labrig.analysis.curves import INFLATE
 from labrig.analysis.report import summary_text
 from labrig.analysis.results import read_analysis
-from labrig.storage import open_run
+from labrig.recording.run_reader import open_run
 
 
 def assert_same(a, b, where="result"):

@@ -6,7 +6,7 @@ import shutil
 import h5py
 import numpy as np
 import pytest
-from simulated_runs import PROTOCOL, tiny_run
+from support.simulated_runs import PROTOCOL, tiny_run
 
 from labrig.analysis import analyse, analyse_run
 from labrig.analysis.recovery import recover_run

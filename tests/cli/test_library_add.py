@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from labrig.cli import main
-from labrig.model.segments.library import analytical_segment, load_segment
+from labrig.model.segments.catalog import analytical_segment, load_segment
 
 
 def run(argv, capsys):
@@ -100,8 +100,8 @@ def test_add_does_not_overwrite_unless_asked(segment_run, tmp_path, capsys):
 def test_a_failed_fit_names_the_run_file_not_a_temporary_csv(tmp_path):
     """The mean curve of a run that stopped before its valley cannot be fitted: the
     error names where the data came from."""
+    from labrig.analysis.measured_library import add_measured
     from labrig.errors import InputError
-    from labrig.segment_library import add_measured
 
     clean = analytical_segment("B46-T20")
     v = np.linspace(0.0, 0.9 * clean.valley.v_ml, 400)  # still falling at the end

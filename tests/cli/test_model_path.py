@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from labrig.cli import main
-from labrig.model.segments.library import analytical_segment
+from labrig.model.segments.catalog import analytical_segment
 from labrig.model.segments.measured import write_csv
 
 

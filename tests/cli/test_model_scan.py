@@ -13,7 +13,7 @@ import pytest
 
 from labrig.cli import main
 from labrig.model.scan.scan_file import read_scan
-from labrig.model.segments.library import LIBRARY_NAMES, analytical_segment
+from labrig.model.segments.catalog import LIBRARY_NAMES, analytical_segment
 from labrig.model.segments.measured import write_csv
 
 

@@ -11,10 +11,10 @@ import pytest
 
 from labrig import cli as cli_module
 from labrig.cli import pump as pump_cli
-from labrig.clock import ScaledClock
-from labrig.devices import PumpState
 from labrig.drivers.phd_ultra import PhdUltra
+from labrig.rig.devices import PumpState
 from labrig.sim.pump import PumpEmulator
+from labrig.time.clock import ScaledClock
 
 
 def run_main(argv, capsys):

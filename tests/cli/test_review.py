@@ -9,7 +9,7 @@ import pytest
 from labrig.analysis import analyse, analyse_run
 from labrig.analysis.curves import DEFLATE, INFLATE
 from labrig.cli import main
-from labrig.storage import open_run, read_log
+from labrig.recording.run_reader import open_run, read_log
 
 
 def run(argv, capsys):

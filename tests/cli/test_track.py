@@ -9,7 +9,7 @@ import pytest
 
 from labrig import cli as cli_module
 from labrig.sim.camera import SimCamera
-from labrig.virtual_clock import VirtualClock
+from labrig.time.virtual import VirtualClock
 
 MM_PER_PX = 0.08
 

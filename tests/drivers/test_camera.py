@@ -6,11 +6,11 @@ import cv2
 import numpy as np
 import pytest
 
-from labrig.devices import LengthSource
 from labrig.drivers.camera import CameraLength, CameraSettings, FrameSource
 from labrig.errors import DeviceError, InputError
+from labrig.rig.devices import LengthSource
 from labrig.sim.camera import SimCamera
-from labrig.virtual_clock import VirtualClock
+from labrig.time.virtual import VirtualClock
 
 MM_PER_PX = 0.08
 

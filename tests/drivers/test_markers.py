@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from labrig.drivers.markers import MarkerFix, MarkerTracker, _median, mm_per_px_from_reference
 from labrig.errors import InputError
 from labrig.sim.camera import SimCamera
-from labrig.virtual_clock import VirtualClock
+from labrig.time.virtual import VirtualClock
 
 
 def camera(length_mm_at=lambda t: 40.0 + 3.0 * math.sin(t), **kwargs):

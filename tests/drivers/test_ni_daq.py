@@ -12,7 +12,6 @@ import pytest
 from nidaqmx.constants import TaskMode
 from nidaqmx.error_codes import DAQmxErrors
 
-from labrig.devices import PressureSource
 from labrig.drivers import mpx5100
 from labrig.drivers.ni_daq import (
     DaqConfigError,
@@ -22,8 +21,9 @@ from labrig.drivers.ni_daq import (
     NiDaqPressure,
 )
 from labrig.errors import DeviceError, InputError
+from labrig.rig.devices import PressureSource
 from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask, quantise
-from labrig.virtual_clock import VirtualClock
+from labrig.time.virtual import VirtualClock
 
 # One ADC step of the USB-6009 in RSE (±10 V, 13 bits), in kPa at Vs = 5 V.
 QUANTUM_KPA = 20.0 / 2**13 / (0.009 * 5.0)

@@ -16,7 +16,6 @@ import time
 import pytest
 import serial
 
-from labrig.devices import Pump, PumpState
 from labrig.drivers.phd_ultra import PhdUltra
 from labrig.drivers.phd_ultra_errors import (
     PumpCommandError,
@@ -27,9 +26,10 @@ from labrig.drivers.phd_ultra_errors import (
     PumpStalled,
     PumpTimeout,
 )
+from labrig.rig.devices import Pump, PumpState
 from labrig.sim.pump import LOAD_CHECK_S, PumpEmulator
 from labrig.sim.pump_firmware import manual_address_form
-from labrig.virtual_clock import VirtualClock
+from labrig.time.virtual import VirtualClock
 
 TIMEOUT_S = 0.2
 DISPLAY_ML = 1e-4  # '1.2345 ml': the pump's counters have 4 decimals

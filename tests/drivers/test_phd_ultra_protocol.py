@@ -12,7 +12,6 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from labrig.devices import PumpState
 from labrig.drivers.phd_ultra import PhdUltra
 from labrig.drivers.phd_ultra_errors import (
     PumpArgumentError,
@@ -40,6 +39,7 @@ from labrig.drivers.phd_ultra_protocol import (
     parse_target_ml,
     parse_volume_ml,
 )
+from labrig.rig.devices import PumpState
 
 
 class ScriptedPort:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from liverun import PROTOCOL, LiveRun
+from support.liverun import PROTOCOL, LiveRun
 
 
 @pytest.fixture

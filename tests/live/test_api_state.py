@@ -5,7 +5,6 @@ file the same run records without a page)."""
 
 from __future__ import annotations
 
-import json
 import socket
 import subprocess
 import sys
@@ -14,14 +13,9 @@ import urllib.request
 
 import h5py
 import numpy as np
-from liverun import PROTOCOL, poll_until
+from support.liverun import PROTOCOL, get, poll_until
 
 from labrig.live.state import FINAL_STATUSES, STATE_FIELDS
-
-
-def get(url: str):
-    with urllib.request.urlopen(url, timeout=10) as response:
-        return json.load(response)
 
 
 def stalled_clients(url: str, n: int) -> list[socket.socket]:

@@ -7,7 +7,7 @@ import subprocess
 import sys
 
 import pytest
-from liverun import PROTOCOL
+from support.liverun import PROTOCOL
 
 from labrig.live.follow import FileFollower, open_growing, protocol_of
 from labrig.live.session import run_info
@@ -18,7 +18,7 @@ from labrig.live.state import LiveState
 WRITER = """
 import sys
 import numpy as np
-from labrig.storage import RunWriter
+from labrig.recording.run_writer import RunWriter
 
 path, protocol, stage = sys.argv[1:]
 writer = RunWriter(path, title="followed", protocol_text=open(protocol).read(),

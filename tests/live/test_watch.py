@@ -8,8 +8,7 @@ import subprocess
 import sys
 import threading
 
-from liverun import PROTOCOL, poll_until
-from test_api_state import get
+from support.liverun import PROTOCOL, get, poll_until
 
 from labrig.live.state import STATE_FIELDS
 

@@ -1,7 +1,7 @@
 """The demo protocol's simulated run, made once for every test of it."""
 
 import pytest
-from simrig import DEMO, run_sim
+from support.simrig import DEMO, run_sim
 
 
 @pytest.fixture(scope="session")

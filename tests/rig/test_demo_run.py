@@ -4,9 +4,9 @@ length within the tracking error."""
 
 import numpy as np
 import pytest
-from simrig import DEMO
+from support.simrig import DEMO
 
-from labrig.storage import open_run, read_log, repetition_statuses
+from labrig.recording.run_reader import open_run, read_log, repetition_statuses
 
 
 def test_demo_completes_with_every_repetition(demo):

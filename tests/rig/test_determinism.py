@@ -8,9 +8,9 @@ import time
 
 import numpy as np
 import pytest
-from simrig import DEMO, run_sim, short_protocol
+from support.simrig import DEMO, run_sim, short_protocol
 
-from labrig.storage import open_run, read_log
+from labrig.recording.run_reader import open_run, read_log
 
 SERIES = ("pressure", "pump", "length")
 

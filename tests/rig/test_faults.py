@@ -11,11 +11,11 @@ import time
 import h5py
 import numpy as np
 import pytest
-from simrig import run_sim, short_protocol, when_volume_exceeds
+from support.simrig import run_sim, short_protocol, when_volume_exceeds
 
 from labrig.errors import InputError
-from labrig.runner import Timing
-from labrig.storage import open_run, read_log, repetition_statuses
+from labrig.recording.run_reader import open_run, read_log, repetition_statuses
+from labrig.run.runner import Timing
 
 PRESSURE_PERIOD_S = Timing.pressure_period_s  # the runner reads the DAQ this often
 CAMERA_PERIOD_S = Timing.camera_period_s  # and records the camera's frames this often
@@ -174,7 +174,7 @@ def test_interlock_trips_while_the_main_loop_is_away(tmp_path):
     """A main thread away for a long rig time cannot delay the pressure stop: the
     interlocks run in the acquisition threads. (A main thread blocked outside the
     clock holds virtual time still, so on the simulated rig only rig time can pass.)"""
-    import labrig.runner as runner_module
+    import labrig.run.runner as runner_module
 
     original = runner_module.Runner._report_progress
     away = threading.Event()

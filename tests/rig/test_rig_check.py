@@ -8,12 +8,12 @@ import re
 import numpy as np
 import pytest
 
-from labrig import rig_check_sim
 from labrig.cli import main
-from labrig.clock import RealClock
-from labrig.rig import PressureConfig, PumpConfig
-from labrig.rig_check import check_pressure, check_pump
+from labrig.config.rig_file import PressureConfig, PumpConfig
+from labrig.rig import check_sim as rig_check_sim
+from labrig.rig.check import check_pressure, check_pump
 from labrig.sim.pump import PumpEmulator
+from labrig.time.clock import RealClock
 
 BENCH = "protocols/rigs/bench.yaml"
 # what the check may send: queries, NVRAM writes off, and the stop the driver sends
@@ -133,8 +133,8 @@ def test_a_bench_rig_with_a_video_and_a_pump_on_a_port(tmp_path):
     """The bench path end to end: a rig file whose pump is on a serial device (the
     emulator's pty) and whose camera is a video file read with a reference distance;
     NI-DAQmx is absent here, and the check says so without stopping the others."""
-    from labrig.rig import RigConfig
-    from labrig.rig_check import check_rig
+    from labrig.config.rig_file import RigConfig
+    from labrig.rig.check import check_rig
     from labrig.sim.camera import SimCamera
 
     video = tmp_path / "markers.avi"
@@ -163,7 +163,7 @@ def test_the_pressure_check_shows_the_range_daqmx_uses(seed):
     # The recommended wiring asks 0-5 V in RSE; a USB-6009 digitises +-10 V at 13 bits,
     # so the 5.0 V supply on ai1 is far from the top of the range (issue 16).
     from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
-    from labrig.virtual_clock import VirtualClock
+    from labrig.time.virtual import VirtualClock
 
     clock = VirtualClock()
     check = check_pressure(

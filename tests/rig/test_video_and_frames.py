@@ -12,13 +12,14 @@ import time
 import cv2
 import numpy as np
 import pytest
-from simrig import DEMO, run_sim, short_protocol
+from support.simrig import DEMO, run_sim, short_protocol
 
-from labrig.analysis.strip import CAPTION_PX, TILE_WIDTH_PX
+from labrig.analysis.frame_strip import CAPTION_PX, TILE_WIDTH_PX
 from labrig.cli import main
+from labrig.config.rig_file import CameraConfig, PumpConfig, RigConfig, SimConfig
 from labrig.drivers.markers import MarkerTracker
-from labrig.rig import SIM_CAMERA_SIZE, CameraConfig, PumpConfig, RigConfig, SimConfig
-from labrig.storage import open_run, read_log
+from labrig.recording.run_reader import open_run, read_log
+from labrig.rig.simulated import SIM_CAMERA_SIZE
 
 VIDEO_DEMO = (
     DEMO.read_text()
@@ -188,12 +189,13 @@ def test_a_failed_scale_calibration_faults_the_run(tmp_path):
 def test_a_video_file_standing_in_for_the_camera_is_read_at_camera_fps(tmp_path):
     """A file's read does not wait for frames: the camera loop paces it. Were it read
     in a loop without a wait, virtual time would never move and the run never end."""
+    from labrig.config.protocol import load_protocol
+    from labrig.config.rig_file import sim_rig_config
     from labrig.drivers.camera import CameraLength, FrameSource
-    from labrig.protocol import load_protocol
-    from labrig.rig import build_rig, sim_rig_config
-    from labrig.runner import Runner
+    from labrig.rig.assembly import build_rig
+    from labrig.run.runner import Runner
     from labrig.sim.camera import SimCamera
-    from labrig.virtual_clock import VirtualClock
+    from labrig.time.virtual import VirtualClock
 
     video = tmp_path / "specimen.avi"
     SimCamera(VirtualClock(), lambda t: 50.0, size=(640, 360), mm_per_px=0.1).write_video(
@@ -217,7 +219,7 @@ def test_a_video_file_standing_in_for_the_camera_is_read_at_camera_fps(tmp_path)
 def test_a_real_cameras_frames_go_to_the_encoder_as_pixels(tmp_path):
     """Frames without a scene (a real camera's arrays) are sent whole and written in
     order; a directory that cannot hold the file is an OSError, not a hang."""
-    from labrig.video import VideoRecorder
+    from labrig.recording.video import VideoRecorder
 
     recorder = VideoRecorder(tmp_path / "real.avi", fps=30)
     images = [np.full((120, 160, 3), 30 * k + 20, dtype=np.uint8) for k in range(6)]
@@ -242,7 +244,7 @@ def test_every_container_holds_every_frame_at_its_rate(tmp_path, suffix, colour)
     """Motion-JPEG frames encoded by OpenCV and muxed as they are (AVI, Matroska) or
     MPEG-4 encoded by FFmpeg: each decodes, in order, at the nominal rate (to within
     4 grey levels: MPEG-4's colour frames go through limited-range YUV)."""
-    from labrig.video import VideoRecorder
+    from labrig.recording.video import VideoRecorder
 
     path = tmp_path / f"frames{suffix}"
     recorder = VideoRecorder(path, fps=25)

@@ -10,8 +10,10 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from labrig.drivers.markers import MarkerTracker
-from labrig.sim.camera import SimCamera, SimFrame, _blur_matrix
-from labrig.virtual_clock import VirtualClock
+from labrig.sim.camera import SimCamera
+from labrig.sim.camera_frame import SimFrame
+from labrig.sim.camera_scene import blur_matrix
+from labrig.time.virtual import VirtualClock
 
 
 def camera(**kwargs):
@@ -309,12 +311,12 @@ def test_a_scene_pickled_and_drawn_elsewhere_is_the_frame_bit_for_bit(monochrome
 
 @pytest.mark.parametrize("sigma_px", [0.5, 1.0, 1.2, 2.0])
 def test_the_dots_blur_is_opencvs_gaussian_blur(sigma_px):
-    """The dots of a batch are blurred by matrix products (``_blur_matrix``): against
+    """The dots of a batch are blurred by matrix products (``blur_matrix``): against
     ``cv2.GaussianBlur`` on the same coverage, any size down to one pixel (a dot cut by
     the frame's edge), its reflecting border included."""
     rng = np.random.default_rng(1)
     for height, width in [(1, 1), (2, 5), (3, 23), (13, 9), (27, 27), (40, 3)]:
         coverage = rng.random((height, width)).astype(np.float32)
-        blurred = _blur_matrix(height, sigma_px) @ coverage @ _blur_matrix(width, sigma_px).T
+        blurred = blur_matrix(height, sigma_px) @ coverage @ blur_matrix(width, sigma_px).T
         expected = cv2.GaussianBlur(coverage, (0, 0), sigma_px)
         np.testing.assert_allclose(blurred, expected, atol=1e-6)

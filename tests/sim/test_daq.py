@@ -27,7 +27,7 @@ from labrig.sim.daq import (
     SimTiming,
     quantise,
 )
-from labrig.virtual_clock import VirtualClock
+from labrig.time.virtual import VirtualClock
 
 RSE = TerminalConfiguration.RSE
 DIFF = TerminalConfiguration.DIFF

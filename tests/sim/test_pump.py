@@ -10,11 +10,11 @@ import time
 import pytest
 import serial
 
-from labrig.devices import PumpState
 from labrig.drivers.phd_ultra_protocol import parse_rate_limits
+from labrig.rig.devices import PumpState
 from labrig.sim.pump import PumpEmulator
 from labrig.sim.syringe_drive import INFUSE, WITHDRAW, SyringeDrive
-from labrig.virtual_clock import VirtualClock
+from labrig.time.virtual import VirtualClock
 
 # ---- the plunger, as a function of time ---------------------------------------------
 

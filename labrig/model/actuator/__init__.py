@@ -3,3 +3,16 @@ quasi-static path, the post-snap flow, transitions, and the compiled kernels the
 
 Built on ``labrig.model.segments`` alone; the reference solvers and scans stand above it.
 """
+
+from labrig.exports import lazy_exports
+
+__getattr__, __dir__ = lazy_exports(
+    "labrig.model.actuator",
+    {
+        "equilibria": ["Actuator"],
+        "path": ["DEFLATE", "INFLATE", "Path", "SampledPath", "quasi_static_path", "sample_path"],
+        "transitions": ["Transition"],
+        "descent": ["FlowError"],
+        "prediction": ["predicted_inflation", "predicted_peak_pressure_kpa"],
+    },
+)

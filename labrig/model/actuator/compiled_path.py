@@ -1,15 +1,16 @@
 """The quasi-static path and its transitions for one actuator, entirely in compiled code.
 
-``labrig.model.actuator.path`` is the readable reference: a ``_Tracer`` that calls
-compiled kernels (branch inversion, the fold search, the post-snap flow) from Python.
-In a scan that Python glue between the calls is half the time: building ``State``s,
-stacking the actuator's tables, thousands of small calls that each cost microseconds to
-enter. This module is the same algorithm, step for step and rounding for rounding, as
-one numba function per actuator (``trace_transitions``): a scan enters compiled code
-once per actuator and gets the transitions' fields back as arrays.
+This module mirrors ``labrig.model.actuator.path`` step for step. That is the
+algorithm's readable Python form: a ``_Tracer`` that calls compiled kernels (branch
+inversion, the fold search, the post-snap flow) from Python. In a scan that Python glue
+between the calls is half the time: building ``State``s, stacking the actuator's tables,
+thousands of small calls that each cost microseconds to enter. This module is the same
+algorithm, step for step and rounding for rounding, as one numba function per actuator
+(``trace_transitions``): a scan enters compiled code once per actuator and gets the
+transitions' fields back as arrays.
 
 The same arithmetic in the same order, so the results are the same bits
-(tests/model/test_compiled_path.py holds them equal on chunks and on generated
+(tests/model/actuator/test_compiled_path.py holds them equal on chunks and on generated
 actuators): ``math.fsum`` is ported exactly (``fsum``), Python's ``min``/``max`` keep
 their first argument on a tie (``_min``, ``_max``), ``itertools.product`` and
 ``combinations`` keep their order. What the reference does only on rare, hard states
@@ -52,7 +53,7 @@ from labrig.model.actuator.equilibria import stable_slopes
 from labrig.model.actuator.fold_search import AT_PRESSURE, AT_VOLUME, START, at_volume_of, find_fold
 from labrig.model.actuator.jit import INLINE, INTERNAL, INTERNAL_LEAF, njit
 from labrig.model.actuator.roots import XTOL, bracketed_root
-from labrig.model.actuator.ros2_flow import MAX_STEPS, SETTLED, settle_flow
+from labrig.model.actuator.rosenbrock_flow import MAX_STEPS, SETTLED, settle_flow
 
 # the per-segment branch facts the tables do not hold (``branch_tables``), by index
 P_LO, P_HI, V_LO, V_HI, N_BRANCHES, PEAK_BRANCH = range(6)

@@ -9,7 +9,7 @@ plus ~0.6 us to call from Python.
 ``pack`` copies the PCHIP pieces of one or more segments into arrays padded to one
 length (a tuple of arrays, ``pack``); ``CurveKernel`` holds the tables of its own segment, a path
 solver those of its actuator (``tables_of``), and the post-snap flow
-(``labrig.model.actuator.ros2_flow``) reads the same arrays. The numbers are those of
+(``labrig.model.actuator.rosenbrock_flow``) reads the same arrays. The numbers are those of
 ``SegmentCurve``: the same cubic pieces, the same linear continuation past both ends.
 
 Compilation takes a few seconds once; the machine code is cached next to this file

@@ -18,7 +18,7 @@ L-stable Rosenbrock method (ROS2, Verwer et al. 1999): the stiffening walls make
 system stiff, and its Jacobian is diagonal plus rank one, so each linear solve is a
 Sherman-Morrison formula on floats. Near the end the steps grow and the method becomes
 Newton's, so the end state is an equilibrium to rounding. The integrator is compiled
-(``labrig.model.actuator.ros2_flow``): it is most of a scan's work.
+(``labrig.model.actuator.rosenbrock_flow``): it is most of a scan's work.
 
 This module returns volumes only; ``labrig.model.actuator.path`` turns them into a state on a
 branch combination and checks it is stable.
@@ -31,7 +31,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from labrig.model.actuator import ros2_flow
+from labrig.model.actuator import rosenbrock_flow
 from labrig.model.actuator.curve_tables import PAIR_IMBALANCE, pair_imbalance, tables_of
 from labrig.model.actuator.equilibria import hessian, stable_scalar
 from labrig.model.actuator.kernel import CurveKernel
@@ -82,10 +82,10 @@ def settle(
     tables = tables_of(tuple(kernels))
     w = np.array(w0, dtype=float)
     for _ in range(MAX_SADDLE_ESCAPES):
-        status, w = ros2_flow.settle_flow(tables, w, tol * unit, unit, max_steps)
-        if status == ros2_flow.SETTLED:
+        status, w = rosenbrock_flow.settle_flow(tables, w, tol * unit, unit, max_steps)
+        if status == rosenbrock_flow.SETTLED:
             return w.tolist()
-        if status == ros2_flow.MAX_STEPS:
+        if status == rosenbrock_flow.MAX_STEPS:
             raise FlowError(f"the flow did not settle in {max_steps} steps (volumes {w.tolist()})")
         # at rest on an unstable equilibrium (a saddle, or extrema that coincide)
         k = [kern.slope(x) for kern, x in zip(kernels, w.tolist(), strict=True)]

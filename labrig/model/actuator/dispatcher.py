@@ -6,7 +6,7 @@ A compiled function called from compiled code with a constant argument
 ``pressure_and_slope(tables, 0, w)``) is compiled by numba for that constant's literal
 type (``Literal[int](1)``): a specialisation of its own per constant, and of each
 function it passes it on to, each compiled with its whole call tree. Measured on a
-fresh cache (tests/bench/bench_compile.py): ``_follow`` twice, ``_find_fold`` four
+fresh cache (tests/benchmarks/bench_compile.py): ``_follow`` twice, ``_find_fold`` four
 times, ``find_fold`` five, ``bracketed_root`` four, 16 s of the compile's 84 s of CPU.
 The values are the same at run time either way; here the callee's types are the plain
 ones (int64, float64), one compile per function.

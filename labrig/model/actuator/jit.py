@@ -12,7 +12,7 @@ on a fresh install 20-40 s. So the console script asks for Python for the comman
 solve one actuator (``labrig.cli``), through the environment variable ``LABRIG_JIT``:
 ``python`` runs the plain functions, anything else (the default) compiles. A user can
 set it either way. The source is the same in both modes and so are the results, bit for
-bit (tests/model/test_jit.py).
+bit (tests/model/actuator/test_jit.py).
 
 The mode is read once, when this module is first imported: every compiled function may
 call only compiled ones, so the modes never mix within a process.
@@ -23,7 +23,7 @@ together with every function it calls (LLVM links the callees' code into the cal
 then optimises and compiles the whole again), so a cold compile costs the size of each
 compiled function's call tree, summed over the functions, and a second signature of a
 function compiles its tree a second time. Measured (``python
-tests/bench/bench_compile.py``: an empty cache, what the suite and a scan compile, per
+tests/benchmarks/bench_compile.py``: an empty cache, what the suite and a scan compile, per
 function; 2-core machine shared with other work, load average 1.6-4.8, so upper bounds):
 89.6 s of CPU before, 84 s of them the compiled path; now 57 s, 55.5 s the compiled
 path. What was cut: literal specialisations (constants passed between compiled

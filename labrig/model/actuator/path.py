@@ -1,5 +1,9 @@
 """The quasi-static path of an actuator under volume-controlled inflation and deflation.
 
+This is the algorithm's readable Python form, which ``labrig.model.actuator.compiled_path``
+mirrors step for step in one compiled function per actuator (a scan's fast path); a
+change here is a change there.
+
 Continuation in pressure along branch combinations. On a stable state every segment has
 the common pressure p, so with each segment on one monotone branch of its p(v) the state
 is a function of p alone: v_i(p) inverts segment i's branch, v(p) = sum_i v_i(p) and

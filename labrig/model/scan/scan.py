@@ -79,11 +79,11 @@ class ScanLibrary:
 def load_library(spec: str | None) -> ScanLibrary:
     """``analytical`` (default: the 36 braided segments), ``gent`` (the three membranes
     of Fig. S1) or a folder of measured curves (every ``*.csv`` in it, by file name)."""
-    from labrig.model.segments import library
+    from labrig.model.segments import catalog
 
     if spec is None or spec.strip().lower() == ANALYTICAL:
-        names = library.LIBRARY_NAMES
-        return ScanLibrary(ANALYTICAL, tuple(library.analytical_segment(n) for n in names))
+        names = catalog.LIBRARY_NAMES
+        return ScanLibrary(ANALYTICAL, tuple(catalog.analytical_segment(n) for n in names))
     if spec.strip().lower() == GENT:
         from labrig.model.segments.gent import GENT_NAMES, gent_membrane
 

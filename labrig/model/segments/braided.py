@@ -14,7 +14,7 @@ docs/model.md.
 
 Lengths in mm, forces in N, moduli in MPa; N*mm = mJ, so energies per mm^3 are MPa.
 What this module produces is a ``SegmentCurve``; turning names into segments is
-``labrig.model.segments.library``'s job.
+``labrig.model.segments.catalog``'s job.
 """
 
 from __future__ import annotations

@@ -1,0 +1,286 @@
+"""Protocols: the YAML files a technician runs, validated before anything moves.
+
+A protocol is data, never code: it is read with ``yaml.safe_load`` and checked against a
+strict schema (unknown keys are errors). Every error names the file, the key path and
+the line, and says what is allowed, so a typo is fixed at the bench in seconds.
+
+Steps are single-key mappings::
+
+    steps:
+      - zero_pressure: {}
+      - repeat: {times: 5, steps: [{infuse: {rate_ml_min: 20, volume_ml: 45}},
+                                   {hold: {seconds: 5}},
+                                   {withdraw: {rate_ml_min: 20, volume_ml: 45}}]}
+
+``volume_ml`` of ``infuse``/``withdraw`` is the volume that step moves. A repetition is
+one pass through a ``repeat`` block (or one run of consecutive top-level actuation
+steps); the analysis averages the last repetitions.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any
+
+from pydantic import BaseModel, Discriminator, Field, Tag, model_validator
+
+from labrig.config.yaml_schema import Strict, parse_yaml_model
+from labrig.errors import InputError
+
+STEP_KINDS = ("zero_pressure", "infuse", "withdraw", "hold", "repeat")
+
+
+class Specimen(Strict):
+    segments: list[str] = Field(
+        min_length=1,
+        description="Segments in the actuator: library names (B46-T20) or CSV paths",
+    )
+    fittings_length_mm: float = Field(
+        0.0, ge=0, description="Length added by couplings between the markers, in mm"
+    )
+
+
+class Limits(Strict):
+    max_pressure_kpa: float = Field(
+        gt=0, le=100, description="Interlock: stop the pump above this pressure (kPa)"
+    )
+    max_volume_ml: float = Field(
+        gt=0, description="Interlock: stop the pump above this volume in the specimen (mL)"
+    )
+
+
+class Acquisition(Strict):
+    pressure_rate_hz: float = Field(
+        1000.0, gt=0, le=48000, description="DAQ sample rate; the USB-6009 allows 48 kS/s"
+    )
+    camera_fps: float = Field(
+        0.0, ge=0, le=60, description="Camera frames per second; 0 means no camera"
+    )
+    video: bool = Field(
+        False, description="Record the camera's frames to RUN.avi beside the run file"
+    )
+
+    @model_validator(mode="after")
+    def _video_needs_camera(self) -> Acquisition:
+        if self.video and self.camera_fps == 0:
+            raise ValueError("video: true needs a camera (camera_fps > 0)")
+        return self
+
+
+class Analysis(Strict):
+    average_last: int = Field(4, ge=1, description="Average this many final repetitions")
+    compare_model: bool = Field(True, description="Compare the measurement with the model")
+
+
+class ZeroPressureParams(Strict):
+    duration_s: float = Field(
+        2.0, gt=0, le=60, description="Averaging time at atmospheric pressure"
+    )
+
+
+class FlowParams(Strict):
+    rate_ml_min: float = Field(gt=0, description="Flow rate in mL/min")
+    volume_ml: float = Field(gt=0, description="Volume this step moves, in mL")
+
+
+class HoldParams(Strict):
+    seconds: float = Field(ge=0, description="Time to hold at constant volume")
+
+
+class ZeroPressureStep(Strict):
+    zero_pressure: ZeroPressureParams
+
+
+class InfuseStep(Strict):
+    infuse: FlowParams
+
+
+class WithdrawStep(Strict):
+    withdraw: FlowParams
+
+
+class HoldStep(Strict):
+    hold: HoldParams
+
+
+def _step_kind(value: Any) -> str | None:
+    if isinstance(value, dict) and len(value) == 1:
+        key = next(iter(value))
+        return key if key in STEP_KINDS else None
+    if isinstance(value, BaseModel):
+        return next(iter(type(value).model_fields))
+    return None
+
+
+Step = Annotated[
+    Annotated[ZeroPressureStep, Tag("zero_pressure")]
+    | Annotated[InfuseStep, Tag("infuse")]
+    | Annotated[WithdrawStep, Tag("withdraw")]
+    | Annotated[HoldStep, Tag("hold")]
+    | Annotated["RepeatStep", Tag("repeat")],
+    Discriminator(
+        _step_kind,
+        custom_error_type="step_kind",
+        custom_error_message=("a step is a mapping with exactly one key: " + ", ".join(STEP_KINDS)),
+    ),
+]
+
+
+class RepeatParams(Strict):
+    times: int = Field(ge=1, le=1000, description="How many repetitions")
+    steps: list[Step] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _no_nesting(self) -> RepeatParams:
+        if any(isinstance(step, RepeatStep) for step in self.steps):
+            raise ValueError("a repeat cannot contain another repeat")
+        return self
+
+
+class RepeatStep(Strict):
+    repeat: RepeatParams
+
+
+class Protocol(Strict):
+    """A validated protocol (the schema behind ``labrig protocol schema``)."""
+
+    name: str = Field(min_length=1)
+    description: str = ""
+    specimen: Specimen
+    rig: str = Field("sim", description="'sim' or the path of a rig YAML file")
+    limits: Limits
+    acquisition: Acquisition = Acquisition()
+    steps: list[Step] = Field(min_length=1)
+    analysis: Analysis = Analysis()
+
+    @model_validator(mode="after")
+    def _volumes_within_limits(self) -> Protocol:
+        for where, volume_ml in self._net_volumes():
+            if volume_ml > self.limits.max_volume_ml + 1e-9:
+                raise ValueError(
+                    f"{where} brings the specimen to {volume_ml:g} mL, above "
+                    f"limits.max_volume_ml = {self.limits.max_volume_ml:g} mL"
+                )
+            if volume_ml < -1e-9:
+                raise ValueError(
+                    f"{where} withdraws more than was infused (net {volume_ml:g} mL): "
+                    "the pump would pull air or collapse the specimen"
+                )
+        return self
+
+    def _net_volumes(self) -> Iterator[tuple[str, float]]:
+        volume_ml = 0.0
+        for location, step in iter_steps(self.steps):
+            if isinstance(step, InfuseStep):
+                volume_ml += step.infuse.volume_ml
+            elif isinstance(step, WithdrawStep):
+                volume_ml -= step.withdraw.volume_ml
+            else:
+                continue
+            yield location, volume_ml
+
+
+def iter_steps(steps: list, prefix: str = "steps") -> Iterator[tuple[str, BaseModel]]:
+    """Every leaf step in execution order with its key path, repeats unrolled."""
+    for location, step, _ in iter_plan(steps, prefix):
+        yield location, step
+
+
+def iter_plan(steps: list, prefix: str = "steps") -> Iterator[tuple[str, BaseModel, int]]:
+    """Every leaf step with its key path and its repetition (1-based; 0 for none).
+
+    A repetition is one pass through a ``repeat`` block, or one run of consecutive
+    top-level actuation steps; ``zero_pressure`` belongs to no repetition.
+    """
+    repetition = 0
+    in_loose_run = False
+    for index, step in enumerate(steps):
+        location = f"{prefix}[{index}]"
+        if isinstance(step, RepeatStep):
+            in_loose_run = False
+            for rep in range(step.repeat.times):
+                repetition += 1
+                for inner_index, inner in enumerate(step.repeat.steps):
+                    inner_location = f"{location}.repeat(#{rep + 1}).steps[{inner_index}]"
+                    yield inner_location, inner, repetition
+        elif isinstance(step, ZeroPressureStep):
+            in_loose_run = False
+            yield location, step, 0
+        else:
+            if not in_loose_run:
+                repetition += 1
+                in_loose_run = True
+            yield location, step, repetition
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What a protocol will do, computed before anything moves."""
+
+    duration_s: float
+    infused_ml: float
+    withdrawn_ml: float
+    max_volume_ml: float
+    repetitions: int
+
+
+def plan(protocol: Protocol) -> Plan:
+    duration_s = infused_ml = withdrawn_ml = volume_ml = max_volume_ml = 0.0
+    repetitions = 0
+    for _, step, repetition in iter_plan(protocol.steps):
+        repetitions = max(repetitions, repetition)
+        if isinstance(step, ZeroPressureStep):
+            duration_s += step.zero_pressure.duration_s
+        elif isinstance(step, HoldStep):
+            duration_s += step.hold.seconds
+        elif isinstance(step, InfuseStep):
+            duration_s += 60.0 * step.infuse.volume_ml / step.infuse.rate_ml_min
+            infused_ml += step.infuse.volume_ml
+            volume_ml += step.infuse.volume_ml
+        elif isinstance(step, WithdrawStep):
+            duration_s += 60.0 * step.withdraw.volume_ml / step.withdraw.rate_ml_min
+            withdrawn_ml += step.withdraw.volume_ml
+            volume_ml -= step.withdraw.volume_ml
+        max_volume_ml = max(max_volume_ml, volume_ml)
+    return Plan(duration_s, infused_ml, withdrawn_ml, max_volume_ml, repetitions)
+
+
+@dataclass(frozen=True)
+class LoadedProtocol:
+    """A validated protocol with the text it came from (stored verbatim in the run file)."""
+
+    path: Path
+    text: str
+    protocol: Protocol
+
+
+def load_protocol(path: str | Path) -> LoadedProtocol:
+    """Read and validate a protocol file; raise InputError naming file, key and line."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such protocol file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: cannot be read ({exc})") from None
+    return LoadedProtocol(path, text, parse_protocol(text, str(path)))
+
+
+def parse_protocol(text: str, filename: str = "<protocol>") -> Protocol:
+    return parse_yaml_model(text, filename, Protocol, what="a protocol", hide=STEP_KINDS)
+
+
+def protocol_json_schema() -> str:
+    """JSON Schema of the protocol format, for editors (YAML language servers)."""
+    schema = Protocol.model_json_schema()
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema["title"] = "labrig protocol"
+    return json.dumps(schema, indent=2)
+
+
+RepeatParams.model_rebuild()
+RepeatStep.model_rebuild()
+Protocol.model_rebuild()

@@ -1,0 +1,177 @@
+"""The rig file: which devices a run uses, as YAML, checked against a schema.
+
+A rig YAML names the real devices (serial port, DAQ channel, camera, calibration); the
+word ``sim`` (in the protocol, or ``--sim``) gives the simulated rig instead. The schema
+is all that differs between the bench and CI: ``labrig.rig`` connects the drivers it
+names.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+import yaml
+from pydantic import Field, model_validator
+
+from labrig.config.protocol import LoadedProtocol
+from labrig.config.yaml_schema import Strict, parse_yaml_model
+from labrig.errors import InputError
+
+# A 50 mL Hamilton 1000-series gastight syringe (the paper's), inner diameter in mm.
+DEFAULT_SYRINGE_DIAMETER_MM = 27.6
+DEFAULT_SYRINGE_VOLUME_ML = 50.0
+# The PHD ULTRA's rated linear force at 100 % force: 75 lbf (catalogue, unverified).
+PHD_ULTRA_RATED_FORCE_N = 75 * 4.4482216
+
+
+class SyringeConfig(Strict):
+    diameter_mm: float = Field(DEFAULT_SYRINGE_DIAMETER_MM, gt=0.1, le=50.0)
+    volume_ml: float = Field(DEFAULT_SYRINGE_VOLUME_ML, gt=0, le=140)
+
+
+class PumpConfig(Strict):
+    port: str = Field(description="Serial device (/dev/ttyACM0, COM3) or pyserial URL")
+    address: int = Field(0, ge=0, le=99)
+    baud: Literal[9600, 19200, 38400, 57600, 115200] = 115200
+    syringe: SyringeConfig = SyringeConfig()
+    address_form: Literal["auto", "none", "colon", "digits"] = Field(
+        "auto",
+        description="How the address precedes a command: none (cmd), colon (N:cmd), digits "
+        "(0Ncmd); auto tries the manual's form first and keeps the one answered",
+    )
+    reply_timeout_s: float = Field(
+        2.0, gt=0, le=30, description="How long the pump may take to answer one command"
+    )
+    force_limit_pct: int = Field(
+        100,
+        ge=1,
+        le=100,
+        description="The pump's force limit, % of its rated force: it stalls above "
+        "this share of rated_force_n over the plunger area (the hardware pressure backstop)",
+    )
+    rated_force_n: float = Field(
+        PHD_ULTRA_RATED_FORCE_N, gt=0, description="The pump's linear force at 100 %"
+    )
+    infuse_only: bool = Field(False, description="An infuse-only pump model (no withdraw)")
+
+
+class PressureConfig(Strict):
+    channel: str = "Dev1/ai0"
+    terminal: Literal["RSE", "DIFF"] = "RSE"
+    min_v: float = -10.0
+    max_v: float = 10.0
+    supply_channel: str | None = Field(
+        None, description="Channel measuring the sensor supply (the MPX5100 is ratiometric)"
+    )
+    supply_v: float = Field(5.0, gt=0, description="Assumed supply when none is measured")
+
+
+class CameraConfig(Strict):
+    source: int | str = Field(0, description="Camera index, /dev/video* path or video file")
+    mm_per_px: float | None = Field(None, gt=0)
+    reference_distance_mm: float | None = Field(None, gt=0)
+    # set on the camera and read back; a camera that cannot do them is refused
+    width: int | None = Field(1280, gt=0, description="Frame width (px); V4L2 opens at 640")
+    height: int | None = Field(720, gt=0, description="Frame height (px); V4L2 opens at 480")
+    fps: float | None = Field(
+        None, gt=0, le=240, description="Streaming rate; default the protocol's camera_fps"
+    )
+    exposure: float | None = Field(
+        None, description="Manual exposure in the backend's units (V4L2: 100 us); default auto"
+    )
+    focus: float | None = Field(
+        None, ge=0, description="Manual focus in the backend's units; default the camera's own"
+    )
+    warmup_frames: int = Field(
+        5, ge=0, le=300, description="Frames dropped at start while the auto exposure settles"
+    )
+
+    def settings(self, protocol_fps: float | None):
+        """What the driver sets on the camera (the rate: this file's, else the
+        protocol's camera_fps; None leaves the camera's own)."""
+        from labrig.drivers.camera import CameraSettings
+
+        return CameraSettings(
+            width=self.width,
+            height=self.height,
+            fps=self.fps or protocol_fps,
+            exposure=self.exposure,
+            focus=self.focus,
+        )
+
+    @model_validator(mode="after")
+    def _one_scale(self) -> CameraConfig:
+        if (self.mm_per_px is None) == (self.reference_distance_mm is None):
+            raise ValueError("give exactly one of mm_per_px and reference_distance_mm")
+        return self
+
+
+class SimConfig(Strict):
+    speed: float | None = Field(
+        None,
+        gt=0,
+        description="Wall-clock pacing of the virtual timeline (1: real time); default: as "
+        "fast as the host computes it. The recorded data are the same either way.",
+    )
+    seed: int = Field(0, ge=0, description="Seeds every random part of the simulation")
+    resistance_kpa_s_per_ml: float = Field(
+        0.1, gt=0, description="Flow resistance between segments (sets the snap time)"
+    )
+    noise_kpa: float = Field(0.05, ge=0, description="Pressure sensor white noise")
+    offset_error_kpa: float = Field(0.8, description="Sensor zero offset (removed by zeroing)")
+    mm_per_px: float | None = Field(
+        None, gt=0, description="Rendered camera scale; default fits the specimen"
+    )
+
+
+class RigConfig(Strict):
+    """The devices of a rig; ``sim`` present means the simulated rig."""
+
+    pump: PumpConfig
+    pressure: PressureConfig = PressureConfig()
+    camera: CameraConfig | None = None
+    sim: SimConfig | None = None
+
+
+def sim_rig_config(speed: float | None = None, seed: int = 0) -> RigConfig:
+    return RigConfig(pump=PumpConfig(port="emulator"), sim=SimConfig(speed=speed, seed=seed))
+
+
+def load_rig_config(
+    loaded: LoadedProtocol,
+    *,
+    force_sim: bool = False,
+    speed: float | None = None,
+    seed: int | None = None,
+) -> RigConfig:
+    """The rig a protocol runs on: ``sim``, or a rig YAML relative to the protocol."""
+    spec = loaded.protocol.rig
+    if force_sim or spec == "sim":
+        config = sim_rig_config(speed, seed or 0)
+        if spec not in ("sim", "") and force_sim:
+            # a real rig file run with --sim keeps nothing of the hardware but the syringe
+            syringe = _rig_file(loaded).pump.syringe
+            config = config.model_copy(
+                update={"pump": PumpConfig(port="emulator", syringe=syringe)}
+            )
+        return config
+    for flag, value in (("--speed", speed), ("--seed", seed)):
+        if value is not None:
+            raise InputError(f"{flag} applies to the simulated rig only (use --sim)")
+    return _rig_file(loaded)
+
+
+def _rig_file(loaded: LoadedProtocol) -> RigConfig:
+    path = Path(loaded.protocol.rig)
+    if not path.is_absolute():
+        path = loaded.path.parent / path
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"{loaded.path}: rig: cannot read rig file {path} ({exc})") from None
+    return parse_yaml_model(text, str(path), RigConfig, what="a rig configuration")
+
+
+def rig_config_text(config: RigConfig) -> str:
+    return yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False)

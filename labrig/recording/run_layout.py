@@ -1,0 +1,47 @@
+"""The run file's layout, shared by the writer and every reader: the NXlog fields
+with their dtypes and units, the fixed sizes of status strings, and group names."""
+
+STATUS_SIZE = 16
+REASON_SIZE = 512
+TIME_SIZE = 32
+CHUNK = 4096
+
+# name -> (dtype, units) of the fields of each NXlog; "value" is the logged quantity.
+LOG_FIELDS: dict[str, dict[str, tuple[str, str]]] = {
+    "pressure": {
+        "time": ("f8", "s"),
+        "value": ("f8", "kPa"),
+        "out_of_range": ("?", ""),
+    },
+    "pump": {
+        "time": ("f8", "s"),
+        "value": ("f8", "mL"),
+        "infused": ("f8", "mL"),
+        "withdrawn": ("f8", "mL"),
+        "state": (f"S{STATUS_SIZE}", ""),
+    },
+    "length": {
+        "time": ("f8", "s"),
+        "value": ("f8", "mm"),
+        "x1": ("f8", "px"),
+        "y1": ("f8", "px"),
+        "x2": ("f8", "px"),
+        "y2": ("f8", "px"),
+        "ok": ("?", ""),
+    },
+}
+LOG_DESCRIPTION = {
+    "pressure": "specimen pressure (gauge, zeroed)",
+    "pump": "net volume supplied by the pump (infused - withdrawn)",
+    "length": "specimen length between the two markers",
+}
+# The run's video (labrig.recording.video): frame i of the file was taken at time[i].
+VIDEO_FIELDS = {"time": ("f8", "s"), "repetition": ("i4", "")}
+
+RUN_STATUSES = ("running", "complete", "aborted", "faulted")
+REPETITION_STATUSES = ("pending", "running", "complete", "aborted", "faulted")
+
+
+def repetition_name(index: int) -> str:
+    """Group name of repetition ``index`` (1-based): rep_01, rep_02, ..."""
+    return f"rep_{index:02d}"

@@ -1,0 +1,65 @@
+"""Reading a run file back: opening it (also one a killed writer left), its logs as
+plain arrays, and the statuses of its repetitions."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from labrig.errors import InputError
+from labrig.recording.run_layout import repetition_name
+
+
+@dataclass(frozen=True)
+class LogSeries:
+    """One NXlog read back: its time axis and fields, as plain arrays."""
+
+    time_s: np.ndarray
+    fields: dict[str, np.ndarray]
+
+    def __len__(self) -> int:
+        return len(self.time_s)
+
+
+def open_run(path: str | Path) -> h5py.File:
+    """Open a run file for reading, even one whose writer was killed.
+
+    A file left open by a killed SWMR writer refuses a plain open; SWMR read mode
+    reads it as it was at the writer's last flush.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{path}: no such file")
+    try:
+        return h5py.File(path, "r")
+    except OSError as plain_error:
+        try:
+            return h5py.File(path, "r", libver="latest", swmr=True)
+        except OSError:
+            raise InputError(f"{path}: not a readable HDF5 file ({plain_error})") from None
+
+
+def read_log(run: h5py.File, repetition: int, log: str) -> LogSeries:
+    """Read one repetition's NXlog; InputError naming what is missing if absent."""
+    where = f"entry/repetitions/{repetition_name(repetition)}/{log}"
+    if where not in run:
+        raise InputError(f"{run.filename}: missing {where}")
+    group = run[where]
+    fields = {name: group[name][:] for name in group if name != "time"}
+    return LogSeries(group["time"][:], fields)
+
+
+def repetition_statuses(run: h5py.File) -> list[tuple[str, str]]:
+    reps = run["entry/repetitions"]
+    return [
+        (status.decode(), reason.decode())
+        for status, reason in zip(reps["status"][:], reps["reason"][:], strict=True)
+    ]
+
+
+def decode(value) -> str:
+    """A fixed-size byte string from the file, as text."""
+    return value.decode() if isinstance(value, bytes) else str(value)

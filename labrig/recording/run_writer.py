@@ -1,0 +1,337 @@
+"""One HDF5 file per run, written as the data arrives.
+
+The layout is NeXus-flavoured: an ``NXentry`` per run holding the protocol text, the rig
+configuration and the versions it ran with, and per repetition three ``NXlog`` series
+(pressure, pump volume, length) on their own time axes with ``units`` attributes.
+
+The whole layout is created before the first sample, then the file is switched to
+HDF5's single-writer/multiple-reader (SWMR) mode and only appended to. SWMR orders the
+metadata writes so that the file on disk is consistent after every flush: a process
+killed with SIGKILL leaves a file that holds everything up to its last flush (at most
+``flush_interval_s`` old). Such a file still carries the writer's "open for writing"
+flag; ``labrig.recording.run_reader.open_run`` reads it anyway and
+``labrig.recording.repair.clear_write_flag`` (``labrig recover``) clears it.
+Status strings live in fixed-size datasets, not attributes, because SWMR allows only
+writes to existing datasets.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import platform
+import subprocess
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+import labrig
+from labrig.recording.run_layout import (
+    CHUNK,
+    LOG_DESCRIPTION,
+    LOG_FIELDS,
+    REASON_SIZE,
+    REPETITION_STATUSES,
+    RUN_STATUSES,
+    STATUS_SIZE,
+    TIME_SIZE,
+    VIDEO_FIELDS,
+    repetition_name,
+)
+
+
+def _now_iso() -> str:
+    return dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
+
+
+def _git_commit() -> str:
+    """The commit labrig runs from, when it runs from a git checkout."""
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "HEAD"],
+            cwd=Path(labrig.__file__).parent,
+            capture_output=True,
+            text=True,
+            timeout=5,
+            check=True,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return out.stdout.strip()
+
+
+def versions() -> dict[str, str]:
+    """Versions recorded in every run file."""
+    import scipy
+
+    return {
+        "labrig": labrig.__version__,
+        "git_commit": _git_commit(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+        "h5py": h5py.__version__,
+        "hdf5": h5py.version.hdf5_version,
+    }
+
+
+class RunWriter:
+    """Create a run file's layout, then append samples and flush them as they come.
+
+    Thread-safe: the runner's acquisition threads append concurrently. Appended rows
+    are gathered in memory and written, then flushed, when the last flush is older than
+    ``flush_interval_s`` (host time), so the file on disk is never more than that
+    behind. Gathering matters: h5py costs tens of microseconds per dataset operation,
+    and a simulated run appends to seven datasets per camera frame and five per pump
+    poll many times a second of host time.
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        title: str,
+        protocol_text: str,
+        protocol_path: str,
+        rig_config_text: str,
+        repetitions: int,
+        with_length: bool,
+        video_file: str | None = None,
+        flush_interval_s: float = 0.5,
+        tap: Callable[[int, str, dict[str, np.ndarray]], None] | None = None,
+    ) -> None:
+        self.path = Path(path)
+        # sees every append (repetition, log, columns) as written: the live view's feed
+        self.tap = tap
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        if repetitions < 1:
+            raise ValueError("a run has at least one repetition")
+        self.repetitions = repetitions
+        self.with_length = with_length
+        self.video_file = video_file
+        self.flush_interval_s = flush_interval_s
+        self._lock = threading.Lock()
+        self._closed = False
+        # rows appended since the last write, per group path, in arrival order
+        self._pending: dict[str, list[dict[str, np.ndarray]]] = {}
+        self._datasets: dict[tuple[str, str], h5py.Dataset] = {}
+        self._file = h5py.File(self.path, "w", libver="latest")
+        self._create_layout(title, protocol_text, protocol_path, rig_config_text)
+        self._file.swmr_mode = True
+        self._last_flush = time.monotonic()
+
+    # --- layout --------------------------------------------------------------------
+    def _create_layout(
+        self, title: str, protocol_text: str, protocol_path: str, rig_config_text: str
+    ) -> None:
+        f = self._file
+        f.attrs.update(
+            NX_class="NXroot",
+            default="entry",
+            creator=f"labrig {labrig.__version__}",
+            file_time=_now_iso(),
+        )
+        entry = f.create_group("entry")
+        entry.attrs.update(NX_class="NXentry", default="data")
+        entry["title"] = title
+        entry["start_time"] = np.array(_now_iso().encode(), dtype=f"S{TIME_SIZE}")
+        entry["end_time"] = np.array(b"", dtype=f"S{TIME_SIZE}")
+        entry["status"] = np.array(b"running", dtype=f"S{STATUS_SIZE}")
+        entry["reason"] = np.array(b"", dtype=f"S{REASON_SIZE}")
+        protocol = entry.create_dataset("protocol", data=protocol_text)
+        protocol.attrs["source_file"] = protocol_path
+        entry["rig_config"] = rig_config_text
+        version_group = entry.create_group("versions")
+        version_group.attrs["NX_class"] = "NXcollection"
+        for name, value in versions().items():
+            version_group[name] = value
+        zero = entry.create_group("zero")
+        zero.attrs["NX_class"] = "NXcollection"
+        zero.create_dataset("offset_kpa", data=np.nan).attrs["units"] = "kPa"
+
+        reps = entry.create_group("repetitions")
+        reps.attrs["NX_class"] = "NXcollection"
+        n = self.repetitions
+        reps["status"] = np.array([b"pending"] * n, dtype=f"S{STATUS_SIZE}")
+        reps["reason"] = np.array([b""] * n, dtype=f"S{REASON_SIZE}")
+        reps.create_dataset("t_start", data=np.full(n, np.nan)).attrs["units"] = "s"
+        reps.create_dataset("t_end", data=np.full(n, np.nan)).attrs["units"] = "s"
+        for index in range(1, n + 1):
+            rep = reps.create_group(repetition_name(index))
+            rep.attrs["NX_class"] = "NXcollection"
+            for log in LOG_FIELDS:
+                if log == "length" and not self.with_length:
+                    continue
+                self._create_log(rep, log)
+        if self.video_file is not None:
+            video = self._create_log(entry, "video", VIDEO_FIELDS)
+            video.attrs.update(
+                description="time of each frame of the run's video, in the video's order",
+                file=self.video_file,
+            )
+
+    @staticmethod
+    def _create_log(parent: h5py.Group, log: str, fields=None) -> h5py.Group:
+        group = parent.create_group(log)
+        if fields is None:
+            fields = LOG_FIELDS[log]
+            group.attrs.update(NX_class="NXlog", description=LOG_DESCRIPTION[log])
+        else:
+            group.attrs["NX_class"] = "NXlog"
+        for field, (dtype, units) in fields.items():
+            dataset = group.create_dataset(
+                field, shape=(0,), maxshape=(None,), chunks=(CHUNK,), dtype=dtype
+            )
+            if units:
+                dataset.attrs["units"] = units
+        return group
+
+    # --- appending -----------------------------------------------------------------
+    def _append(self, repetition: int, log: str, columns: dict[str, np.ndarray]) -> None:
+        if not 1 <= repetition <= self.repetitions:
+            raise ValueError(f"repetition {repetition} outside 1..{self.repetitions}")
+        rows = self._append_to(f"entry/repetitions/{repetition_name(repetition)}/{log}", columns)
+        if rows is not None and self.tap is not None:
+            self.tap(repetition, log, rows)
+
+    def _append_to(self, where: str, columns: dict[str, np.ndarray]) -> dict | None:
+        """Gather rows for the group at ``where``; the rows, or None if there were none."""
+        rows = {field: np.atleast_1d(values) for field, values in columns.items()}
+        lengths = {len(values) for values in rows.values()}
+        if len(lengths) != 1:
+            raise ValueError(f"{where}: columns of different lengths {sorted(lengths)}")
+        (count,) = lengths
+        if count == 0:
+            return None
+        with self._lock:
+            if self._closed:
+                raise RuntimeError(f"{self.path}: the run file is already closed")
+            self._pending.setdefault(where, []).append(rows)
+            self._flush_if_due()
+        return rows
+
+    def _write_pending(self) -> None:
+        """Write the gathered rows, one resize and one write per dataset (under the lock)."""
+        for where, chunks in self._pending.items():
+            for field in chunks[0]:
+                values = np.concatenate([chunk[field] for chunk in chunks])
+                dataset = self._dataset(where, field)
+                start = dataset.shape[0]
+                dataset.resize((start + len(values),))
+                dataset[start:] = values
+        self._pending.clear()
+
+    def _dataset(self, where: str, field: str) -> h5py.Dataset:
+        """The dataset ``field`` of the group at ``where``, looked up once: an h5py path
+        lookup costs more than the write of a flush's rows."""
+        key = (where, field)
+        dataset = self._datasets.get(key)
+        if dataset is None:
+            dataset = self._datasets[key] = self._file[where][field]
+        return dataset
+
+    def append_pressure(self, repetition: int, t_s, pressure_kpa, out_of_range) -> None:
+        self._append(
+            repetition,
+            "pressure",
+            {"time": t_s, "value": pressure_kpa, "out_of_range": out_of_range},
+        )
+
+    def append_pump(self, repetition: int, t_s, volume_ml, infused_ml, withdrawn_ml, state) -> None:
+        states = np.array([str(s).encode()[:STATUS_SIZE] for s in np.atleast_1d(state)])
+        self._append(
+            repetition,
+            "pump",
+            {
+                "time": t_s,
+                "value": volume_ml,
+                "infused": infused_ml,
+                "withdrawn": withdrawn_ml,
+                "state": states.astype(f"S{STATUS_SIZE}"),
+            },
+        )
+
+    def append_length(self, repetition: int, t_s, length_mm, x1, y1, x2, y2, ok) -> None:
+        if not self.with_length:
+            raise ValueError("this run was created without a length (camera) log")
+        self._append(
+            repetition,
+            "length",
+            {"time": t_s, "value": length_mm, "x1": x1, "y1": y1, "x2": x2, "y2": y2, "ok": ok},
+        )
+
+    def append_video_frame(self, repetition: int, t_s) -> None:
+        """The time of the next frame(s) written to the run's video."""
+        if self.video_file is None:
+            raise ValueError("this run was created without a video")
+        t = np.atleast_1d(t_s)
+        self._append_to("entry/video", {"time": t, "repetition": np.full(len(t), repetition)})
+
+    # --- status ----------------------------------------------------------------------
+    def set_zero_offset(self, offset_kpa: float) -> None:
+        with self._lock:
+            self._file["entry/zero/offset_kpa"][()] = offset_kpa
+            self._flush_if_due(force=True)
+
+    def set_repetition_status(
+        self,
+        repetition: int,
+        status: str,
+        reason: str = "",
+        *,
+        t_start_s: float | None = None,
+        t_end_s: float | None = None,
+    ) -> None:
+        if status not in REPETITION_STATUSES:
+            raise ValueError(f"unknown repetition status {status!r}")
+        with self._lock:
+            reps = self._file["entry/repetitions"]
+            i = repetition - 1
+            reps["status"][i] = status.encode()
+            reps["reason"][i] = reason.encode()[:REASON_SIZE]
+            if t_start_s is not None:
+                reps["t_start"][i] = t_start_s
+            if t_end_s is not None:
+                reps["t_end"][i] = t_end_s
+            self._flush_if_due(force=True)
+
+    def flush(self) -> None:
+        with self._lock:
+            self._flush_if_due(force=True)
+
+    def _flush_if_due(self, force: bool = False) -> None:
+        now = time.monotonic()
+        if force or now - self._last_flush >= self.flush_interval_s:
+            self._write_pending()
+            self._file.flush()
+            self._last_flush = now
+
+    def finalise(self, status: str, reason: str = "") -> None:
+        """Record how the run ended and close the file cleanly (idempotent)."""
+        if status not in RUN_STATUSES[1:]:
+            raise ValueError(f"a run ends complete, aborted or faulted, not {status!r}")
+        with self._lock:
+            if self._closed:
+                return
+            self._write_pending()
+            entry = self._file["entry"]
+            entry["status"][()] = status.encode()
+            entry["reason"][()] = reason.encode()[:REASON_SIZE]
+            entry["end_time"][()] = _now_iso().encode()
+            reps = entry["repetitions"]
+            states = reps["status"][:]
+            for i, state in enumerate(states):
+                # a repetition still running when the run stopped shares the run's fate
+                if state == b"running":
+                    reps["status"][i] = b"complete" if status == "complete" else status.encode()
+                    reps["reason"][i] = reason.encode()[:REASON_SIZE]
+            self._file.flush()
+            self._file.close()
+            self._closed = True
+
+    @property
+    def closed(self) -> bool:
+        return self._closed

@@ -1,0 +1,139 @@
+"""The simulated rig: the real drivers connected to the emulators — the PHD Ultra
+emulator on a pseudo-terminal, SimDaqTask behind the nidaqmx Task factory, SimCamera
+behind the capture — all fed by one plant on one simulated clock."""
+
+from __future__ import annotations
+
+import math
+from contextlib import ExitStack
+from dataclasses import dataclass
+
+from labrig.config.protocol import Protocol
+from labrig.config.rig_file import CameraConfig, RigConfig, rig_config_text
+from labrig.rig.connect import pressure_driver, set_up_pump
+from labrig.run.runner import Rig
+
+# The simulated pump's reply deadline in host seconds. The emulator answers at once in
+# virtual time; this only bounds how long a starved host thread may take to do it.
+SIM_REPLY_TIMEOUT_S = 10.0
+# The simulated camera's sensor (px) when the rig file has no camera section: a small
+# monochrome camera, so a simulated run's video (every frame rendered whole and encoded)
+# costs a fraction of a 1280x720 colour one; tracking reads only the markers' windows
+# at any size.
+SIM_CAMERA_SIZE = (640, 360)
+
+
+def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
+    from labrig.drivers.camera import CameraLength, FrameSource
+    from labrig.drivers.ni_daq import NiDaqPressure
+    from labrig.drivers.phd_ultra import PhdUltra
+    from labrig.model.segments.catalog import load_segment
+    from labrig.sim.camera import SimCamera
+    from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
+    from labrig.sim.plant import Plant
+    from labrig.sim.pump import PumpEmulator
+    from labrig.time.virtual import VirtualClock
+
+    sim = config.sim
+    segments = [load_segment(spec) for spec in protocol.specimen.segments]
+    clock = VirtualClock(speed=sim.speed)
+    syringe = config.pump.syringe
+    plant_box: list[Plant] = []
+    emulator = PumpEmulator(
+        clock,
+        address=config.pump.address,
+        diameter_mm=syringe.diameter_mm,
+        syringe_ml=syringe.volume_ml,
+        load_pressure_kpa=lambda t: float(plant_box[0].pressure_kpa_at(t)),
+        seed=sim.seed,
+    )
+    plant = Plant(
+        segments,
+        emulator.net_volume_ml,
+        t0_s=clock.now(),
+        resistance_kpa_s_per_ml=sim.resistance_kpa_s_per_ml,
+        fittings_length_mm=protocol.specimen.fittings_length_mm,
+        seed=sim.seed,
+    )
+    plant_box.append(plant)
+    with ExitStack() as stack:
+        emulator.start()
+        stack.callback(emulator.close)
+        pump = PhdUltra.open(
+            emulator.port,
+            address=config.pump.address,
+            clock=clock,
+            timeout_s=SIM_REPLY_TIMEOUT_S,
+        )
+        stack.callback(pump.close)
+        set_up_pump(pump, config.pump, protocol)
+        p = config.pressure
+        daq_tasks: list[SimDaqTask] = []
+
+        def new_task() -> SimDaqTask:
+            task = SimDaqTask(
+                clock,
+                plant.pressure_kpa_at,
+                supply_v=p.supply_v,
+                noise_kpa=sim.noise_kpa,
+                offset_error_kpa=sim.offset_error_kpa,
+                seed=sim.seed + len(daq_tasks),
+                output_channel=p.channel,
+                supply_channel=p.supply_channel,
+            )
+            daq_tasks.append(task)
+            return task
+
+        factories = {"task_factory": new_task, "reader_factory": SimAnalogMultiChannelReader}
+        pressure = pressure_driver(NiDaqPressure, clock, config, protocol, factories)
+        length = camera = None
+        if protocol.acquisition.camera_fps > 0:
+            size = SIM_CAMERA_SIZE
+            if config.camera is not None and config.camera.width and config.camera.height:
+                size = (config.camera.width, config.camera.height)  # the sensor asked for
+            mm_per_px = sim.mm_per_px or _fitting_scale_mm_per_px(segments, protocol, size[0])
+            camera = SimCamera(
+                clock,
+                plant.length_mm_at,
+                mm_per_px=mm_per_px,
+                size=size,
+                seed=sim.seed,
+                # a grey sensor: a third of the pixels to render, track and encode
+                monochrome=True,
+            )
+            # the camera is set up through the driver as on the bench: from the rig's
+            # camera section if it has one (its scale too), else at the sensor's size
+            wanted = config.camera or CameraConfig(
+                mm_per_px=mm_per_px, width=size[0], height=size[1]
+            )
+            frames = FrameSource.live(
+                camera, clock, "simulated camera", warmup_frames=wanted.warmup_frames
+            )
+            frames.configure(wanted.settings(protocol.acquisition.camera_fps))
+            stack.callback(frames.close)
+            length = CameraLength(
+                frames,
+                mm_per_px=wanted.mm_per_px,
+                reference_distance_mm=wanted.reference_distance_mm,
+            )
+            stack.callback(length.close_tracker)
+        closer = stack.pop_all()
+    simulation = SimulatedParts(plant, emulator, camera, daq_tasks)
+    return Rig(clock, pump, pressure, length, rig_config_text(config), closer.close, simulation)
+
+
+@dataclass(frozen=True)
+class SimulatedParts:
+    """What stands behind the drivers of a simulated rig (the truth, for tests)."""
+
+    plant: object
+    emulator: object
+    camera: object | None
+    daq_tasks: list  # every SimDaqTask made so far; the last one is acquiring
+
+
+def _fitting_scale_mm_per_px(segments, protocol: Protocol, width_px: int) -> float:
+    """A scale at which the longest specimen fills at most 80 % of the frame's width."""
+    longest_mm = sum(float(s.l_mm.max()) for s in segments)
+    longest_mm += protocol.specimen.fittings_length_mm
+    return max(0.02, math.ceil(longest_mm / (0.8 * width_px) * 1000) / 1000)

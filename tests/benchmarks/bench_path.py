@@ -1,0 +1,90 @@
+"""Benchmark: the quasi-static path of library actuators (fast solver), against the
+paper's incremental Nelder-Mead reference. Prints numbers; asserts nothing.
+
+- seconds per inflation path for every pair (630) and a random sample of triples and
+  quadruples, one core;
+- the reference's seconds per path (0.02 mL increments) on the paper's named
+  combinations and whether it finds the same transitions.
+
+Run: python tests/benchmarks/bench_path.py [--triples N] [--quadruples N]
+"""
+
+import argparse
+import itertools
+import random
+import time
+
+
+def _time_paths(actuators, deflate=False):
+    from labrig.model.actuator.path import quasi_static_path
+    from labrig.model.actuator.transitions import transitions
+
+    found = 0
+    t0 = time.perf_counter()
+    for actuator in actuators:
+        found += len(transitions(quasi_static_path(actuator, deflate=deflate)))
+    return (time.perf_counter() - t0) / len(actuators), found
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--triples", type=int, default=1000)
+    parser.add_argument("--quadruples", type=int, default=1000)
+    args = parser.parse_args()
+
+    from labrig.model.actuator.equilibria import Actuator
+    from labrig.model.actuator.path import quasi_static_path
+    from labrig.model.actuator.transitions import transitions
+    from labrig.model.baselines.nelder_mead import reference_path
+    from labrig.model.segments.catalog import LIBRARY_NAMES, analytical_segment
+
+    segments = {name: analytical_segment(name) for name in LIBRARY_NAMES}
+    # load (or compile) the solver's compiled loops before timing anything
+    _time_paths([Actuator([segments[c] for c in LIBRARY_NAMES[:3]])], deflate=True)
+    rng = random.Random(0)
+    for n, count in ((2, None), (3, args.triples), (4, args.quadruples)):
+        combos = list(itertools.combinations(LIBRARY_NAMES, n))
+        if count is not None and count < len(combos):
+            combos = rng.sample(combos, count)
+        actuators = [Actuator([segments[c] for c in combo]) for combo in combos]
+        per_path, found = _time_paths(actuators)
+        per_cycle, _ = _time_paths(actuators[:200], deflate=True)
+        print(
+            f"n={n}: {len(actuators):5d} actuators  inflation {per_path * 1e3:6.2f} ms/path"
+            f"  (+deflation {per_cycle * 1e3:6.2f} ms)"
+            f"  {found / len(actuators):.1f} transitions each"
+        )
+
+    named = [
+        ("B46-T20", "B46-T22"),
+        ("B48-T30", "B50-T20"),
+        ("B44-T30", "B48-T26"),
+        ("B40-T28", "B44-T30", "B50-T24"),
+    ]
+    for names in named:
+        actuator = Actuator([segments[n] for n in names])
+        t0 = time.perf_counter()
+        fast_path = quasi_static_path(actuator, deflate=True)
+        t_fast = time.perf_counter() - t0
+        fast = transitions(fast_path)
+        t0 = time.perf_counter()
+        ref = reference_path(actuator, fast_path.v_end_ml, dv_ml=0.02, deflate=True, jump_ml=0.3)
+        t_ref = time.perf_counter() - t0
+        same = [(t.alpha, t.beta, t.stable, t.direction) for t in fast] == [
+            (t.alpha, t.beta, t.stable, t.direction) for t in ref.transitions
+        ]
+        worst = max(
+            (
+                abs(f.v_ml - (r.v_ml + 0.01 * r.direction))
+                for f, r in zip(fast, ref.transitions, strict=False)
+            ),
+            default=0.0,
+        )
+        print(
+            f"{' + '.join(names):28s} fast {t_fast * 1e3:6.1f} ms   reference {t_ref:5.1f} s"
+            f" ({len(ref.v_ml)} increments)   same transitions: {same}, |dv| <= {worst:.3f} mL"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,51 @@
+"""Benchmark: build time of the 36 analytical library segments, and of loading a raw
+measured curve (1 kHz samples at 60 mL/min). Prints numbers; asserts nothing.
+
+Run: python tests/benchmarks/bench_segments.py
+"""
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def main() -> None:
+    t0 = time.perf_counter()
+    from labrig.model.segments import catalog
+
+    t_import = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    curves = [catalog.analytical_segment(name) for name in catalog.LIBRARY_NAMES]
+    t_cold = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    for name in catalog.LIBRARY_NAMES:
+        catalog.analytical_segment(name)
+    t_cached = time.perf_counter() - t0
+    samples = [len(c.v_ml) for c in curves]
+    print(f"import labrig.model.segments.catalog            {t_import * 1e3:8.1f} ms")
+    print(f"build all 36 analytical segments (cold) {t_cold * 1e3:8.1f} ms")
+    print(f"  again (cached)                        {t_cached * 1e3:8.3f} ms")
+    print(f"  samples per table                     {min(samples)}-{max(samples)}")
+
+    from labrig.model.segments.measured import load_csv
+
+    clean = catalog.analytical_segment("B46-T20")
+    rng = np.random.default_rng(0)
+    v = np.arange(0, 21.1, 0.001)
+    p = np.round((1.02 * clean.pressure_kpa(v) + 0.8 + rng.normal(0, 0.3, len(v))) / 0.3) * 0.3
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "raw.csv"
+        with path.open("w") as fh:
+            fh.write("volume_ml,pressure_kpa,length_mm\n")
+            np.savetxt(fh, np.column_stack([v, p, clean.length_mm(v)]), delimiter=",", fmt="%.5f")
+        t0 = time.perf_counter()
+        curve = load_csv(path)
+        t_load = time.perf_counter() - t0
+    rows = f"load + fit a raw CSV of {len(v)} rows"
+    print(f"{rows:40s}{t_load * 1e3:8.1f} ms ({len(curve.v_ml)} samples)")
+
+
+if __name__ == "__main__":
+    main()

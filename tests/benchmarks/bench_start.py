@@ -1,0 +1,93 @@
+"""Benchmark: how long a command takes from the shell, cold (numba's compile cache
+empty, as on a fresh install) and warm (the same command again). Prints numbers;
+asserts nothing.
+
+Each command runs in a fresh process, as a user runs it, with ``NUMBA_CACHE_DIR``
+pointed at a new temporary folder, so nothing compiled before is found: the first run
+is a fresh install's first command (Python's own byte-code caches are kept, as pip
+writes them at install time). Rows:
+
+- ``labrig model path B48-T30 B50-T20`` as the console script runs it (one actuator:
+  the inner loops as plain Python, nothing compiled; ``labrig.model.actuator.jit``);
+- the same with ``LABRIG_JIT=numba`` (compiled): what every model command cost before;
+- ``labrig model scan --n 2 --library gent`` (3 pairs, compiled): where the one compile
+  of an install now happens;
+- ``labrig --help`` and ``labrig run protocols/demo.yaml --dry-run``, warm.
+
+Run: python tests/benchmarks/bench_start.py [--repeat 5]
+"""
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _seconds(args: list[str], env: dict[str, str]) -> float:
+    started = time.perf_counter()
+    subprocess.run(
+        [sys.executable, "-m", "labrig", *args],
+        env=env,
+        cwd=REPO,
+        check=True,
+        stdout=subprocess.DEVNULL,
+    )
+    return time.perf_counter() - started
+
+
+def _cold_and_warm(args, repeat: int, *, jit: str | None = None, out: Path | None = None):
+    """(cold, median warm) seconds of ``labrig ARGS`` with an empty compile cache."""
+    with tempfile.TemporaryDirectory() as cache:
+        env = {k: v for k, v in os.environ.items() if k != "LABRIG_JIT"}
+        env["NUMBA_CACHE_DIR"] = cache
+        if jit is not None:
+            env["LABRIG_JIT"] = jit
+        times = []
+        for _ in range(repeat + 1):
+            if out is not None:
+                out.unlink(missing_ok=True)
+            times.append(_seconds(args, env))
+    return times[0], statistics.median(times[1:])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--repeat", type=int, default=5, help="warm runs per command")
+    args = parser.parse_args()
+
+    path = ["model", "path", "B48-T30", "B50-T20"]
+    rows = []
+    with tempfile.TemporaryDirectory() as folder:
+        scan_out = Path(folder) / "gent.h5"
+        scan = ["model", "scan", "--n", "2", "--library", "gent", "--out", str(scan_out)]
+        commands = [
+            ("labrig model path B48-T30 B50-T20", path, None, None),
+            ("the same, LABRIG_JIT=numba (compiled)", path, "numba", None),
+            ("labrig model scan --n 2 --library gent (compiled)", scan, None, scan_out),
+            ("labrig --help", ["--help"], None, None),
+            (
+                "labrig run protocols/demo.yaml --dry-run",
+                ["run", "protocols/demo.yaml", "--dry-run"],
+                None,
+                None,
+            ),
+        ]
+        for label, command, jit, out in commands:
+            cold, warm = _cold_and_warm(command, args.repeat, jit=jit, out=out)
+            rows.append((label, cold, warm))
+            print(f"  {label}: cold {cold:.2f} s, warm {warm:.2f} s", file=sys.stderr)
+    print(f"{os.cpu_count()} cores, Python {sys.version.split()[0]}; load {os.getloadavg()[0]:.1f}")
+    print("| command | cold: empty compile cache (s) | warm: median of later runs (s) |")
+    print("|---|---:|---:|")
+    for label, cold, warm in rows:
+        print(f"| {label} | {cold:.2f} | {warm:.2f} |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,90 @@
+"""The solver's inner loops as plain Python (``LABRIG_JIT=python``) and compiled by numba
+give the same results, bit for bit, on chunks of pairs, triples and quadruples with
+deflation; and the console script runs the one-actuator commands without numba."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from support.scan_helpers import small_library
+
+from labrig.model.actuator import jit
+from labrig.model.scan.scan import TRANSITION_FIELDS, Chunk, run_chunk
+
+# (n, first rank, last rank + 1) of the 8-segment library: every pair, triples and
+# quadruples from the start, the middle and the end of their order
+CHUNKS = [(2, 0, 28), (3, 0, 20), (3, 36, 56), (4, 0, 12), (4, 30, 42), (4, 58, 70)]
+
+_IN_PYTHON = """
+import sys
+import numpy as np
+sys.path.insert(0, {helpers!r})
+from support.scan_helpers import small_library
+from labrig.model.actuator import jit
+from labrig.model.scan.scan import Chunk, run_chunk, TRANSITION_FIELDS
+assert not jit.COMPILED
+arrays = {{}}
+for i, (n, start, stop) in enumerate({chunks!r}):
+    r = run_chunk(small_library(), Chunk(i, start, stop, n, deflate=True))
+    assert len(r.failed_actuator) == 0, r.failed_error
+    arrays[f"{{i}}/actuator"] = r.actuator
+    for name in TRANSITION_FIELDS:
+        arrays[f"{{i}}/{{name}}"] = r.columns[name]
+np.savez({out!r}, **arrays)
+"""
+
+
+@pytest.mark.slow
+def test_python_and_compiled_loops_give_the_same_bits(tmp_path):
+    assert jit.COMPILED  # this process compiles (LABRIG_JIT unset)
+    out = tmp_path / "python.npz"
+    helpers = str(Path(__file__).parents[2])
+    code = _IN_PYTHON.format(helpers=helpers, chunks=CHUNKS, out=str(out))
+    env = {**os.environ, jit.MODE_VARIABLE: jit.PYTHON}
+    subprocess.run([sys.executable, "-c", code], env=env, check=True)
+    plain = np.load(out)
+    rows = 0
+    for i, (n, start, stop) in enumerate(CHUNKS):
+        compiled = run_chunk(small_library(), Chunk(i, start, stop, n, deflate=True))
+        np.testing.assert_array_equal(plain[f"{i}/actuator"], compiled.actuator)
+        for name in TRANSITION_FIELDS:
+            # bit for bit: the float64 patterns, not a tolerance
+            a, b = plain[f"{i}/{name}"], compiled.columns[name]
+            assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), (i, name)
+        rows += len(compiled.actuator)
+    assert rows > 500  # snaps and stable transitions of 112 actuators, both directions
+
+
+_CHECK_IMPORTS = """
+import sys
+sys.argv = {argv!r}
+from labrig.cli import main
+try:
+    main()
+except SystemExit as exc:
+    code = exc.code
+print("EXIT", code, "NUMBA", "numba" in sys.modules, file=sys.stderr)
+"""
+
+
+@pytest.mark.parametrize(
+    ("argv", "numba"),
+    [
+        (["labrig", "model", "path", "B48-T30", "B50-T20", "--json"], False),
+        (["labrig", "run", "protocols/demo.yaml", "--dry-run"], False),
+        # a scan is many actuators: compiled
+        (["labrig", "model", "scan", "--n", "2", "--library", "gent", "--out", "{out}"], True),
+    ],
+)
+def test_the_console_script_compiles_only_for_many_actuators(tmp_path, argv, numba):
+    argv = [a.format(out=tmp_path / "s.h5") for a in argv]
+    env = {k: v for k, v in os.environ.items() if k != jit.MODE_VARIABLE}
+    code = _CHECK_IMPORTS.format(argv=argv)
+    repo = Path(__file__).parents[3]
+    done = subprocess.run(
+        [sys.executable, "-c", code], env=env, cwd=repo, capture_output=True, text=True
+    )
+    assert done.stderr.strip().splitlines()[-1] == f"EXIT 0 NUMBA {numba}", done.stderr

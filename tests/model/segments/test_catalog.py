@@ -1,0 +1,55 @@
+"""The segment library: names, caching, and one entry point for names and files."""
+
+import numpy as np
+import pytest
+
+from labrig.errors import InputError
+from labrig.model.segments.braided import BraidedSegment
+from labrig.model.segments.catalog import LIBRARY_NAMES, analytical_segment, load_segment
+from labrig.model.segments.measured import write_csv
+
+
+def test_the_36_names_of_the_paper():
+    assert len(LIBRARY_NAMES) == 36 == len(set(LIBRARY_NAMES))
+    assert LIBRARY_NAMES[0] == "B40-T20" and LIBRARY_NAMES[-1] == "B50-T30"
+    assert "B46-T22" in LIBRARY_NAMES and "B47-T20" not in LIBRARY_NAMES
+
+
+def test_a_name_is_its_geometry_and_is_built_once():
+    curve = analytical_segment("B46-T20")
+    assert curve is analytical_segment("b46-t20")
+    assert curve.name == "B46-T20"
+    direct = BraidedSegment(46, 20).curve()
+    np.testing.assert_array_equal(curve.p_kpa, direct.p_kpa)
+
+
+def test_every_library_segment_is_a_usable_curve():
+    no_peak = []
+    for name in LIBRARY_NAMES:
+        curve = analytical_segment(name)
+        assert curve.v_ml[0] == 0 and curve.p_kpa[0] == 0 and np.all(curve.p_kpa[1:] > 0)
+        assert curve.p_kpa[-1] == pytest.approx(300)
+        assert len(curve.branch_bounds) in (1, 3)
+        if curve.peak is None:
+            no_peak.append(name)
+    assert no_peak == ["B40-T28", "B40-T30", "B42-T30"]
+
+
+@pytest.mark.parametrize("spec", ["B47-T20", "B46", "foo", "B46-T20x"])
+def test_unknown_names_list_the_valid_ones_compactly(spec):
+    with pytest.raises(InputError) as info:
+        load_segment(spec)
+    message = str(info.value)
+    assert repr(spec) in message and "B40..B50 x T20..T30 in steps of 2, e.g. B46-T20" in message
+    assert len(message) < 250
+
+
+def test_load_segment_takes_names_gent_membranes_and_csv_paths(tmp_path):
+    assert load_segment("B46-T22") is analytical_segment("B46-T22")
+    assert load_segment("gent-c").name == "gent-c"
+    write_csv(analytical_segment("B48-T26"), tmp_path / "mine.csv")
+    curve = load_segment(str(tmp_path / "mine.csv"))
+    assert curve.name == "mine"
+    np.testing.assert_array_equal(curve.p_kpa, analytical_segment("B48-T26").p_kpa)
+    with pytest.raises(InputError, match="no such file"):
+        load_segment(str(tmp_path / "missing.csv"))
