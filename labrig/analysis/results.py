@@ -7,7 +7,7 @@ model. ``write_analysis`` stores it in the run file, replacing any earlier analy
 makes the averaged pressure-volume curve the file's NeXus default plot (``/entry/data``,
 the model as auxiliary signal); ``read_analysis`` reads it back. Tables are stored
 NeXus-style, one 1-D dataset per column with a ``units`` attribute, so that any HDF5
-tool reads them; docs/analysis.md describes the layout.
+tool reads them; docs/reference/run-file.md describes the layout.
 """
 
 from __future__ import annotations

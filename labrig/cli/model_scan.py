@@ -115,7 +115,7 @@ PLOT_OPTION = click.option(
     default=None,
     metavar="tcp://HOST:PORT",
     help="Run the chunks on this dask.distributed cluster instead of local processes "
-    "(pip install 'labrig[cluster]'; docs/scan.md).",
+    "(pip install 'labrig[cluster]'; docs/how-to/dask-scan.md).",
 )
 @click.option("--resume", is_flag=True, help="Continue an interrupted scan in --out.")
 @click.option("--deflate", is_flag=True, help="Also deflate each actuator back to zero.")

@@ -65,6 +65,7 @@ class Acquisition(Strict):
 
     @model_validator(mode="after")
     def _video_needs_camera(self) -> Acquisition:
+        """`video: true` needs a camera (`camera_fps` above 0)."""
         if self.video and self.camera_fps == 0:
             raise ValueError("video: true needs a camera (camera_fps > 0)")
         return self
@@ -131,10 +132,13 @@ Step = Annotated[
 
 class RepeatParams(Strict):
     times: int = Field(ge=1, le=1000, description="How many repetitions")
-    steps: list[Step] = Field(min_length=1)
+    steps: list[Step] = Field(
+        min_length=1, description="The steps of one repetition (no repeat inside a repeat)"
+    )
 
     @model_validator(mode="after")
     def _no_nesting(self) -> RepeatParams:
+        """A repeat holds no other repeat."""
         if any(isinstance(step, RepeatStep) for step in self.steps):
             raise ValueError("a repeat cannot contain another repeat")
         return self
@@ -147,17 +151,21 @@ class RepeatStep(Strict):
 class Protocol(Strict):
     """A validated protocol (the schema behind ``labrig protocol schema``)."""
 
-    name: str = Field(min_length=1)
-    description: str = ""
-    specimen: Specimen
-    rig: str = Field("sim", description="'sim' or the path of a rig YAML file")
-    limits: Limits
-    acquisition: Acquisition = Acquisition()
-    steps: list[Step] = Field(min_length=1)
-    analysis: Analysis = Analysis()
+    name: str = Field(min_length=1, description="Title of the run; it names the run file")
+    description: str = Field("", description="Free text, stored with the run")
+    specimen: Specimen = Field(description="What is inflated")
+    rig: str = Field(
+        "sim", description="'sim' or the path of a rig YAML file, relative to the protocol"
+    )
+    limits: Limits = Field(description="The interlocks' ceilings")
+    acquisition: Acquisition = Field(Acquisition(), description="What is recorded, how often")
+    steps: list[Step] = Field(min_length=1, description="What the pump does, in order")
+    analysis: Analysis = Field(Analysis(), description="What the analysis after the run does")
 
     @model_validator(mode="after")
     def _volumes_within_limits(self) -> Protocol:
+        """At no step does the volume in the specimen exceed `limits.max_volume_ml` or
+        fall below zero (more withdrawn than infused)."""
         for where, volume_ml in self._net_volumes():
             if volume_ml > self.limits.max_volume_ml + 1e-9:
                 raise ValueError(

@@ -26,15 +26,22 @@ PHD_ULTRA_RATED_FORCE_N = 75 * 4.4482216
 
 
 class SyringeConfig(Strict):
-    diameter_mm: float = Field(DEFAULT_SYRINGE_DIAMETER_MM, gt=0.1, le=50.0)
-    volume_ml: float = Field(DEFAULT_SYRINGE_VOLUME_ML, gt=0, le=140)
+    diameter_mm: float = Field(
+        DEFAULT_SYRINGE_DIAMETER_MM,
+        gt=0.1,
+        le=50.0,
+        description="Inner diameter from the syringe's data sheet: volumes scale with its square",
+    )
+    volume_ml: float = Field(DEFAULT_SYRINGE_VOLUME_ML, gt=0, le=140, description="Capacity")
 
 
 class PumpConfig(Strict):
     port: str = Field(description="Serial device (/dev/ttyACM0, COM3) or pyserial URL")
-    address: int = Field(0, ge=0, le=99)
-    baud: Literal[9600, 19200, 38400, 57600, 115200] = 115200
-    syringe: SyringeConfig = SyringeConfig()
+    address: int = Field(0, ge=0, le=99, description="The address set on the pump")
+    baud: Literal[9600, 19200, 38400, 57600, 115200] = Field(
+        115200, description="RS-232 only (USB ignores it): the pump's own setting"
+    )
+    syringe: SyringeConfig = Field(SyringeConfig(), description="The syringe in the pump")
     address_form: Literal["auto", "none", "colon", "digits"] = Field(
         "auto",
         description="How the address precedes a command: none (cmd), colon (N:cmd), digits "
@@ -57,10 +64,12 @@ class PumpConfig(Strict):
 
 
 class PressureConfig(Strict):
-    channel: str = "Dev1/ai0"
-    terminal: Literal["RSE", "DIFF"] = "RSE"
-    min_v: float = -10.0
-    max_v: float = 10.0
+    channel: str = Field("Dev1/ai0", description="DAQ channel of the sensor's output")
+    terminal: Literal["RSE", "DIFF"] = Field(
+        "RSE", description="Single-ended (ai0-ai7) or differential (ai0-ai3)"
+    )
+    min_v: float = Field(-10.0, description="Input range asked of DAQmx (RSE: always +-10 V)")
+    max_v: float = Field(10.0, description="Input range asked of DAQmx (RSE: always +-10 V)")
     supply_channel: str | None = Field(
         None, description="Channel measuring the sensor supply (the MPX5100 is ratiometric)"
     )
@@ -69,8 +78,12 @@ class PressureConfig(Strict):
 
 class CameraConfig(Strict):
     source: int | str = Field(0, description="Camera index, /dev/video* path or video file")
-    mm_per_px: float | None = Field(None, gt=0)
-    reference_distance_mm: float | None = Field(None, gt=0)
+    mm_per_px: float | None = Field(
+        None, gt=0, description="Scale in the specimen's plane at this width and height"
+    )
+    reference_distance_mm: float | None = Field(
+        None, gt=0, description="Or: the markers' distance in the first frame, for the scale"
+    )
     # set on the camera and read back; a camera that cannot do them is refused
     width: int | None = Field(1280, gt=0, description="Frame width (px); V4L2 opens at 640")
     height: int | None = Field(720, gt=0, description="Frame height (px); V4L2 opens at 480")
@@ -102,6 +115,7 @@ class CameraConfig(Strict):
 
     @model_validator(mode="after")
     def _one_scale(self) -> CameraConfig:
+        """Exactly one of `mm_per_px` and `reference_distance_mm` gives the scale."""
         if (self.mm_per_px is None) == (self.reference_distance_mm is None):
             raise ValueError("give exactly one of mm_per_px and reference_distance_mm")
         return self
@@ -128,10 +142,12 @@ class SimConfig(Strict):
 class RigConfig(Strict):
     """The devices of a rig; ``sim`` present means the simulated rig."""
 
-    pump: PumpConfig
-    pressure: PressureConfig = PressureConfig()
-    camera: CameraConfig | None = None
-    sim: SimConfig | None = None
+    pump: PumpConfig = Field(description="The syringe pump (PHD ULTRA) and its syringe")
+    pressure: PressureConfig = Field(
+        PressureConfig(), description="The DAQ channels of the MPX5100 pressure sensor"
+    )
+    camera: CameraConfig | None = Field(None, description="The camera; none: no length")
+    sim: SimConfig | None = Field(None, description="Present only on the simulated rig")
 
 
 def sim_rig_config(speed: float | None = None, seed: int = 0) -> RigConfig:

@@ -4,7 +4,7 @@ Every timestamp in a run comes from the same clock, so samples from the pump, th
 and the camera line up. On the bench that is ``RealClock``, the host's monotonic clock;
 in simulation it is ``labrig.time.virtual.VirtualClock``, a discrete-event clock on
 which time stands still while any participant works and jumps to the next wake-up
-when all of them wait (docs/rig.md, "Time in simulation").
+when all of them wait (docs/explanation/virtual-time.md).
 
 The runner is written once against this contract. Besides ``now`` and ``sleep`` it
 waits for conditions (``wait_for``) and starts its acquisition loops (``start_thread``)

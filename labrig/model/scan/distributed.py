@@ -9,7 +9,7 @@ chunks still in flight are cancelled.
 
 dask.distributed is an optional dependency (``pip install 'labrig[cluster]'``); it is
 imported only here, only when a scheduler is named. Starting and sizing a cluster is
-left to dask's own commands (docs/scan.md).
+left to dask's own commands (docs/how-to/dask-scan.md).
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ def connect(address: str):
     except (OSError, TimeoutError) as exc:
         raise InputError(
             f"--scheduler {address}: no scheduler answered in {CONNECT_TIMEOUT_S:.0f} s "
-            f"({type(exc).__name__}); start one with `dask scheduler` (docs/scan.md)"
+            f"({type(exc).__name__}); start one with `dask scheduler` (docs/how-to/dask-scan.md)"
         ) from None
     try:
         try:
@@ -62,7 +62,7 @@ def connect(address: str):
         except TimeoutError:
             raise InputError(
                 f"--scheduler {address}: no worker joined in {WORKER_TIMEOUT_S:.0f} s; "
-                f"start workers with `dask worker {address}` (docs/scan.md)"
+                f"start workers with `dask worker {address}` (docs/how-to/dask-scan.md)"
             ) from None
         ours = _labrig_version()
         versions = client.run(_labrig_version)
