@@ -69,6 +69,7 @@ GROUPS = {
     "tests/analysis/test_transitions.py::": "simulated_runs",
     "tests/cli/test_review.py::": "simulated_runs",
     "tests/cli/test_library_add.py::": "simulated_runs",
+    "tests/docs/test_run_file_doc.py::": "simulated_runs",
 }
 
 

@@ -13,6 +13,7 @@ Regenerate after changing a command, a schema or the run file's layout::
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import sys
 from collections.abc import Callable
@@ -215,7 +216,9 @@ def _escape(text: str) -> str:
 
 
 def run_file_reference() -> str:
-    """The logged series of a repetition and the video's frame table, with units."""
+    """The logged series of a repetition, the video's frame table, the detector's
+    settings, and the statuses."""
+    from labrig.analysis.transitions import DetectionSettings
     from labrig.recording import run_layout
 
     lines = [
@@ -228,6 +231,15 @@ def run_file_reference() -> str:
             lines.append(f"| `{log}` | `{field}` | `{dtype}` | {units} | {holds} |")
     for field, (dtype, units) in run_layout.VIDEO_FIELDS.items():
         lines.append(f"| `/entry/video` | `{field}` | `{dtype}` | {units} | |")
+    lines += [
+        "",
+        "The detector's settings, stored with every analysis in "
+        "`/entry/analysis/parameters/detection` (units in the names):",
+        "",
+        "| setting | default |",
+        "|---|---|",
+        *(f"| `{f.name}` | {f.default} |" for f in dataclasses.fields(DetectionSettings)),
+    ]
     statuses = ", ".join(f"`{s}`" for s in run_layout.RUN_STATUSES)
     repetition_statuses = ", ".join(f"`{s}`" for s in run_layout.REPETITION_STATUSES)
     lines += [
