@@ -1,6 +1,7 @@
 """What a researcher does with run files: per-repetition curves on a common volume grid,
 the mean of the last repetitions with its spread, snap-through transitions found in the
-measurement, and the comparison with the stability model (docs/analysis.md).
+measurement, and the comparison with the stability model
+(docs/explanation/how-a-run-is-analysed.md).
 
 ``analyse_run(path)`` is what the runner calls after finalising a run: it analyses the
 file and stores the result in it (``/entry/analysis``, ``/entry/data``);
