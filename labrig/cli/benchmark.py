@@ -36,18 +36,35 @@ def bench() -> None:
     help="Also write the tables as Markdown to this file.",
 )
 @click.option(
+    "--write-docs",
+    is_flag=True,
+    help="Also replace the solver table (and, with scans, the scan table) in the "
+    "repository's docs/performance.md, dated.",
+)
+@click.option(
     "--keep-scans",
     type=click.Path(file_okay=False, path_type=Path),
     help="Keep the scan files (scan_n<N>.h5) in this existing folder.",
 )
-def model_bench(quick: bool, scans: str | None, out: Path | None, keep_scans: Path | None) -> None:
+def model_bench(
+    quick: bool, scans: str | None, out: Path | None, write_docs: bool, keep_scans: Path | None
+) -> None:
     """Run time against error for each model solver and resolution (the fast path, the
     paper's Nelder-Mead algorithm, the pressure-grid equilibria) on a fixed sample of
     pairs and triples, then the time and memory of full scans."""
     from dataclasses import replace
 
+    from labrig.cli.performance_doc import PerformanceDoc
     from labrig.errors import InputError
-    from labrig.model.benchmark import BenchSettings, bench_scans, bench_solvers, machine, markdown
+    from labrig.model.benchmark import (
+        BenchSettings,
+        bench_scans,
+        bench_solvers,
+        machine,
+        markdown,
+        scan_table,
+        solver_table,
+    )
 
     settings = BenchSettings.quick() if quick else BenchSettings()
     if scans is not None:
@@ -66,6 +83,8 @@ def model_bench(quick: bool, scans: str | None, out: Path | None, keep_scans: Pa
         taken = [keep_scans / f"scan_n{n}.h5" for n in settings.scan_ns]
         if any(f.exists() for f in taken):
             raise InputError(f"--keep-scans {keep_scans}: it holds scan_n<N>.h5 files already")
+    sections = ["model-solvers", "model-scans"] if settings.scan_ns else ["model-solvers"]
+    doc = PerformanceDoc(sections, write_docs)
 
     def log(line: str) -> None:
         click.echo(line, err=True)
@@ -80,3 +99,6 @@ def model_bench(quick: bool, scans: str | None, out: Path | None, keep_scans: Pa
     if out is not None:
         out.write_text(text, encoding="utf-8")
         log(f"written: {out}")
+    doc.write_section("model-solvers", solver_table(solvers))
+    if scan_rows:
+        doc.write_section("model-scans", scan_table(scan_rows))

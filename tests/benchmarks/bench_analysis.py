@@ -11,9 +11,10 @@ have a measured dl, and its error against that jump is summed up as the rms. R i
 plant's flow resistance (1 kPa s/mL: water through the fittings; 0.05: the slow limit
 where the plant follows the model).
 
-Run: python tests/benchmarks/bench_analysis.py
+Run: python tests/benchmarks/bench_analysis.py [--write-docs]
 """
 
+import argparse
 import sys
 import tempfile
 import time
@@ -26,6 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from support.simulated_runs import simulate_run
 
 from labrig.analysis import analyse
+from labrig.cli.performance_doc import add_write_docs_argument, markdown_table, script_doc
 
 CASES = [  # segments, volume (mL), R (kPa s/mL)
     (("B46-T20", "B46-T22"), 22.0, 1.0),
@@ -45,9 +47,10 @@ CASES = [  # segments, volume (mL), R (kPa s/mL)
 
 
 def main() -> None:
-    print(f"{'actuator':18} {'R':>5} {'noise':>6} {'snaps':>6} {'found':>6} {'extra':>6} "
-          f"{'max |err| mL':>13} {'rms mL':>8} {'dl>=0.3':>8} {'dl meas':>8} "
-          f"{'dl rms mm':>10} {'analyse s':>10}")  # fmt: skip
+    parser = argparse.ArgumentParser()
+    add_write_docs_argument(parser)
+    doc = script_doc(["analysis"], parser.parse_args().write_docs)
+    rows = []
     errors_all, dl_errors_all, dl_due_all, dl_seen_all = [], {}, 0, 0
     with tempfile.TemporaryDirectory() as folder:
         for k, (segments, volume_ml, resistance) in enumerate(CASES):
@@ -90,22 +93,45 @@ def main() -> None:
                 dl_rms = f"{np.sqrt(np.mean(np.square(dl_errors))):.3f}" if dl_errors else "-"
                 worst = f"{np.max(np.abs(errors)):.3f}" if errors else "-"
                 rms = f"{np.sqrt(np.mean(np.square(errors))):.3f}" if errors else "-"
-                print(
-                    f"{'+'.join(segments):18} {resistance:5.2f} {noise_kpa:6.2f} "
-                    f"{len(run.snaps):6d} {len(errors):6d} {len(found) - len(used):6d} "
-                    f"{worst:>13} {rms:>8} {dl_due:8d} {dl_seen:8d} {dl_rms:>10} {elapsed:10.2f}"
+                rows.append(
+                    (
+                        " + ".join(segments),
+                        f"{resistance:g}",
+                        f"{noise_kpa:g}",
+                        f"{len(errors)} of {len(run.snaps)}",
+                        len(found) - len(used),
+                        worst,
+                        rms,
+                        f"{dl_seen} of {dl_due}",
+                        dl_rms,
+                        f"{elapsed:.2f}",
+                    )
                 )
-    print(
-        f"all: {len(errors_all)} snaps found, max |err| {np.max(np.abs(errors_all)):.3f} mL, "
-        f"rms {np.sqrt(np.mean(np.square(errors_all))):.3f} mL; dl measured at {dl_seen_all} "
-        f"of {dl_due_all} snaps with |dl| >= 0.3 mm"
+    header = (
+        "actuator",
+        "R (kPa s/mL)",
+        "noise (kPa)",
+        "snaps found",
+        "invented",
+        "max abs error (mL)",
+        "rms (mL)",
+        "dl measured (abs dl >= 0.3 mm)",
+        "dl error rms (mm)",
+        "analyse (s)",
     )
+    summary = [
+        f"All: {len(errors_all)} snaps found, volume error max "
+        f"{np.max(np.abs(errors_all)):.3f} mL, rms {np.sqrt(np.mean(np.square(errors_all))):.3f}"
+        f" mL; dl measured at {dl_seen_all} of {dl_due_all} snaps with abs dl >= 0.3 mm."
+    ]
     for resistance, dl_errors in sorted(dl_errors_all.items()):
         e = np.array(dl_errors)
-        print(
+        summary.append(
             f"dl error at R = {resistance:g} kPa s/mL: rms {np.sqrt(np.mean(e**2)):.3f} mm, "
-            f"max {np.max(np.abs(e)):.3f} mm over {len(e)} snaps"
+            f"max {np.max(np.abs(e)):.3f} mm over {len(e)} snaps."
         )
+    table = markdown_table(header, rows, right=set(range(1, 10)))
+    doc.publish("analysis", "\n\n".join([table, *summary]))
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ worker processes of one thread each. Each command runs in a fresh process, as a 
 runs it; the cluster's first scan includes its workers' imports and loading the compiled
 model, so the cluster is warmed up by a first scan and the second is timed too.
 
-Run: python tests/benchmarks/bench_cluster.py [--n 3] [--repeat 2]
+Run: python tests/benchmarks/bench_cluster.py [--n 3] [--repeat 2] [--write-docs]
 """
 
 import argparse
@@ -16,6 +16,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from labrig.cli.performance_doc import add_write_docs_argument, markdown_table, script_doc
 
 
 def _scan(n: int, out: Path, *extra: str) -> tuple[float, float]:
@@ -32,7 +34,9 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--n", type=int, default=3)
     parser.add_argument("--repeat", type=int, default=2)
+    add_write_docs_argument(parser)
     args = parser.parse_args()
+    doc = script_doc(["cluster"], args.write_docs)
 
     import numpy as np
     from distributed import LocalCluster
@@ -68,10 +72,12 @@ def main() -> None:
                 assert np.array_equal(column, b.columns[name]), name
         total = read_scan(Path(folder) / "local0.h5").n_combinations
     print(f"scan n = {args.n} ({total:,} actuators) of the 36-segment library; same rows: yes")
-    print("| engine | run | command (s) | scan (s) | actuators/s |")
-    print("|---|---:|---:|---:|---:|")
-    for engine, i, wall, scan in rows:
-        print(f"| {engine} | {i + 1} | {wall:.1f} | {scan:.1f} | {total / scan:,.0f} |")
+    header = ("engine", "run", "command (s)", "scan (s)", "actuators/s")
+    table = [
+        (engine, i + 1, f"{wall:.1f}", f"{scan:.1f}", f"{total / scan:,.0f}")
+        for engine, i, wall, scan in rows
+    ]
+    doc.publish("cluster", markdown_table(header, table, right={1, 2, 3, 4}))
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ and the reference path, whose Python calls compiled kernels with its own argumen
 (more than one recompiles its whole call tree), its compile time with its callees'
 compiles (inclusive) and without (own), in wall seconds; and the process's CPU time.
 
-Run: python tests/benchmarks/bench_compile.py [--no-reference] [--passes]
+Run: python tests/benchmarks/bench_compile.py [--no-reference] [--passes] [--write-docs]
 """
 
 import argparse
@@ -21,6 +21,8 @@ import tempfile
 import time
 from collections import defaultdict
 from pathlib import Path
+
+from labrig.cli.performance_doc import add_write_docs_argument, markdown_table, script_doc
 
 
 def _cpu_s() -> float:
@@ -124,7 +126,9 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--no-reference", action="store_true")
     parser.add_argument("--passes", action="store_true", help="also seconds per compiler pass")
+    add_write_docs_argument(parser)
     args = parser.parse_args()
+    doc = script_doc(["compile"], args.write_docs)
     os.environ["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(prefix="labrig-numba-cache-")
     os.environ.pop("LABRIG_JIT", None)
     t0 = time.perf_counter()
@@ -134,7 +138,7 @@ def main() -> None:
     import labrig.model.scan.scan  # noqa: F401
 
     print(f"numba {numba.__version__}, cache {os.environ['NUMBA_CACHE_DIR']}")
-    print(f"imports: {time.perf_counter() - t0:.1f} s wall, {_cpu_s():.1f} s CPU")
+    steps = [(f"imports (numba {numba.__version__}, labrig)", time.perf_counter() - t0, _cpu_s())]
     compiles, passes = _Compiles(), _Passes()
     event.register("numba:compile", _listener(compiles))
     if args.passes:
@@ -142,7 +146,7 @@ def main() -> None:
     for label, run in _workloads(not args.no_reference):
         cpu, wall = _cpu_s(), time.perf_counter()
         run()
-        print(f"{label}: {time.perf_counter() - wall:.1f} s wall, {_cpu_s() - cpu:.1f} s CPU")
+        steps.append((label, time.perf_counter() - wall, _cpu_s() - cpu))
     print(f"\n{'dispatcher':40s} {'sigs':>4s} {'incl s':>7s} {'own s':>6s}")
     for name in sorted(compiles.own, key=compiles.own.get, reverse=True):
         sigs = compiles.signatures[name]
@@ -151,8 +155,12 @@ def main() -> None:
         if len(sigs) > 1:
             for sig in sigs:
                 print(f"    ({sig})")
-    print(f"\nall compiles: {sum(compiles.own.values()):.1f} s wall")
-    print(f"process: {_cpu_s():.1f} s CPU; load average {os.getloadavg()[0]:.2f}")
+    steps.append(("all of numba's compiles (within the above)", sum(compiles.own.values()), None))
+    steps.append(("the whole process", time.perf_counter() - t0, _cpu_s()))
+    table = [
+        (label, f"{wall:.1f}", "" if cpu is None else f"{cpu:.1f}") for label, wall, cpu in steps
+    ]
+    doc.publish("compile", markdown_table(("step", "wall (s)", "CPU (s)"), table, right={1, 2}))
     if args.passes:
         print("\npasses (own s):")
         for name in sorted(passes.own, key=passes.own.get, reverse=True)[:15]:

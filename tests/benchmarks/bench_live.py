@@ -2,7 +2,7 @@
 fixed speed with and without the page (a browser polling 2.5 times a second, plus
 five connections that hang mid-request), compared by what the run file holds.
 
-Run: ``python tests/benchmarks/bench_live.py [--speed 20]``. The run is
+Run: ``python tests/benchmarks/bench_live.py [--speed 20] [--write-docs]``. The run is
 ``tests/live/live_demo.yaml`` (2 repetitions, 117 s of rig time). A fixed speed fixes
 the run's wall time; what the page could cost is data: pump readings and camera frames
 a busy host thins out (every pressure sample is kept by the DAQ's buffer either way).
@@ -25,6 +25,7 @@ from tempfile import TemporaryDirectory
 import h5py
 import numpy as np
 
+from labrig.cli.performance_doc import add_write_docs_argument, markdown_table, script_doc
 from labrig.config.protocol import load_protocol
 from labrig.live.session import run_info
 from labrig.live.state import LiveState
@@ -97,16 +98,25 @@ def one_run(out: Path, speed: float, live: bool) -> tuple[float, dict[str, int],
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--speed", type=float, default=20.0)
+    add_write_docs_argument(parser)
     args = parser.parse_args()
-    print(f"tap: median {tap_cost_us():.2f} us per append")
+    doc = script_doc(["live"], args.write_docs)
+    tap_us = tap_cost_us()
+    rows = []
     with TemporaryDirectory() as tmp:
         for live in (False, True, False, True):
             wall, n, polls = one_run(Path(tmp) / f"{live}.h5", args.speed, live)
-            what = f"--live, {polls} polls + 5 hung" if live else "no page"
-            print(
-                f"{what:<24} run {wall:5.1f} s  pressure {n['pressure']:7d}  "
-                f"pump {n['pump']:5d}  frames {n['length']:4d}"
+            what = f"`--live`, {polls} polls + 5 hung" if live else "no page"
+            rows.append(
+                (what, f"{wall:.1f}", f"{n['pressure']:,}", f"{n['pump']:,}", f"{n['length']:,}")
             )
+    header = ("run", "wall (s)", "pressure samples", "pump readings", "camera frames")
+    table = markdown_table(header, rows, right={1, 2, 3, 4})
+    doc.publish(
+        "live",
+        f"{table}\n\nAt x{args.speed:g}; the tap (what the run file's writer pays per "
+        f"append for the page): median {tap_us:.2f} us.",
+    )
 
 
 if __name__ == "__main__":

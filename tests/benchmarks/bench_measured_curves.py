@@ -1,4 +1,4 @@
-"""Benchmark: measured curves from anywhere (issue 12). B42-T24 + B50-T22 (the library's
+"""Benchmark: measured curves from anywhere. B42-T24 + B50-T22 (the library's
 snap at 25.600 mL) written as CSV tables at several row counts, quantisation steps and
 noise levels, read back through ``load_csv`` and run through the path: prints the import
 time (CSV parse + resolution + tabulate or fit, both curves), the path time, the route,
@@ -8,9 +8,10 @@ the worst over noise seeds). Then random synthetic rise-fall-rise pairs, noisy (
 how many give the clean curves' snaps, how many a spurious one, how many miss one.
 Asserts nothing.
 
-Run: python tests/benchmarks/bench_measured_curves.py
+Run: python tests/benchmarks/bench_measured_curves.py [--write-docs]
 """
 
+import argparse
 import contextlib
 import sys
 import tempfile
@@ -33,6 +34,7 @@ from support.measured_tables import (
     write_table,
 )
 
+from labrig.cli.performance_doc import add_write_docs_argument, markdown_table, script_doc
 from labrig.model.actuator.equilibria import Actuator
 from labrig.model.actuator.path import quasi_static_path
 from labrig.model.actuator.transitions import table_resolution, transitions
@@ -71,46 +73,62 @@ def one(folder: Path, spacing_ml: float, round_to_kpa, noise_kpa: float, seed: i
     return rows, route, imported, solved, snaps
 
 
-def row(folder, label, spacing_ml, round_to_kpa, noise_kpa, clean) -> str:
+def row(folder, label, spacing_ml, round_to_kpa, noise_kpa, clean) -> tuple:
+    """One table row: the rows and route of the B50 table, the mean import and path
+    times, the counts of snaps found and the mean and worst snap-volume errors."""
     seeds = SEEDS if noise_kpa else SEEDS[:1]
     results = [one(folder, spacing_ml, round_to_kpa, noise_kpa, s) for s in seeds]
     errors = [abs(r[4][0] - clean) for r in results if len(r[4]) == 1]
     counts = sorted({len(r[4]) for r in results})
-    error = f"{np.mean(errors):6.3f} | {max(errors):6.3f}" if errors else "     - |      -"
     return (
-        f"| {label:<34} | {results[0][0]:>6} | {results[0][1]:<3} | "
-        f"{np.mean([r[2] for r in results]) * 1e3:7.0f} | "
-        f"{np.mean([r[3] for r in results]) * 1e3:6.0f} | "
-        f"{','.join(map(str, counts)):>5} | {error} |"
+        label,
+        results[0][0],
+        results[0][1],
+        f"{np.mean([r[2] for r in results]) * 1e3:.0f}",
+        f"{np.mean([r[3] for r in results]) * 1e3:.0f}",
+        ",".join(map(str, counts)),
+        f"{np.mean(errors):.3f}" if errors else "-",
+        f"{max(errors):.3f}" if errors else "-",
     )
 
 
-def main() -> None:
+def table_rows() -> str:
+    """The pair's tables at every resolution, step and noise level, as a table."""
     clean_curves = [analytical_segment(n) for n in PAIR]
     (clean,) = [
         t.v_ml for t in transitions(quasi_static_path(Actuator(clean_curves))) if not t.stable
     ]
     v_max = clean_curves[1].v_max_ml
     print(f"clean snap {clean:.3f} mL; {len(SEEDS)} noise seeds per noisy row")
-    print(
-        "| table (B42-T24 + B50-T22) | rows (B50) | route | import ms | path ms | snaps "
-        "| mean err mL | max err mL |"
-    )
-    print("|---|---|---|---|---|---|---|---|")
+    rows = []
     with tempfile.TemporaryDirectory() as scratch:
         folder = Path(scratch)
-        for rows in (40, 500, 2000, 8000, 50_000):
-            print(row(folder, f"{rows} rows, full precision", v_max / rows, None, 0.0, clean))
-        for rows in (2000, 8000):
-            print(row(folder, f"{rows} rows, 5 decimals", v_max / rows, 1e-5, 0.0, clean))
+        for n_rows in (40, 500, 2000, 8000, 50_000):
+            label = f"{n_rows} rows, full precision"
+            rows.append(row(folder, label, v_max / n_rows, None, 0.0, clean))
+        for n_rows in (2000, 8000):
+            label = f"{n_rows} rows, 5 decimals"
+            rows.append(row(folder, label, v_max / n_rows, 1e-5, 0.0, clean))
         for step in (0.01, ADC_STEP_KPA, 0.1, 0.27, 0.5):
-            print(row(folder, f"8000 rows, step {step:.3g} kPa", v_max / 8000, step, 0.0, clean))
-        print(row(folder, "0.05 mL, step 0.27 kPa", 0.05, 0.27, 0.0, clean))
+            label = f"8000 rows, step {step:.3g} kPa"
+            rows.append(row(folder, label, v_max / 8000, step, 0.0, clean))
+        rows.append(row(folder, "0.05 mL, step 0.27 kPa", 0.05, 0.27, 0.0, clean))
         for per_ml in (50, 1000):
             for noise in (0.05, 0.1, 0.2, 0.3, 0.5):
                 step = ADC_STEP_KPA if per_ml == 1000 else None
                 label = f"{per_ml}/mL, noise {noise} kPa" + (", 14-bit" if step else "")
-                print(row(folder, label, 1.0 / per_ml, step, noise, clean))
+                rows.append(row(folder, label, 1.0 / per_ml, step, noise, clean))
+    header = (
+        "table (B42-T24 + B50-T22)",
+        "rows (B50)",
+        "route",
+        "import ms",
+        "path ms",
+        "snaps",
+        "mean err mL",
+        "max err mL",
+    )
+    return markdown_table(header, rows, right={1, 3, 4, 5, 6, 7})
 
 
 def tabled(clean, spacing_ml, seed, **table) -> list:
@@ -124,7 +142,7 @@ def tabled(clean, spacing_ml, seed, **table) -> list:
     ]
 
 
-def synthetic_rates(seeds=(1, 2, 3), cases=40) -> None:
+def synthetic_rates(seeds=(1, 2, 3), cases=40) -> list[str]:
     counts = {"same": 0, "spurious": 0, "missed": 0}
     unresolved = 0  # clean fold pairs whose slope deficit the rows cannot resolve
     errors = []
@@ -152,19 +170,20 @@ def synthetic_rates(seeds=(1, 2, 3), cases=40) -> None:
                 counts["same"] += 1
                 errors += [abs(a - b) for a, b in zip(clean, got, strict=True)]
     total = sum(counts.values())
-    print(
+    return [
         f"noisy synthetic pairs: {total}; clean snaps {counts['same']}, spurious snap "
         f"{counts['spurious']}, a snap missed {counts['missed']} (clean fold pairs below "
         f"the rows' slope resolution, not counted: {unresolved}); snap volume error rms "
         f"{np.sqrt(np.mean(np.square(errors))):.3f} mL, max {max(errors):.3f} mL"
-    )
+    ]
 
 
-def staircases() -> None:
+def staircases() -> list[str]:
     """Undithered staircases coarser than 0.2 kPa every 0.1 mL (uniform rows and rows
     jittered by +-45 %), on the library pairs where they are worst: the snap-volume
     error against the clean curves, with the peak and valley from the stair edges and,
     for comparison, with the stair values (the edge estimate switched off)."""
+    lines = []
     for names, step in ((("B46-T20", "B42-T20"), 0.27), (("B46-T22", "B48-T20"), 0.5)):
         clean = [analytical_segment(n) for n in names]
         (want,) = snap_volumes(clean)
@@ -188,21 +207,23 @@ def staircases() -> None:
                 error = max(abs(v - want) for v in got) if len(got) == 1 else float("nan")
                 route = "/".join(c.measured.route[0] for c in curves)
                 results.append(f"route {route}, {len(got)} snap(s), error {error:.2f} mL")
-            print(
+            lines.append(
                 f"{' + '.join(names)}, step {step} kPa every 0.1 mL, "
                 f"{'uniform' if uniform else 'jittered'}: stair edges {results[0]}; "
                 f"stair values {results[1]}"
             )
+    return lines
 
 
-def staircase_sweep(draws: int = 200, seed: int = 12345) -> None:
+def staircase_sweep(draws: int = 200, seed: int = 12345) -> list[str]:
     """Random library pairs and triples (braids distinct) as undithered staircases: a
     step of 0.27 or 0.5 kPa, and one uniform in 0.27-0.5 kPa (off any decimal), rows
     every 0.05-0.5 mL (log-uniform), uniform or jittered. Per step draw: how many give
     the clean snaps (none spurious, none missed but a jump within the step or a fold
-    pair the rows do not resolve) within the issue's max(0.5 mL, 2 x widest gap); the
+    pair the rows do not resolve) within max(0.5 mL, 2 x the widest gap); the
     draws with a dip shallower than the step (``dip_hidden_by_step``: no table of that
     step holds it) are counted apart, as are their misses; the worst error of the rest."""
+    lines = []
     for label, steps in (("0.27/0.5 kPa", None), ("0.27-0.5 kPa", (0.27, 0.5))):
         rng = np.random.default_rng(seed)
         within, hidden, hidden_within, worst, misses = 0, 0, 0, 0.0, []
@@ -247,31 +268,33 @@ def staircase_sweep(draws: int = 200, seed: int = 12345) -> None:
                     f"{'uniform' if uniform else 'jittered'}, step {step:.3g} kPa, "
                     f"seed {table_seed}: {what} (error {error:.2f} mL)"
                 )
-        print(
+        lines.append(
             f"staircases at {label}, {draws} random library draws: {within} of "
-            f"{draws - hidden} within the issue's tolerance, worst snap-volume error "
+            f"{draws - hidden} within max(0.5 mL, 2 x the widest gap), worst snap-volume error "
             f"{worst:.2f} mL; "
             f"{hidden} with a dip under the step counted apart ({hidden_within} of them "
             "within it all the same)"
         )
-        for miss in misses:
-            print(f"  beyond: {miss}")
+        lines += [f"beyond it: {miss}" for miss in misses]
+    return lines
 
 
-def steps_written_with_decimals() -> None:
+def steps_written_with_decimals() -> list[str]:
     """The quantisation step read from B50-T22 at 8,000 rows on a lattice written with
     few decimals (as another tool writes it): the lattice's step is the answer."""
     curve = analytical_segment("B50-T22")
     v = np.linspace(0.0, curve.v_max_ml, 8000)
+    lines = []
     for step, decimals in ((0.5, 1), (0.27, 2), (ADC_STEP_KPA, 2), (ADC_STEP_KPA, 3)):
         p = np.round(curve.pressure_kpa(v) / step) * step
         written = np.array([float(f"{x:.{decimals}f}") for x in p])
         table = np.column_stack([v, written, curve.length_mm(v)])
         read = curve_from_table(table, name="q", where="q").measured.resolution.step_kpa
-        print(f"step {step:.4g} kPa written with {decimals} decimals: read {read:.4g} kPa")
+        lines.append(f"step {step:.4g} kPa written with {decimals} decimals: read {read:.4g} kPa")
+    return lines
 
 
-def noisiest_triple() -> None:
+def noisiest_triple() -> list[str]:
     """B40-T20 + B42-T26 + B44-T20 at 1,000 rows/mL, 0.5 kPa noise on a 0.27 kPa step
     (B42-T26's dip is 0.6 kPa, under three steps): snap-volume error over seeds."""
     names = ("B40-T20", "B42-T26", "B44-T20")
@@ -289,17 +312,27 @@ def noisiest_triple() -> None:
         ]
         got = snap_volumes(curves)
         errors.append(max(abs(v - want) for v in got) if len(got) == 1 else float("nan"))
-    print(
+    return [
         f"{' + '.join(names)}, 1000/mL, noise 0.5 kPa, step 0.27 kPa: snap errors "
         + ", ".join(f"{e:.2f}" for e in errors)
         + " mL"
-    )
+    ]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    add_write_docs_argument(parser)
+    doc = script_doc(["measured-curves", "measured-curves-snaps"], parser.parse_args().write_docs)
+    doc.publish("measured-curves", table_rows())
+    lines = [
+        *synthetic_rates(),
+        *staircases(),
+        *staircase_sweep(),
+        *steps_written_with_decimals(),
+        *noisiest_triple(),
+    ]
+    doc.publish("measured-curves-snaps", "\n".join(f"- {line}" for line in lines))
 
 
 if __name__ == "__main__":
     main()
-    synthetic_rates()
-    staircases()
-    staircase_sweep()
-    steps_written_with_decimals()
-    noisiest_triple()

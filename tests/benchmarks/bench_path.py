@@ -6,13 +6,15 @@ paper's incremental Nelder-Mead reference. Prints numbers; asserts nothing.
 - the reference's seconds per path (0.02 mL increments) on the paper's named
   combinations and whether it finds the same transitions.
 
-Run: python tests/benchmarks/bench_path.py [--triples N] [--quadruples N]
+Run: python tests/benchmarks/bench_path.py [--triples N] [--quadruples N] [--write-docs]
 """
 
 import argparse
 import itertools
 import random
 import time
+
+from labrig.cli.performance_doc import add_write_docs_argument, markdown_table, script_doc
 
 
 def _time_paths(actuators, deflate=False):
@@ -30,7 +32,9 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--triples", type=int, default=1000)
     parser.add_argument("--quadruples", type=int, default=1000)
+    add_write_docs_argument(parser)
     args = parser.parse_args()
+    doc = script_doc(["path", "path-reference"], args.write_docs)
 
     from labrig.model.actuator.equilibria import Actuator
     from labrig.model.actuator.path import quasi_static_path
@@ -42,18 +46,32 @@ def main() -> None:
     # load (or compile) the solver's compiled loops before timing anything
     _time_paths([Actuator([segments[c] for c in LIBRARY_NAMES[:3]])], deflate=True)
     rng = random.Random(0)
+    rows = []
     for n, count in ((2, None), (3, args.triples), (4, args.quadruples)):
         combos = list(itertools.combinations(LIBRARY_NAMES, n))
+        drawn = "all" if count is None or count >= len(combos) else "random"
         if count is not None and count < len(combos):
             combos = rng.sample(combos, count)
         actuators = [Actuator([segments[c] for c in combo]) for combo in combos]
         per_path, found = _time_paths(actuators)
         per_cycle, _ = _time_paths(actuators[:200], deflate=True)
-        print(
-            f"n={n}: {len(actuators):5d} actuators  inflation {per_path * 1e3:6.2f} ms/path"
-            f"  (+deflation {per_cycle * 1e3:6.2f} ms)"
-            f"  {found / len(actuators):.1f} transitions each"
+        rows.append(
+            (
+                n,
+                f"{len(actuators):,} ({drawn})",
+                f"{per_path * 1e3:.2f}",
+                f"{per_cycle * 1e3:.2f}",
+                f"{found / len(actuators):.1f}",
+            )
         )
+    header = (
+        "segments",
+        "actuators",
+        "inflation (ms per path)",
+        "inflation + deflation (ms, first 200)",
+        "transitions per path",
+    )
+    doc.publish("path", markdown_table(header, rows, right={0, 1, 2, 3, 4}))
 
     named = [
         ("B46-T20", "B46-T22"),
@@ -61,6 +79,10 @@ def main() -> None:
         ("B44-T30", "B48-T26"),
         ("B40-T28", "B44-T30", "B50-T24"),
     ]
+    # the reference's compiled minimiser loaded (or compiled) before timing it
+    warm = Actuator([segments[n] for n in named[0]])
+    reference_path(warm, 2.0, dv_ml=0.5, deflate=True, jump_ml=0.3)
+    rows = []
     for names in named:
         actuator = Actuator([segments[n] for n in names])
         t0 = time.perf_counter()
@@ -80,10 +102,25 @@ def main() -> None:
             ),
             default=0.0,
         )
-        print(
-            f"{' + '.join(names):28s} fast {t_fast * 1e3:6.1f} ms   reference {t_ref:5.1f} s"
-            f" ({len(ref.v_ml)} increments)   same transitions: {same}, |dv| <= {worst:.3f} mL"
+        rows.append(
+            (
+                " + ".join(names),
+                f"{t_fast * 1e3:.1f}",
+                f"{t_ref:.2f}",
+                f"{len(ref.v_ml):,}",
+                "yes" if same else "no",
+                f"{worst:.3f}",
+            )
         )
+    header = (
+        "actuator",
+        "fast path (ms)",
+        "Nelder-Mead, 0.02 mL (s)",
+        "increments",
+        "same transitions",
+        "max abs dv (mL)",
+    )
+    doc.publish("path-reference", markdown_table(header, rows, right={1, 2, 3, 5}))
 
 
 if __name__ == "__main__":

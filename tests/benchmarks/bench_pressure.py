@@ -1,6 +1,6 @@
 """Benchmark: pressure from the real driver on SimDaqTask against the injected truth.
 
-Run: python tests/benchmarks/bench_pressure.py   (prints a table; numbers kept in the README)
+Run: python tests/benchmarks/bench_pressure.py [--write-docs]
 
 NiDaqPressure zeroes for 1 s at atmospheric pressure, then acquires 120 s of simulated
 time at 1 kS/s (RSE, ±10 V, 13 bits) while the truth ramps 0 -> 80 kPa, holds and
@@ -11,11 +11,13 @@ The quantisation step on ±10 V is 20 V / 2^13 = 2.44 mV = 0.054 kPa at Vs = 5 V
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 
 import numpy as np
 
+from labrig.cli.performance_doc import add_write_docs_argument, markdown_table, script_doc
 from labrig.drivers.ni_daq import NiDaqPressure
 from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
 from labrig.time.virtual import VirtualClock
@@ -71,31 +73,49 @@ def run(noise_kpa: float, supply_v: float, supply_channel: str | None) -> dict:
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser()
+    add_write_docs_argument(parser)
+    doc = script_doc(["pressure"], parser.parse_args().write_docs)
     step_kpa = 20.0 / 2**13 / (0.009 * 5.0)  # RSE on a USB-6009: 13 bits
     cases = [
-        ("noise 0.05 kPa, Vs 5.0", 0.05, 5.0, None),
-        ("noise off, Vs 5.0", 0.0, 5.0, None),
-        ("noise off, Vs 5.1 assumed 5.0", 0.0, 5.1, None),
-        ("noise off, Vs 5.1 measured", 0.0, 5.1, "Dev1/ai1"),
+        ("sensor noise 0.05 kPa", 0.05, 5.0, None),
+        ("noise off", 0.0, 5.0, None),
+        ("noise off, 5.1 V supply assumed to be 5.0 V", 0.0, 5.1, None),
+        ("noise off, 5.1 V supply measured on ai1", 0.0, 5.1, "Dev1/ai1"),
     ]
     print(
         f"pressure vs injected truth, {RUN_S:g} s at {RATE_HZ:g} S/s, 0-80 kPa; "
         f"quantisation step {step_kpa:.4f} kPa; sensor offset error 0.8 kPa"
     )
+    print(f"python {sys.version.split()[0]}, numpy {np.__version__}")
     header = (
-        f"{'case':31} {'zero kPa':>8} {'bias':>8} {'rms':>7} {'max':>7} {'100-avg':>8} "
-        f"{'samples':>8} {'gaps':>5} {'us/sample':>9}"
+        f"case: {RATE_HZ / 1e3:g} kS/s, {RUN_S:g} s, 0-80 kPa (RSE, step {step_kpa:.3f} kPa)",
+        "zero (kPa)",
+        "error bias (kPa)",
+        "rms",
+        "max",
+        "max of 100-sample means",
+        "samples",
+        "gaps",
+        "us per sample",
     )
-    print(header)
-    print("-" * len(header))
+    rows = []
     for name, noise, supply_v, supply_channel in cases:
         r = run(noise, supply_v, supply_channel)
-        print(
-            f"{name:31} {r['offset']:8.4f} {r['bias']:8.4f} {r['rms']:7.4f} {r['max']:7.4f} "
-            f"{r['block']:8.4f} {r['n']:8d} {r['gaps']:5d} {r['us_per_sample']:9.3f}"
+        rows.append(
+            (
+                name,
+                f"{r['offset']:.4f}",
+                f"{r['bias']:.4f}",
+                f"{r['rms']:.4f}",
+                f"{r['max']:.4f}",
+                f"{r['block']:.4f}",
+                f"{r['n']:,}",
+                r["gaps"],
+                f"{r['us_per_sample']:.3f}",
+            )
         )
-    print("errors in kPa; 100-avg: the largest error of 100-sample block means")
-    print(f"python {sys.version.split()[0]}, numpy {np.__version__}")
+    doc.publish("pressure", markdown_table(header, rows, right=set(range(1, 9))))
 
 
 if __name__ == "__main__":

@@ -5,17 +5,20 @@ poll (three exchanges) and the wait of a stop issued while another thread polls
 without pause; then a status poll as the simulated rig makes it, on virtual time with
 the plunger moving against a load (each command checks the load, and the load check
 runs every 0.1 s of rig time), with the CPU time of the process per poll: the figure
-that does not depend on how busy the host is. Run:
-``python tests/benchmarks/bench_pump_roundtrip.py``. The numbers are the host's and the
+that does not depend on how busy the host is. The numbers are the host's and the
 emulator's; a real pump at 115200 baud adds about 87 us per byte.
+
+Run: python tests/benchmarks/bench_pump_roundtrip.py [--write-docs]
 """
 
 from __future__ import annotations
 
+import argparse
 import statistics
 import threading
 import time
 
+from labrig.cli.performance_doc import add_write_docs_argument, markdown_table, script_doc
 from labrig.drivers.phd_ultra import PhdUltra
 from labrig.sim.pump import PumpEmulator
 from labrig.time.clock import RealClock
@@ -33,18 +36,24 @@ def timed_ms(call, repeats: int) -> list[float]:
     return times
 
 
-def report(name: str, times_ms: list[float]) -> None:
+def row(name: str, times_ms: list[float], cpu_ms: str = "") -> tuple[str, str, str, str]:
+    """An exchange's median and 99th percentile (ms), and its CPU time if measured."""
     p99 = statistics.quantiles(times_ms, n=100)[98]
-    print(f"{name:<34} median {statistics.median(times_ms):7.3f} ms   p99 {p99:7.3f} ms")
+    return name, f"{statistics.median(times_ms):.3f}", f"{p99:.3f}", cpu_ms
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser()
+    add_write_docs_argument(parser)
+    doc = script_doc(["pump"], parser.parse_args().write_docs)
+    rows = []
     clock = RealClock()
     with PumpEmulator(clock) as emulator, PhdUltra.open(emulator.port, clock=clock) as pump:
-        report("query (ver)", timed_ms(pump.identify, 2000))
-        report("status() = status+ivolume+wvolume", timed_ms(pump.status, 1000))
+        rows.append(row("query (`ver`)", timed_ms(pump.identify, 2000)))
+        rows.append(row("`status()`: status, ivolume, wvolume", timed_ms(pump.status, 1000)))
         pump.set_infuse_rate(1.0)
-        report("set rate (irate + readback)", timed_ms(lambda: pump.set_infuse_rate(1.0), 500))
+        rate = timed_ms(lambda: pump.set_infuse_rate(1.0), 500)
+        rows.append(row("set rate (irate + readback)", rate))
 
         busy = threading.Event()
         busy.set()
@@ -56,16 +65,19 @@ def main() -> None:
         poller = threading.Thread(target=poll)
         poller.start()
         try:
-            report("stop() while another thread polls", timed_ms(pump.stop, 300))
+            rows.append(row("`stop()` while another thread polls", timed_ms(pump.stop, 300)))
         finally:
             busy.clear()
             poller.join()
-    virtual_time_polls(1500)
+    rows.append(virtual_time_polls(1500))
+    header = ("exchange", "median (ms)", "p99 (ms)", "CPU per poll (ms)")
+    doc.publish("pump", markdown_table(header, rows, right={1, 2, 3}))
 
 
-def virtual_time_polls(n: int) -> None:
+def virtual_time_polls(n: int) -> tuple[str, str, str, str]:
     """``n`` status polls POLL_PERIOD_S apart on a virtual clock, infusing against a
-    load that changes with time (a stand-in for the plant: the pump's cost alone)."""
+    load that changes with time (a stand-in for the plant: the pump's cost alone); the
+    CPU time is both threads', with the load checks."""
     clock = VirtualClock()
     with (
         clock.participate(),
@@ -80,8 +92,7 @@ def virtual_time_polls(n: int) -> None:
             times.append(timed_ms(pump.status, 1)[0])
             clock.sleep(POLL_PERIOD_S)
         cpu_ms = (time.process_time() - cpu0) * 1e3 / n
-    report("status() on virtual time, moving", times)
-    print(f"{'':<34} CPU {cpu_ms:7.3f} ms per poll (both threads, with the load checks)")
+    return row("`status()` on virtual time, moving", times, f"{cpu_ms:.3f}")
 
 
 if __name__ == "__main__":

@@ -15,7 +15,7 @@ one transition row, 52 + 2n, measured against a real scan file when one is given
   steps), curves of the same kind as measured ones after their fit.
 
 Run: python tests/benchmarks/bench_scan_plan.py [--sample 300] [--efficiency 0.9]
-     [--scan-file scan5.h5]
+     [--scan-file scan5.h5] [--write-docs]
 """
 
 import argparse
@@ -24,6 +24,8 @@ import os
 import random
 import time
 from pathlib import Path
+
+from labrig.cli.performance_doc import add_write_docs_argument, markdown_table, script_doc
 
 CLUSTER_CORES = 64
 
@@ -58,7 +60,9 @@ def main() -> None:
     parser.add_argument("--sample", type=int, default=300)
     parser.add_argument("--efficiency", type=float, default=0.9, help="of the n = 5 scan")
     parser.add_argument("--scan-file", type=Path, help="a finished scan, to check row bytes")
+    add_write_docs_argument(parser)
     args = parser.parse_args()
+    doc = script_doc(["scan-plan"], args.write_docs)
 
     from labrig.model.scan.scan import ScanLibrary, load_library
     from labrig.model.segments.braided import BraidedSegment
@@ -86,21 +90,36 @@ def main() -> None:
     ]
     cores = len(os.sched_getaffinity(0))
     print(f"{args.sample} random actuators per scan, one core; efficiency {args.efficiency}")
-    print(
-        f"| scan | actuators | ms per actuator (one core) | transitions per actuator | "
-        f"failed in sample | core time | this machine ({cores} cores) | "
-        f"{CLUSTER_CORES}-core cluster | file |"
+    header = (
+        "scan",
+        "actuators",
+        "ms per actuator (one core)",
+        "transitions per actuator",
+        f"failed of {args.sample}",
+        "core time",
+        f"this machine ({cores} cores)",
+        f"{CLUSTER_CORES}-core cluster",
+        "file",
     )
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    rows = []
     for label, library, n, total, repeat in plans:
         seconds, per_actuator, failed = _sample(library, n, args.sample, repeat=repeat)
         core_s = seconds * total
         size = total * per_actuator * (52 + 2 * n)
-        print(
-            f"| {label} | {total:,} | {seconds * 1e3:.2f} | {per_actuator:.1f} | {failed} | "
-            f"{_hours(core_s)} | {_hours(core_s / (cores * args.efficiency))} | "
-            f"{_hours(core_s / (CLUSTER_CORES * args.efficiency))} | {size / 2**30:.2f} GiB |"
+        rows.append(
+            (
+                label,
+                f"{total:,}",
+                f"{seconds * 1e3:.2f}",
+                f"{per_actuator:.1f}",
+                failed,
+                _hours(core_s),
+                _hours(core_s / (cores * args.efficiency)),
+                _hours(core_s / (CLUSTER_CORES * args.efficiency)),
+                f"{size / 2**30:.2f} GiB",
+            )
         )
+    doc.publish("scan-plan", markdown_table(header, rows, right=set(range(1, 9))))
 
 
 if __name__ == "__main__":

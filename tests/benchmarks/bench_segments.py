@@ -1,17 +1,23 @@
 """Benchmark: build time of the 36 analytical library segments, and of loading a raw
 measured curve (1 kHz samples at 60 mL/min). Prints numbers; asserts nothing.
 
-Run: python tests/benchmarks/bench_segments.py
+Run: python tests/benchmarks/bench_segments.py [--write-docs]
 """
 
+import argparse
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
+from labrig.cli.performance_doc import add_write_docs_argument, markdown_table, script_doc
+
 
 def main() -> None:
+    parser = argparse.ArgumentParser()
+    add_write_docs_argument(parser)
+    doc = script_doc(["segments"], parser.parse_args().write_docs)
     t0 = time.perf_counter()
     from labrig.model.segments import catalog
 
@@ -24,10 +30,6 @@ def main() -> None:
         catalog.analytical_segment(name)
     t_cached = time.perf_counter() - t0
     samples = [len(c.v_ml) for c in curves]
-    print(f"import labrig.model.segments.catalog            {t_import * 1e3:8.1f} ms")
-    print(f"build all 36 analytical segments (cold) {t_cold * 1e3:8.1f} ms")
-    print(f"  again (cached)                        {t_cached * 1e3:8.3f} ms")
-    print(f"  samples per table                     {min(samples)}-{max(samples)}")
 
     from labrig.model.segments.measured import load_csv
 
@@ -43,8 +45,21 @@ def main() -> None:
         t0 = time.perf_counter()
         curve = load_csv(path)
         t_load = time.perf_counter() - t0
-    rows = f"load + fit a raw CSV of {len(v)} rows"
-    print(f"{rows:40s}{t_load * 1e3:8.1f} ms ({len(curve.v_ml)} samples)")
+    rows = [
+        ("import labrig.model.segments.catalog", f"{t_import * 1e3:.1f}", ""),
+        (
+            f"build all {len(curves)} analytical segments (cold)",
+            f"{t_cold * 1e3:.1f}",
+            f"{min(samples)}-{max(samples)} samples per table",
+        ),
+        ("the same again (cached)", f"{t_cached * 1e3:.3f}", ""),
+        (
+            f"load + fit a raw CSV of {len(v):,} rows (1 kHz at 60 mL/min)",
+            f"{t_load * 1e3:.1f}",
+            f"{len(curve.v_ml)} samples",
+        ),
+    ]
+    doc.publish("segments", markdown_table(("step", "ms", "table"), rows, right={1}))
 
 
 if __name__ == "__main__":

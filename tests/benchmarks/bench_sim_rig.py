@@ -6,16 +6,17 @@ completeness: pressure samples, pump polls and camera frames against what the
 protocol's rig time implies. Rig time over wall time is the speed-up; on virtual time
 it changes with the host, the data do not.
 
-The camera's cost (issue 14): the demo run at the old 2 fps without video against the
-shipped 30 fps, without and with ``video: true``; the wall time of the whole process and
+The camera's cost: the demo run at 2 fps without video against the shipped 30 fps,
+without and with ``video: true``; the wall time of the whole process and
 of the run alone (the "simulated ... in X s" line), the process's CPU time (user + system,
 all threads: what the camera costs, whatever else the machine is running), the load
 average, and the video's frames.
 
-Then the ratio issue 14 sets (<= 1.5): 30 fps with video over 2 fps without, in
+Then the ratio whose target is 1.5: 30 fps with video over 2 fps without, in
 interleaved pairs (A/B/A/B), each pair's ratio and their range.
 
 Run: python tests/benchmarks/bench_sim_rig.py [--burners N] [--camera-only] [--pairs N]
+     [--write-docs]
 (--burners 2 runs two CPU-burning processes alongside, as on a busy CI machine.)
 """
 
@@ -32,6 +33,8 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+
+from labrig.cli.performance_doc import add_write_docs_argument, markdown_table, script_doc
 
 ROOT = Path(__file__).resolve().parents[2]
 PROTOCOLS = ("demo.yaml", "combined_actuator.yaml")
@@ -77,20 +80,18 @@ def _children_cpu_s() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def camera_cost(tmp: Path, video: bool = True) -> None:
-    """The demo at 2 fps without video, at 30 fps without and with video."""
+def camera_cost(tmp: Path, video: bool = True) -> str:
+    """The demo at 2 fps without video, at 30 fps without and with video: a table."""
     demo = (ROOT / "protocols" / "demo.yaml").read_text()
     variants = {
         "2 fps, no video": demo.replace("camera_fps: 30}", "camera_fps: 2}"),
         "30 fps, no video": demo,
         "30 fps, video": demo.replace("camera_fps: 30}", "camera_fps: 30, video: true}"),
     }
-    print(f"{'demo.yaml':<20} {'process s':>10} {'run s':>8} {'x process':>10} {'x run':>7} "
-          f"{'CPU s':>6} {'x CPU':>6} {'load':>5} {'frames':>7} {'video frames':>13} "
-          f"{'video MB':>9}  snap (2,1)")  # fmt: skip
     if not video:
         del variants["30 fps, video"]
     base = None
+    rows = []
     for k, (name, text) in enumerate(variants.items()):
         protocol = tmp / f"demo_{k}.yaml"
         protocol.write_text(text)
@@ -99,40 +100,72 @@ def camera_cost(tmp: Path, video: bool = True) -> None:
         load = os.getloadavg()[0]
         base = base or (wall_s, run_s, cpu_s)
         *_, frames, _ = completeness(out)
-        video = out.with_suffix(".avi")
-        n_video, size = "-", "-"
-        if video.exists():
+        video_file = out.with_suffix(".avi")
+        in_video = "-"
+        if video_file.exists():
             import cv2
 
-            capture = cv2.VideoCapture(str(video))
-            n_video = str(int(capture.get(cv2.CAP_PROP_FRAME_COUNT)))
-            size = f"{video.stat().st_size / 1e6:.0f}"
-        print(
-            f"{name:<20} {wall_s:10.1f} {run_s:8.1f} {wall_s / base[0]:10.2f} "
-            f"{run_s / base[1]:7.2f} {cpu_s:6.1f} {cpu_s / base[2]:6.2f} {load:5.1f} "
-            f"{frames:7d} {n_video:>13} {size:>9}  {snap_dl(out)}"
+            capture = cv2.VideoCapture(str(video_file))
+            in_video = f"{int(capture.get(cv2.CAP_PROP_FRAME_COUNT)):,}"
+            in_video += f" ({video_file.stat().st_size / 1e6:.0f} MB)"
+        rows.append(
+            (
+                name,
+                f"{wall_s:.1f}",
+                f"{run_s:.1f}",
+                f"{wall_s / base[0]:.2f}",
+                f"{run_s / base[1]:.2f}",
+                f"{cpu_s:.1f}",
+                f"{cpu_s / base[2]:.2f}",
+                f"{load:.1f}",
+                f"{frames:,}",
+                in_video,
+                snap_dl(out),
+            )
         )
+    header = (
+        "demo.yaml",
+        "process (s)",
+        "run (s)",
+        "x process",
+        "x run",
+        "CPU (s)",
+        "x CPU",
+        "load",
+        "frames",
+        "video frames",
+        "snap (2,1) dl (mm)",
+    )
+    return markdown_table(header, rows, right=set(range(1, 10)))
 
 
-def video_ratio(tmp: Path, pairs: int) -> None:
-    """Issue 14's figure: the demo at 30 fps with video against 2 fps without, run
-    A/B/A/B (``pairs`` times each) so that the load from other work falls on both; each
-    pair's ratio of process wall time, run wall time and CPU time, then their ranges."""
+def video_ratio(tmp: Path, pairs: int) -> str:
+    """The demo at 30 fps with video against 2 fps without, run A/B/A/B (``pairs``
+    times each) so that the load from other work falls on both: each pair's ratio of
+    process wall time, run wall time and CPU time, then their ranges, as a table."""
     demo = (ROOT / "protocols" / "demo.yaml").read_text()
     a, b = tmp / "ratio_2fps.yaml", tmp / "ratio_30fps_video.yaml"
     a.write_text(demo.replace("camera_fps: 30}", "camera_fps: 2}"))
     b.write_text(demo.replace("camera_fps: 30}", "camera_fps: 30, video: true}"))
-    print(f"\n{'demo, A/B pair':<16} {'2 fps s':>8} {'30+video s':>11} {'x process':>10} "
-          f"{'x run':>6} {'x CPU':>6} {'load':>5}")  # fmt: skip
-    ratios = []
+    ratios, rows = [], []
     for k in range(pairs):
         (wa, ra, ca), (wb, rb, cb) = (run_protocol(p, tmp / f"ratio_{k}.h5") for p in (a, b))
         ratios.append((wb / wa, rb / ra, cb / ca))
-        print(f"{k + 1:<16} {wa:8.1f} {wb:11.1f} {wb / wa:10.2f} {rb / ra:6.2f} {cb / ca:6.2f} "
-              f"{os.getloadavg()[0]:5.1f}")  # fmt: skip
+        rows.append(
+            (
+                k + 1,
+                f"{wa:.1f}",
+                f"{wb:.1f}",
+                f"{wb / wa:.2f}",
+                f"{rb / ra:.2f}",
+                f"{cb / ca:.2f}",
+                f"{os.getloadavg()[0]:.1f}",
+            )
+        )
     lo, hi = np.min(ratios, axis=0), np.max(ratios, axis=0)
-    print(f"{'range':<16} {'':8} {'':11} {lo[0]:4.2f}-{hi[0]:<5.2f} {lo[1]:.2f}-{hi[1]:.2f} "
-          f"{lo[2]:.2f}-{hi[2]:.2f}   (target: x process <= 1.5)")  # fmt: skip
+    rows.append(("range", "", "", *(f"{lo[i]:.2f}-{hi[i]:.2f}" for i in range(3)), ""))
+    header = ("pair", "2 fps (s)", "30 fps + video (s)", "x process", "x run", "x CPU", "load")
+    return markdown_table(header, rows, right=set(range(1, 7)))
 
 
 def snap_dl(path: Path) -> str:
@@ -145,8 +178,8 @@ def snap_dl(path: Path) -> str:
     )
     for t in json.loads(done.stdout)["transitions"]:
         if (t["type"], t["alpha"], t["beta"]) == ("snap", 2, 1) and t["dl_meas_mm"] is not None:
-            return f"snap dl {t['dl_meas_mm']:+.2f} mm (model {t['dl_mm']:+.2f})"
-    return "snap dl not measured"
+            return f"{t['dl_meas_mm']:+.2f} (model {t['dl_mm']:+.2f})"
+    return "not measured"
 
 
 def main() -> None:
@@ -157,38 +190,65 @@ def main() -> None:
     parser.add_argument(
         "--pairs", type=int, default=3, help="A/B pairs of 2 fps against 30 fps with video"
     )
+    add_write_docs_argument(parser)
     args = parser.parse_args()
+    sections = ["sim-rig-camera"]
+    if not args.no_video and args.pairs > 0:
+        sections.append("sim-rig-video")
+    if not args.camera_only:
+        sections.append("sim-rig")
+    doc = script_doc(sections, args.write_docs)
     burners = [
         subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.burners)
     ]
     print(f"{args.burners} CPU-burning processes alongside")
-    print(
-        f"{'protocol':<24} {'rig s':>7} {'wall s':>7} {'x':>5}  "
-        f"{'pressure kept':>17} {'pump polls kept':>16} {'frames kept':>12}"
-    )
     try:
         with tempfile.TemporaryDirectory() as tmp:
-            camera_cost(Path(tmp), video=not args.no_video)
-            if not args.no_video and args.pairs > 0:
-                video_ratio(Path(tmp), args.pairs)
-            for name in () if args.camera_only else PROTOCOLS:
-                out = Path(tmp) / f"{name}.h5"
-                wall0 = time.monotonic()
-                protocol = str(ROOT / "protocols" / name)
-                subprocess.run(
-                    [sys.executable, "-m", "labrig", "run", protocol, "--sim", "--out", str(out)],
-                    check=True,
-                    capture_output=True,
-                )
-                wall_s = time.monotonic() - wall0
-                rig_s, p, p_exp, q, q_exp, f, f_exp = completeness(out)
-                print(
-                    f"{name:<24} {rig_s:7.1f} {wall_s:7.1f} {rig_s / wall_s:5.0f}  "
-                    f"{p:>8}/{p_exp:<8} {q:>7}/{q_exp:<8} {f:>5}/{f_exp:<6}"
-                )
+            doc.publish("sim-rig-camera", camera_cost(Path(tmp), video=not args.no_video))
+            if "sim-rig-video" in sections:
+                doc.publish("sim-rig-video", video_ratio(Path(tmp), args.pairs))
+            if "sim-rig" in sections:
+                doc.publish("sim-rig", protocols(Path(tmp)))
     finally:
         for burner in burners:
             burner.kill()
+
+
+def protocols(tmp: Path) -> str:
+    """Each shipped protocol run once: its speed-up and what its file kept, a table."""
+    rows = []
+    for name in PROTOCOLS:
+        out = tmp / f"{name}.h5"
+        wall0 = time.monotonic()
+        protocol = str(ROOT / "protocols" / name)
+        subprocess.run(
+            [sys.executable, "-m", "labrig", "run", protocol, "--sim", "--out", str(out)],
+            check=True,
+            capture_output=True,
+        )
+        wall_s = time.monotonic() - wall0
+        rig_s, p, p_exp, q, q_exp, f, f_exp = completeness(out)
+        rows.append(
+            (
+                name,
+                f"{rig_s:,.0f}",
+                f"{wall_s:.1f}",
+                f"x{rig_s / wall_s:.0f}",
+                f"{p:,} of {p_exp:,}",
+                f"{q:,} of {q_exp:,}",
+                f"{f:,} of {f_exp:,}",
+            )
+        )
+    header = (
+        "protocol",
+        "rig time (s)",
+        "wall (s)",
+        "speed-up",
+        "pressure samples",
+        "pump polls",
+        "frames",
+    )
+    return markdown_table(header, rows, right={1, 2, 3, 4, 5, 6})
 
 
 if __name__ == "__main__":

@@ -9,12 +9,12 @@ writes them at install time). Rows:
 
 - ``labrig model path B48-T30 B50-T20`` as the console script runs it (one actuator:
   the inner loops as plain Python, nothing compiled; ``labrig.model.actuator.jit``);
-- the same with ``LABRIG_JIT=numba`` (compiled): what every model command cost before;
+- the same with ``LABRIG_JIT=numba`` (compiled), what it would cost compiled;
 - ``labrig model scan --n 2 --library gent`` (3 pairs, compiled): where the one compile
-  of an install now happens;
-- ``labrig --help`` and ``labrig run protocols/demo.yaml --dry-run``, warm.
+  of an install happens;
+- ``labrig --help`` and ``labrig run protocols/demo.yaml --dry-run``.
 
-Run: python tests/benchmarks/bench_start.py [--repeat 5]
+Run: python tests/benchmarks/bench_start.py [--repeat 5] [--write-docs]
 """
 
 import argparse
@@ -25,6 +25,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from labrig.cli.performance_doc import add_write_docs_argument, markdown_table, script_doc
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -59,7 +61,9 @@ def _cold_and_warm(args, repeat: int, *, jit: str | None = None, out: Path | Non
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--repeat", type=int, default=5, help="warm runs per command")
+    add_write_docs_argument(parser)
     args = parser.parse_args()
+    doc = script_doc(["start"], args.write_docs)
 
     path = ["model", "path", "B48-T30", "B50-T20"]
     rows = []
@@ -82,11 +86,9 @@ def main() -> None:
             cold, warm = _cold_and_warm(command, args.repeat, jit=jit, out=out)
             rows.append((label, cold, warm))
             print(f"  {label}: cold {cold:.2f} s, warm {warm:.2f} s", file=sys.stderr)
-    print(f"{os.cpu_count()} cores, Python {sys.version.split()[0]}; load {os.getloadavg()[0]:.1f}")
-    print("| command | cold: empty compile cache (s) | warm: median of later runs (s) |")
-    print("|---|---:|---:|")
-    for label, cold, warm in rows:
-        print(f"| {label} | {cold:.2f} | {warm:.2f} |")
+    header = ("command", "cold: empty compile cache (s)", "warm: median of later runs (s)")
+    table = [(label, f"{cold:.2f}", f"{warm:.2f}") for label, cold, warm in rows]
+    doc.publish("start", markdown_table(header, table, right={1, 2}))
 
 
 if __name__ == "__main__":

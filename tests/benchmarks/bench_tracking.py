@@ -1,6 +1,6 @@
 """Benchmark: marker tracking speed and accuracy on rendered 1280x720 frames.
 
-Run: python tests/benchmarks/bench_tracking.py   (prints a table; numbers kept in the README)
+Run: python tests/benchmarks/bench_tracking.py [--write-docs]
 
 Everything runs on one core (cv2.setNumThreads(1)). Frames are rendered first, so the
 tracking times exclude rendering; the rendering cost per frame is printed too. Errors
@@ -9,6 +9,7 @@ are against SimCamera's exact truth at 0.05 mm/px.
 
 from __future__ import annotations
 
+import argparse
 import math
 import sys
 import tempfile
@@ -18,6 +19,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from labrig.cli.performance_doc import add_write_docs_argument, markdown_table, script_doc
 from labrig.drivers.camera import CameraLength, FrameSource
 from labrig.drivers.markers import MarkerTracker
 from labrig.sim.camera import SimCamera
@@ -64,6 +66,9 @@ def per_frame_s(fn, frames, repeats: int = 3) -> float:
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser()
+    add_write_docs_argument(parser)
+    doc = script_doc(["tracking"], parser.parse_args().write_docs)
     cv2.setNumThreads(1)
     t_s = np.arange(N_FRAMES) / 30.0
     rows = []
@@ -85,7 +90,7 @@ def main() -> None:
         px, mm = errors(fixes, cam, t_s)
         rows.append(
             (
-                f"frames n={noise_grey:g} b={blur_px:g}",
+                f"noise {noise_grey:g} grey levels, blur σ {blur_px:g} px",
                 1 / roi_s,
                 1 / full_s,
                 np.sqrt(np.mean(px**2)),
@@ -114,7 +119,7 @@ def main() -> None:
     mm = np.array([s.length_mm for s in samples]) - truth.length_mm
     rows.append(
         (
-            "MJPG file (decode+track)",
+            "MJPG file read back (decode + track)",
             1 / file_s,
             float("nan"),
             np.sqrt(np.mean(px**2)),
@@ -127,18 +132,29 @@ def main() -> None:
     )
 
     print(f"marker tracking, 1280x720, {MM_PER_PX} mm/px, one core, {N_FRAMES} frames")
-    header = (
-        f"{'case':26} {'fps ROI':>8} {'fps full':>9} {'px rms':>7} {'px max':>7} "
-        f"{'mm rms':>7} {'mm max':>7} {'tracked':>8} {'render ms':>9}"
-    )
-    print(header)
-    print("-" * len(header))
-    for name, fps_roi, fps_full, px_rms, px_max, mm_rms, mm_max, ok, render in rows:
-        print(
-            f"{name:26} {fps_roi:8.0f} {fps_full:9.0f} {px_rms:7.3f} {px_max:7.3f} "
-            f"{mm_rms:7.4f} {mm_max:7.4f} {ok:8.1%} {render:9.2f}"
-        )
     print(f"python {sys.version.split()[0]}, opencv {cv2.__version__}, numpy {np.__version__}")
+    header = (
+        "case (1280x720, 0.05 mm/px)",
+        "fps (ROI)",
+        "fps (full frame)",
+        "centroid error rms / max (px)",
+        "length error rms / max (mm)",
+        "tracked",
+        "render (ms per frame)",
+    )
+    table = [
+        (
+            name,
+            f"{fps_roi:.0f}",
+            "-" if math.isnan(fps_full) else f"{fps_full:.0f}",
+            f"{px_rms:.3f} / {px_max:.3f}",
+            f"{mm_rms:.4f} / {mm_max:.4f}",
+            f"{ok:.1%}",
+            "-" if math.isnan(render) else f"{render:.2f}",
+        )
+        for name, fps_roi, fps_full, px_rms, px_max, mm_rms, mm_max, ok, render in rows
+    ]
+    doc.publish("tracking", markdown_table(header, table, right={1, 2, 3, 4, 5, 6}))
 
 
 if __name__ == "__main__":
