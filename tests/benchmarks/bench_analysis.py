@@ -52,6 +52,7 @@ def main() -> None:
     doc = script_doc(["analysis"], parser.parse_args().write_docs)
     rows = []
     errors_all, dl_errors_all, dl_due_all, dl_seen_all = [], {}, 0, 0
+    snaps_all = invented_all = 0
     with tempfile.TemporaryDirectory() as folder:
         for k, (segments, volume_ml, resistance) in enumerate(CASES):
             for noise_kpa in (0.05, 0.3):
@@ -87,6 +88,8 @@ def main() -> None:
                             dl_seen += 1
                             dl_errors.append(found[i].dl_mm - snap.dl_mm)
                 errors_all += errors
+                snaps_all += len(run.snaps)
+                invented_all += len(found) - len(used)
                 dl_errors_all.setdefault(resistance, []).extend(dl_errors)
                 dl_due_all += dl_due
                 dl_seen_all += dl_seen
@@ -120,9 +123,10 @@ def main() -> None:
         "analyse (s)",
     )
     summary = [
-        f"All: {len(errors_all)} snaps found, volume error max "
-        f"{np.max(np.abs(errors_all)):.3f} mL, rms {np.sqrt(np.mean(np.square(errors_all))):.3f}"
-        f" mL; dl measured at {dl_seen_all} of {dl_due_all} snaps with abs dl >= 0.3 mm."
+        f"All: {len(errors_all)} of {snaps_all} snaps found, {invented_all} invented; volume "
+        f"error max {np.max(np.abs(errors_all)):.3f} mL, "
+        f"rms {np.sqrt(np.mean(np.square(errors_all))):.3f} mL; "
+        f"dl measured at {dl_seen_all} of {dl_due_all} snaps with abs dl >= 0.3 mm."
     ]
     for resistance, dl_errors in sorted(dl_errors_all.items()):
         e = np.array(dl_errors)
