@@ -5,6 +5,7 @@ A group open to other benches: each adds one line to ``BENCH_COMMANDS``.
 
 from __future__ import annotations
 
+import platform
 from pathlib import Path
 
 import click
@@ -54,13 +55,12 @@ def model_bench(
     pairs and triples, then the time and memory of full scans."""
     from dataclasses import replace
 
-    from labrig.cli.performance_doc import PerformanceDoc
+    from labrig.cli.performance_doc import PerformanceDoc, machine
     from labrig.errors import InputError
     from labrig.model.benchmark import (
         BenchSettings,
         bench_scans,
         bench_solvers,
-        machine,
         markdown,
         scan_table,
         solver_table,
@@ -89,7 +89,7 @@ def model_bench(
     def log(line: str) -> None:
         click.echo(line, err=True)
 
-    log(f"labrig bench model ({machine()}): solvers")
+    log(f"labrig bench model ({machine()}, Python {platform.python_version()}): solvers")
     solvers, sample_size = bench_solvers(settings, log=log)
     if settings.scan_ns:
         log("full scans")

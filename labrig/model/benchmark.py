@@ -34,7 +34,6 @@ a mismatch, and its transitions are left out of the errors.
 from __future__ import annotations
 
 import math
-import os
 import subprocess
 import sys
 import tempfile
@@ -344,7 +343,3 @@ def _num(x: float) -> str:
     if math.isnan(x):
         return "–"
     return "0" if x == 0 else f"{x:.2g}"
-
-
-def machine() -> str:
-    return f"{os.cpu_count()} cores, Python {sys.version.split()[0]}"
