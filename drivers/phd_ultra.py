@@ -11,13 +11,19 @@ Safety rules, from the traps in hardware.md 1.2 and 1.6:
 
 - No call hangs: each reply has a deadline (``timeout_s``), the port is read in short
   slices, a lost port raises ``PumpDisconnected`` at once.
-- ``stop()`` is safe from any thread at any time: one lock per port, and a pending stop
-  goes before any queued command, so it waits at most for the one reply in flight.
+- ``stop()`` is safe from any thread at any time and never waits behind another
+  exchange: a pending stop goes before any queued command, and when the port is busy
+  (a reply in flight, perhaps one that will time out) the stop is written beside it at
+  once; the exchange in flight gives up (``PumpInterrupted``) and the stop's reply is
+  then read after the late replies are discarded.
 - A reply that never came or could not be read leaves the pump's state unknown, so the
   driver sends a stop before raising and says in the message whether it worked.
 - Bytes that arrive with no command pending (the unsolicited target-reached prompt,
   line noise, the late reply of a timed-out command) are discarded before each command;
-  after a timeout the driver first waits one more deadline for the late reply.
+  after a timeout the driver first waits one more deadline for the late reply, except
+  before a stop: the stop is written first and the waiting comes after it.
+- A pump that left a stop unanswered is taken as deaf on its reply line (``_deaf``):
+  later stops are written and not waited for, until any reply comes again.
 - Stalls send nothing by themselves: ``status()`` reports them and
   ``wait_until_stopped()`` polls for them.
 
@@ -48,6 +54,7 @@ from .phd_ultra_errors import (
     PumpCommandError,
     PumpDisconnected,
     PumpError,
+    PumpInterrupted,
     PumpLimitError,
     PumpPortError,
     PumpProtocolError,
@@ -91,6 +98,14 @@ READ_SLICE_S = 0.02
 # Pico Plus / Legato drivers of the same command family, then the Pump 33 DDS manual's
 # `rsave` (hardware.md 1.3).
 NVRAM_OFF_COMMANDS = ("nvram off", "nvram none", "rsave off")
+# How long a stop waits for the port before it writes beside the exchange in flight: an
+# answered exchange takes milliseconds, one waiting out its timeout takes seconds; a stop
+# must reach the pump within 0.3 s of being asked for.
+STOP_WAIT_S = 0.2
+# How long a stop to a pump that left an earlier stop unanswered waits for its reply:
+# long enough for an answering pump (milliseconds), short enough not to hold up a
+# shutdown once per stop.
+DEAF_CONFIRM_S = 0.2
 # Readbacks agree with what was sent to within the 4-decimal formatting.
 READBACK_REL_TOL = 1e-3
 _RUNNING = (PumpState.INFUSING, PumpState.WITHDRAWING)
@@ -162,6 +177,10 @@ class PhdUltra:
         self._lost: Exception | None = None
         self._resync_due = False
         self._io_lock = threading.Lock()
+        # every write to the port: a stop written beside an exchange must not split it
+        self._write_lock = threading.Lock()
+        self._stops_written = 0  # stops written beside an exchange: it abandons its reply
+        self._deaf = False  # a stop went unanswered: later stops are written, not awaited
         # Set while no stop is waiting: ordinary commands wait on it, so a stop never
         # queues behind a stream of status polls.
         self._no_stop_pending = threading.Event()
@@ -319,7 +338,7 @@ class PhdUltra:
         refusals = []
         for command in NVRAM_OFF_COMMANDS:
             try:
-                self._command(command)
+                self._setting(command)
                 self.nvram_off_command = command
                 return
             except PumpCommandError as exc:
@@ -370,7 +389,7 @@ class PhdUltra:
         read it back: the hardware backstop when software limits are not running."""
         if isinstance(percent, bool) or not isinstance(percent, int) or not 1 <= percent <= 100:
             raise PumpLimitError(f"force limit must be a whole 1-100 %, got {percent!r}")
-        self._command(f"force {percent}")
+        self._setting(f"force {percent}")
         got = self.force_limit_pct()
         if got != percent:
             raise PumpError(
@@ -468,11 +487,57 @@ class PhdUltra:
             raise PumpError(f"the pump did not start after {command!r}: it reports {state.value}")
 
     def stop(self) -> None:
-        """Stop the motor (and silence a target or stall alarm). Safe from any thread."""
-        with self._stop_first(), self._io_lock:
-            state = self._exchange_locked("stop", expect_payload=False, stop_on_fault=False).state
+        """Stop the motor (and silence a target or stall alarm). Safe from any thread.
+
+        The stop reaches the pump within ``STOP_WAIT_S`` whatever the port is doing; the
+        call returns once the pump has confirmed it (or raises saying it did not)."""
+        with self._stop_first():
+            if not self._io_lock.acquire(timeout=STOP_WAIT_S):
+                self._write_stop_beside()
+                self._io_lock.acquire()
+            try:
+                state = self._stop_locked().state
+            finally:
+                self._io_lock.release()
         if state in _RUNNING:
             raise PumpError(f"the pump still reports {state.value} after 'stop'")
+
+    def _write_stop_beside(self) -> None:
+        """Write a stop while another thread holds the port: that exchange abandons its
+        reply (``_transfer`` sees the count change) and the port must be resynchronised."""
+        with self._write_lock:
+            self._stops_written += 1
+            self._resync_due = True
+        self._write(self._frame("stop"))
+
+    def _stop_locked(self) -> Reply:
+        """The stop, io lock held. With the line out of step (a reply timed out, a stop
+        written beside an exchange) the stop is written first, then the late replies
+        are let through and discarded, then a second stop is sent and its reply read:
+        the pump is stopped before anything waits."""
+        if self._deaf:
+            try:
+                reply = self._transfer(
+                    "stop", expect_payload=False, timeout_s=min(self.timeout_s, DEAF_CONFIRM_S)
+                )
+            except PumpTimeout:
+                raise PumpTimeout(
+                    f"the pump at address {self.address} on {self.port_name} has not "
+                    "answered since an earlier stop; this stop was sent but not confirmed"
+                ) from None
+            check_refusal(reply, "stop")
+            return reply
+        if self._resync_due:
+            self._write(self._frame("stop"))
+            self._discard_for(self.timeout_s)
+            self._resync_due = False
+        try:
+            reply = self._transfer("stop", expect_payload=False)
+        except PumpTimeout:
+            self._deaf = True
+            raise
+        check_refusal(reply, "stop")
+        return reply
 
     @contextlib.contextmanager
     def _stop_first(self):
@@ -564,18 +629,44 @@ class PhdUltra:
     def _command(self, command: str) -> Reply:
         return self._exchange(command, expect_payload=False)
 
-    def _exchange(self, command: str, *, expect_payload: bool, stop_on_fault: bool = True) -> Reply:
+    def _setting(self, command: str) -> Reply:
+        """A setting whose effect is read back or does not matter for safety (memory
+        writes, the force limit): firmware that echoes it with a line of text (seen:
+        ``NVRAM off``) has still taken it, so the text is logged, not a fault."""
+        reply = self._exchange(command, expect_payload=False, text_allowed=True)
+        if reply.lines:
+            log.info("the pump answered %r to %r", reply.text, command)
+        return reply
+
+    def _exchange(
+        self,
+        command: str,
+        *,
+        expect_payload: bool,
+        stop_on_fault: bool = True,
+        text_allowed: bool = False,
+    ) -> Reply:
         self._no_stop_pending.wait()
         with self._io_lock:
             return self._exchange_locked(
-                command, expect_payload=expect_payload, stop_on_fault=stop_on_fault
+                command,
+                expect_payload=expect_payload,
+                stop_on_fault=stop_on_fault,
+                text_allowed=text_allowed,
             )
 
-    def _exchange_locked(self, command: str, *, expect_payload: bool, stop_on_fault: bool) -> Reply:
+    def _exchange_locked(
+        self,
+        command: str,
+        *,
+        expect_payload: bool,
+        stop_on_fault: bool,
+        text_allowed: bool = False,
+    ) -> Reply:
         try:
             reply = self._transfer(command, expect_payload)
             check_refusal(reply, command)  # a clean refusal: the pump's state is known
-            if not expect_payload and reply.lines:
+            if not expect_payload and reply.lines and not text_allowed:
                 raise PumpProtocolError(f"unexpected reply to {command!r}: {reply.text!r}")
         except (PumpTimeout, PumpProtocolError) as exc:
             if not stop_on_fault:
@@ -585,7 +676,7 @@ class PhdUltra:
 
     def _stop_after_fault(self) -> str:
         try:
-            state = self._transfer("stop", expect_payload=False).state
+            state = self._stop_locked().state
         except PumpDisconnected:
             raise
         except PumpTimeout:
@@ -596,20 +687,25 @@ class PhdUltra:
             return f"the pump still reports {state.value} after a stop"
         return "the pump was stopped"
 
-    def _transfer(self, command: str, expect_payload: bool) -> Reply:
-        """Send one command and read its reply (io lock held)."""
+    def _transfer(
+        self, command: str, expect_payload: bool, timeout_s: float | None = None
+    ) -> Reply:
+        """Send one command and read its reply (io lock held) within ``timeout_s``
+        (default the driver's)."""
+        timeout_s = self.timeout_s if timeout_s is None else timeout_s
         if self._lost is not None:
             raise PumpDisconnected(f"the port {self.port_name} was lost earlier ({self._lost})")
+        stops_seen = self._stops_written
         if self._resync_due:
-            self._discard_for(self.timeout_s)
+            self._discard_for(self.timeout_s, stops_seen)
             self._resync_due = False
         self._discard_pending()
         if not expect_payload:
             # a command (a run, a stop, a clear; a setting too, to keep this simple) may
             # change the counters: status() reads them again
             self._stale_counters.update(_COUNTERS)
-        self._write(frame_command(command, address=self.address, address_form=self.address_form))
-        deadline = time.monotonic() + self.timeout_s
+        self._write(self._frame(command))
+        deadline = time.monotonic() + timeout_s
         raw = b""
         while True:
             chunk = self._read_some()
@@ -618,13 +714,16 @@ class PhdUltra:
                 reply = parse_reply(raw, expect_payload=expect_payload, command=command)
                 if reply is not None:
                     break
+            if self._stops_written != stops_seen:
+                raise self._interrupted(command)
             if time.monotonic() > deadline:
                 self._resync_due = True
                 got = f"got only {raw!r}" if raw else "check the address, baud rate and cable"
                 raise PumpTimeout(
                     f"no complete reply from the pump at address {self.address} on "
-                    f"{self.port_name} to {command!r} within {self.timeout_s:g} s ({got})"
+                    f"{self.port_name} to {command!r} within {timeout_s:g} s ({got})"
                 )
+        self._deaf = False
         if reply.address is not None and reply.address != self.address:
             raise PumpProtocolError(
                 f"the reply to {command!r} came from pump address {reply.address}, "
@@ -632,9 +731,19 @@ class PhdUltra:
             )
         return reply
 
+    def _frame(self, command: str) -> bytes:
+        return frame_command(command, address=self.address, address_form=self.address_form)
+
+    def _interrupted(self, command: str) -> PumpInterrupted:
+        self._resync_due = True
+        return PumpInterrupted(
+            f"the exchange of {command!r} with the pump on {self.port_name} was cut short by a stop"
+        )
+
     def _write(self, data: bytes) -> None:
         try:
-            self._transport.write(data)
+            with self._write_lock:
+                self._transport.write(data)
         except serial.SerialTimeoutException as exc:
             raise PumpTimeout(
                 f"could not send to {self.port_name} within {self.timeout_s:g} s"
@@ -664,12 +773,15 @@ class PhdUltra:
         if stray:
             log.debug("discarded %r (prompts %s) before the next command", stray, prompts_in(stray))
 
-    def _discard_for(self, seconds: float) -> None:
-        """Read and drop everything for ``seconds``: the late reply of a timed-out command."""
+    def _discard_for(self, seconds: float, stops_seen: int | None = None) -> None:
+        """Read and drop everything for ``seconds``: the late reply of a timed-out command.
+        ``stops_seen``: give up (``PumpInterrupted``) once a stop is written beside."""
         deadline = time.monotonic() + seconds
         while time.monotonic() < deadline:
             if stray := self._read_some():
                 log.debug("discarded late bytes %r", stray)
+            if stops_seen is not None and self._stops_written != stops_seen:
+                raise self._interrupted("the resynchronisation")
 
 
 def _state(line: StatusLine, prompt_state: PumpState) -> PumpState:

@@ -30,6 +30,11 @@ class PumpTimeout(PumpError):
     """The pump did not finish its reply in time."""
 
 
+class PumpInterrupted(PumpError):
+    """An exchange given up because a stop was written to the pump beside it: its reply
+    is lost among the stop's, and the pump has been told to stop."""
+
+
 class PumpProtocolError(PumpError):
     """A reply that does not follow the pump's framing or cannot be read as a value:
     line noise, a garbled byte, a reply from another address."""

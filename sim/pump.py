@@ -13,7 +13,8 @@ pumps); the firmware's own options (poll mode, strict addressing, infuse-only, m
 command) pass through to ``PumpFirmware``. In ``poll on`` each prompt is followed by XON
 and no event prompt is sent; in ``poll remote`` no prompt at all. A reply is framed in
 the mode in force when its command arrived.
-Faults are injected on demand: garbage, dropped or slow replies, a disconnect, a stall.
+Faults are injected on demand: garbage, dropped or slow replies, a disconnect, a stall,
+a reply line that dies mid-reply (``go_silent``: commands still arrive and act).
 One thread serves the port with ``select`` and a timeout, so it never blocks for long.
 
 The plunger's own events are timers on the shared clock (``Clock.call_at``), not host
@@ -80,6 +81,7 @@ class PumpEmulator:
         strict_address_form: str | None = None,
         infuse_only: bool = False,
         memory_command: str | None = "nvram",
+        echo_settings: bool = False,
     ) -> None:
         """The syringe, load and force options are the firmware's (``PumpFirmware``).
         Replies are written ``reply_chunk_bytes`` at a time, ``chunk_gap_s`` apart, to
@@ -102,6 +104,7 @@ class PumpEmulator:
             strict_address_form=strict_address_form,
             infuse_only=infuse_only,
             memory_command=memory_command,
+            echo_settings=echo_settings,
         )
         self.reply_style = reply_style
         self.target_prompt = target_prompt
@@ -115,6 +118,8 @@ class PumpEmulator:
         self._lock = threading.Lock()
         self._outgoing: collections.deque[tuple[float, bytes]] = collections.deque()
         self._drop = 0
+        self._silent = False  # nothing more is sent (after the half reply ``_cut_next``)
+        self._cut_next = False
         self._garble = 0
         self._delay_s = 0.0
         self._port: str | None = None
@@ -213,6 +218,13 @@ class PumpEmulator:
         with self._lock:
             self._drop = n
 
+    def go_silent(self) -> None:
+        """The pump's transmit line dies: the next reply stops half-way and nothing is
+        sent after it, while commands still arrive and are executed (a stop still stops)."""
+        with self._lock:
+            self._silent = True
+            self._cut_next = True
+
     def slow_replies(self, delay_s: float) -> None:
         """Delay every reply by ``delay_s`` real seconds (0 to stop)."""
         with self._lock:
@@ -281,6 +293,11 @@ class PumpEmulator:
         if not data:
             return  # poll remote: a command without payload gets nothing back
         with self._lock:
+            if self._silent:
+                if not self._cut_next:
+                    return
+                self._cut_next = False
+                data = data[: len(data) // 2]
             if self._drop:
                 self._drop -= 1
                 return
@@ -331,6 +348,8 @@ class PumpEmulator:
         if self.firmware.poll_mode != "off":
             return
         with self._lock:
+            if self._silent:
+                return
             self._queue(f"\n{self._prompt(PumpState.TARGET_REACHED)}".encode("ascii"))
 
     def _queue(self, data: bytes, delay_s: float = 0.0) -> None:

@@ -135,6 +135,7 @@ class PumpFirmware:
         strict_address_form: str | None = None,
         infuse_only: bool = False,
         memory_command: str | None = "nvram",
+        echo_settings: bool = False,
     ) -> None:
         """``stall_pressure_kpa`` fixes the stall limit; by default it follows from the
         force setting and the plunger area (``max_force_n`` at 100 %).
@@ -142,7 +143,9 @@ class PumpFirmware:
         ``poll_mode`` is the mode the pump was left in; ``strict_address_form`` (one of
         ``ADDRESS_FORMS``) is the only address form answered, None answers any;
         ``infuse_only`` refuses withdraw commands;
-        ``memory_command`` is the command that switches memory writes (or None)."""
+        ``memory_command`` is the command that switches memory writes (or None);
+        ``echo_settings``: the memory and force settings are answered with a line of
+        text saying what was set (firmware seen to confirm them so), not a bare prompt."""
         if not 0 <= address <= 99:
             raise ValueError(f"address must be 0-99, got {address}")
         if poll_mode not in POLL_MODES:
@@ -154,6 +157,7 @@ class PumpFirmware:
         self.poll_mode = poll_mode
         self.strict_address_form = strict_address_form
         self.infuse_only = infuse_only
+        self.echo_settings = echo_settings
         self.clock = clock
         self.address = address
         self.max_force_n = max_force_n
@@ -201,7 +205,9 @@ class PumpFirmware:
         }
         if memory_command is not None:
             words = ("on", "off", "none") if memory_command == "nvram" else ("on", "off")
-            self._commands[memory_command] = lambda arg, now: self._choice(arg, "_nvram", words)
+            self._commands[memory_command] = lambda arg, now: self._echoed(
+                self._choice(arg, "_nvram", words), f"{memory_command.upper()} {arg}"
+            )
         # The manual: any command can be shortened to its first 4 letters.
         self._aliases = {name[:4]: name for name in self._commands if len(name) > 4}
 
@@ -373,7 +379,12 @@ class PumpFirmware:
         if not 1 <= int(arg) <= 100:
             raise _argument_error(arg, "Out of range")
         self._force_pct = int(arg)
-        return []
+        return self._echoed([], f"Force = {self._force_pct}%")
+
+    def _echoed(self, lines: list[str], text: str) -> list[str]:
+        """A setting's answer: ``lines`` (empty when it was set), or the confirming
+        ``text`` with ``echo_settings``."""
+        return [text] if self.echo_settings and not lines else lines
 
     def _diameter(self, arg: str, now: float) -> list[str]:
         if not arg:

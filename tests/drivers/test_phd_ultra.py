@@ -20,6 +20,8 @@ from labrig.drivers.phd_ultra import PhdUltra
 from labrig.drivers.phd_ultra_errors import (
     PumpCommandError,
     PumpDisconnected,
+    PumpError,
+    PumpInterrupted,
     PumpPortError,
     PumpProtocolError,
     PumpRangeError,
@@ -263,12 +265,22 @@ def test_a_dropped_reply(pump, clock, emulator):
     assert pump.status().state is PumpState.IDLE
 
 
-def test_the_stop_after_a_dropped_reply_is_dropped_too(pump, clock, emulator):
+def test_the_stops_after_a_dropped_reply_are_dropped_too(pump, clock, emulator):
     start_run(pump, clock, rate_ml_min=6.0)
-    emulator.drop_next_replies(2)
+    # the query, the stop written at once after it, the stop sent to read a reply
+    emulator.drop_next_replies(3)
     with pytest.raises(PumpTimeout, match="may still be running"):
         pump.volumes_ml()
+    assert emulator.state is PumpState.IDLE  # the stops got there, their replies did not
     pump.stop()  # the line works again: the stop is confirmed
+    assert emulator.state is PumpState.IDLE
+
+
+def test_a_dropped_reply_then_a_stop_whose_reply_comes(pump, clock, emulator):
+    start_run(pump, clock, rate_ml_min=6.0)
+    emulator.drop_next_replies(1)
+    with pytest.raises(PumpTimeout, match="the pump was stopped"):
+        pump.volumes_ml()
     assert emulator.state is PumpState.IDLE
 
 
@@ -277,14 +289,84 @@ def test_slow_replies_within_and_beyond_the_timeout(pump, clock, emulator):
     assert pump.identify() == "PHD ULTRA 3.0.5"
     start_run(pump, clock, rate_ml_min=6.0)
     emulator.slow_replies(TIMEOUT_S * 1.5)
-    with pytest.raises(PumpTimeout, match="no reply either"):
+    # the stop is written at once; the late replies are let through, and a prompt after
+    # the stop (the first stop's, late) says the pump stopped
+    with pytest.raises(PumpTimeout, match="the pump was stopped"):
         pump.status()
     assert emulator.state is PumpState.IDLE  # the stop got there, only its reply was late
     emulator.slow_replies(0)
+    time.sleep(TIMEOUT_S * 1.5)  # the second stop's reply, still on its way, comes in
     pump.stop()
     # The late replies were discarded, not taken for the answers to later commands.
     assert pump.read_syringe().diameter_mm == 26.7
     assert pump.identify() == "PHD ULTRA 3.0.5"
+
+
+def test_a_stop_during_a_timed_out_exchange_reaches_the_pump_at_once(clock, emulator):
+    """The stop does not queue behind an exchange waiting out its reply timeout (2 s
+    here): it is written beside it within 0.3 s, and the exchange gives up."""
+    with PhdUltra.open(emulator.port, clock=clock, timeout_s=2.0) as pump:
+        start_run(pump, clock, rate_ml_min=6.0)
+        emulator.drop_next_replies(1)
+        sent_before = len(emulator.received)
+        failures = []
+
+        def poll():
+            try:
+                pump.status()
+            except PumpError as exc:
+                failures.append(exc)
+
+        poller = threading.Thread(target=poll)
+        poller.start()
+        while len(emulator.received) == sent_before:
+            time.sleep(0.001)
+        time.sleep(0.3)  # the poll's reply is overdue: the driver waits out its timeout
+        asked_s = time.monotonic()
+        stopper = threading.Thread(target=pump.stop)
+        stopper.start()
+        while "stop" not in list(emulator.received)[sent_before:]:
+            assert time.monotonic() - asked_s < 10.0, "the stop never reached the pump"
+            time.sleep(0.001)
+        reached_s = time.monotonic() - asked_s
+        assert emulator.state is PumpState.IDLE
+        stopper.join(timeout=10)
+        poller.join(timeout=10)
+        assert reached_s <= 0.3
+        assert len(failures) == 1 and isinstance(failures[0], PumpInterrupted)
+        # the line is in step again: the next answers are the right ones
+        assert pump.identify() == "PHD ULTRA 3.0.5"
+        assert pump.status().state is PumpState.IDLE
+
+
+def test_a_stop_after_a_timed_out_reply_is_written_before_any_waiting(clock, emulator):
+    """A reply that timed out leaves late bytes to discard: the stop goes first."""
+    with PhdUltra.open(emulator.port, clock=clock, timeout_s=1.0) as pump:
+        start_run(pump, clock, rate_ml_min=6.0)
+        emulator.drop_next_replies(1)
+        with pytest.raises(PumpTimeout):
+            pump._probe("ver", expect_payload=True)  # a probe sends no stop of its own
+        asked_s = time.monotonic()
+        stopper = threading.Thread(target=pump.stop)
+        stopper.start()
+        while emulator.state is not PumpState.IDLE:
+            assert time.monotonic() - asked_s < 10.0, "the stop never reached the pump"
+            time.sleep(0.001)
+        reached_s = time.monotonic() - asked_s
+        stopper.join(timeout=10)
+        assert reached_s <= 0.3
+
+
+def test_settings_answered_with_text_still_connect(clock):
+    """Firmware that confirms 'nvram off' and 'force N' with a line of text has taken
+    them: connect goes on, and the force limit is read back as usual."""
+    with (
+        PumpEmulator(clock, echo_settings=True) as emulator,
+        PhdUltra.open(emulator.port, clock=clock, timeout_s=TIMEOUT_S) as pump,
+    ):
+        assert pump.nvram_off_command == "nvram off"
+        pump.set_force_limit(40)
+        assert pump.force_limit_pct() == 40
 
 
 def test_a_disconnect(pump, clock, emulator):
