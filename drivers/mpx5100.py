@@ -20,6 +20,10 @@ SENSITIVITY_PER_KPA = 0.009  # Vout/Vs per kPa
 OFFSET_RATIO = 0.04  # Vout/Vs at 0 kPa
 NOMINAL_SUPPLY_V = 5.0
 RANGE_KPA = (0.0, 100.0)  # D and G parts; the AP part is absolute, 15-115 kPa
+SUPPLY_RANGE_V = (4.75, 5.25)  # the data sheet's supply: 5.0 V +- 5 %
+# A measured supply below this is no supply (a wire cut, the supply off): the output is
+# then no pressure reading, and the conversion gives NaN rather than a number.
+SUPPLY_LOST_V = 0.5 * NOMINAL_SUPPLY_V
 # ±2.5 % of the 4.5 V span over 0-85 °C: within this band a reading past the range ends can
 # still be a true in-range pressure, so it is the tolerance of the range flag and the
 # largest offset a healthy sensor shows at atmospheric pressure.
@@ -27,8 +31,12 @@ ACCURACY_KPA = 2.5
 
 
 def pressure_kpa(v_out: np.ndarray, v_supply: np.ndarray | float = NOMINAL_SUPPLY_V) -> np.ndarray:
-    """Gauge pressure in kPa from the output voltage and the supply voltage (datasheet)."""
-    return (np.asarray(v_out, dtype=float) / v_supply - OFFSET_RATIO) / SENSITIVITY_PER_KPA
+    """Gauge pressure in kPa from the output voltage and the supply voltage (datasheet);
+    NaN where the supply is lost (below ``SUPPLY_LOST_V``)."""
+    v_supply = np.asarray(v_supply, dtype=float)
+    powered = v_supply >= SUPPLY_LOST_V
+    ratio = np.asarray(v_out, dtype=float) / np.where(powered, v_supply, 1.0)
+    return np.where(powered, (ratio - OFFSET_RATIO) / SENSITIVITY_PER_KPA, np.nan)
 
 
 def output_v(p_kpa: np.ndarray, v_supply: np.ndarray | float = NOMINAL_SUPPLY_V) -> np.ndarray:

@@ -49,6 +49,9 @@ OVERFLOW_CODES = {
     -200361: "INPUT_FIFO_OVERFLOW_2",  # onboard memory overflow: USB did not keep up
     -200714: "ACQ_STOPPED_DRIVER_CANT_XFER_DATA_FAST_ENOUGH",
 }
+# The device is gone (unplugged, powered off, reset): DEV_CANNOT_BE_ACCESSED,
+# DEV_ABSENT_OR_UNAVAILABLE, and a transfer the driver aborted because of it.
+UNREACHABLE_CODES = (-201003, -200324, -50405)
 TERMINALS = ("RSE", "DIFF")
 log = logging.getLogger(__name__)
 # How often (in clock seconds) the sample stamps are re-anchored on the host clock, and
@@ -72,6 +75,10 @@ class DaqTimeoutError(DeviceError):
 
 class DaqOverflowError(DeviceError):
     """Samples were overwritten before they were read: the data has a gap."""
+
+
+class DaqUnreachableError(DeviceError):
+    """The device cannot be reached (DAQmx -201003 and kin): unplugged or unpowered."""
 
 
 class DaqDeviceError(DeviceError):
@@ -206,16 +213,23 @@ class NiDaqPressure:
         return block
 
     def stop(self) -> None:
-        """Stop and release the task; safe to call at any time."""
+        """Stop and release the task; safe to call at any time. A device that is gone
+        fails both calls: the task is released all the same and the first error raised
+        as a DeviceError."""
         task, self._task, self._reader = self._task, None, None
         if task is None:
             return
-        try:
-            task.stop()
-        except _daq_error() as exc:
-            raise self._translate(exc, "stopping the acquisition") from exc
-        finally:
-            task.close()
+        failures = []
+        for doing, call in (
+            ("stopping the acquisition", task.stop),
+            ("closing the task", task.close),
+        ):
+            try:
+                call()
+            except _daq_error() as exc:
+                failures.append(self._translate(exc, doing))
+        if failures:
+            raise failures[0]
 
     # -- internals -----------------------------------------------------------------------
 
@@ -380,6 +394,11 @@ class NiDaqPressure:
         """A DAQmx error as a DeviceError that says what happened and what to do."""
         code = exc.error_code
         what = f"DAQmx error {code} while {doing}: {_first_line(exc)}"
+        if code in UNREACHABLE_CODES:
+            return DaqUnreachableError(
+                f"{what}; the DAQ cannot be reached: check that its USB cable is in and its "
+                "light is on, and that it is listed (nilsdev, or NI MAX); then start again"
+            )
         if code == SAMPLES_NOT_YET_AVAILABLE:
             return DaqTimeoutError(
                 f"{what}; no samples within {self.read_timeout_s:g} s: check the USB cable "

@@ -26,7 +26,13 @@ Behaviour copied from the device rather than replayed:
   ``READ_ALL_AVAILABLE`` never waits; DAQmx's own error codes for everything else;
 - the MPX5100's output (ratiometric, with an offset error and noise) and the
   quantisation of the hardware range, 13 bits in RSE and 14 differential (the usual
-  datasheet split, unverified against NI), saturating at the range's ends.
+  datasheet split, unverified against NI), saturating at the range's ends;
+- the ways the bench dies, from a clock time on (``fail``, ``FAILURES``): the sensor's
+  Vout wire cut (the input reads 0 V), its supply wire cut (no output, and a measured
+  supply of 0 V), its output frozen (every later sample the same code), the device
+  stalling (no sample acquired after it: reads wait and time out, -200284) or vanishing
+  (unplugged: the samples already in the host buffer are read, then every call,
+  ``stop`` and ``close`` too, raises -201003, as DAQmx reports a device it cannot reach).
 
 This module imports nidaqmx (constants and exceptions only; no driver needed): it is
 loaded only when a simulated rig is built.
@@ -66,6 +72,7 @@ DIFF_RANGES_V = (1.0, 1.25, 2.0, 2.5, 4.0, 5.0, 10.0, 20.0)
 MAX_AGGREGATE_RATE_HZ = 48_000.0
 MIN_RATE_HZ = 0.1
 
+FAILURES = ("vout-cut", "supply-cut", "frozen", "stall", "vanish")
 _CHANNEL_RE = re.compile(r"^/?(?P<dev>[A-Za-z]\w*)/ai(?P<first>\d+)(?::(?P<last>\d+))?$")
 
 
@@ -263,12 +270,16 @@ class SimInStream:
         task._check_open()
         if not task._running:
             return 0
-        return min(task._acquired() - task._read_pos, task._buffer_size)
+        available = min(task._acquired() - task._read_pos, task._buffer_size)
+        if available == 0:
+            task._check_reachable()
+        return available
 
     @property
     def total_samp_per_chan_acquired(self) -> int:
         task = self._task
         task._check_open()
+        task._check_reachable()
         return task._acquired() if task._running else 0
 
 
@@ -334,6 +345,9 @@ class SimDaqTask:
         self._overflow_code = DAQmxErrors.SAMPLES_NO_LONGER_AVAILABLE
         self._timeout_pending = False
         self._timeout_delivers = 0
+        self._failure: str | None = None
+        self._failed_at_s = float("inf")
+        self._frozen_v: np.ndarray | None = None  # per channel, once frozen
 
     # -- the nidaqmx.Task surface -------------------------------------------------------
 
@@ -358,6 +372,7 @@ class SimDaqTask:
 
     def start(self) -> None:
         self._check_open()
+        self._check_reachable()
         if self._running:
             return
         self._verify()
@@ -394,10 +409,12 @@ class SimDaqTask:
     def stop(self) -> None:
         self._check_open()
         self._running = False
+        self._check_reachable()
 
     def close(self) -> None:
         self._running = False
         self._closed = True
+        self._check_reachable()
 
     def __enter__(self) -> SimDaqTask:
         return self
@@ -421,6 +438,22 @@ class SimDaqTask:
         self._timeout_pending = True
         self._timeout_delivers = int(n_delivered)
 
+    def fail(self, failure: str, at_s: float | None = None) -> None:
+        """One of ``FAILURES`` from clock time ``at_s`` (default now) on."""
+        if failure not in FAILURES:
+            raise ValueError(f"unknown DAQ failure {failure!r}: one of {FAILURES}")
+        self._failure = failure
+        self._failed_at_s = self.clock.now() if at_s is None else float(at_s)
+
+    def _check_reachable(self) -> None:
+        """After a vanish: everything but reading the host buffer fails."""
+        if self._failure == "vanish" and self.clock.now() >= self._failed_at_s:
+            raise self._error(
+                "Device cannot be accessed.\nPossible causes:\nDevice is no longer present "
+                f"in the system.\nDevice is not powered.\nDevice: {self.device}",
+                DAQmxErrors.DEV_CANNOT_BE_ACCESSED,
+            )
+
     # -- the simulation -----------------------------------------------------------------
 
     def _device_rate_hz(self) -> float:
@@ -428,9 +461,13 @@ class SimDaqTask:
         return self.timing.samp_clk_rate * (1.0 + 1e-6 * self.clock_error_ppm)
 
     def _acquired(self) -> int:
-        """Samples taken since start: sample k is taken at t_start + k/rate."""
-        elapsed_s = self.clock.now() - self._t_start_s
-        return int(np.floor(elapsed_s * self._device_rate_hz())) + 1
+        """Samples taken since start: sample k is taken at t_start + k/rate (none after
+        a stall or a vanish)."""
+        now_s = self.clock.now()
+        if self._failure in ("stall", "vanish"):
+            now_s = min(now_s, self._failed_at_s)
+        elapsed_s = now_s - self._t_start_s
+        return max(0, int(np.floor(elapsed_s * self._device_rate_hz())) + 1)
 
     def _read_into(self, data, n_requested, timeout, reader) -> int:
         self._check_open()
@@ -514,16 +551,26 @@ class SimDaqTask:
         t_s = self._t_start_s + k / self._device_rate_hz()
         p_kpa = np.asarray(self.pressure_kpa_at(t_s), dtype=float) + self.offset_error_kpa
         noise_v = self.noise_kpa * mpx5100.SENSITIVITY_PER_KPA * self.supply_v
+        failed = t_s >= self._failed_at_s
         for row, channel in enumerate(self.ai_channels._channels):
             name = channel.physical.lower()
             if name == self.output_channel:
                 v = mpx5100.output_v(p_kpa, self.supply_v)
+                cut = failed if self._failure in ("vout-cut", "supply-cut") else False
             elif name == self.supply_channel:
                 v = np.full(n, self.supply_v)
+                cut = failed if self._failure == "supply-cut" else False
             else:
                 v = np.zeros(n)
+                cut = False
+            v = np.where(cut, 0.0, v)  # a cut wire: the input reads ground
             v = v + self._rng.normal(0.0, noise_v, n) if noise_v > 0 else v
             out[row, :n] = quantise(v, channel.range_v, channel.bits)
+        if self._failure == "frozen" and failed.any():
+            first = int(np.argmax(failed))
+            if self._frozen_v is None:
+                self._frozen_v = out[:, max(first - 1, 0)].copy()  # the last good codes
+            out[:, first:n] = self._frozen_v[:, None]
         self._read_pos += n
 
     # -- helpers ------------------------------------------------------------------------

@@ -32,9 +32,7 @@ from labrig.config.rig_file import CameraConfig, PressureConfig, PumpConfig, Rig
 from labrig.errors import DeviceError, InputError
 from labrig.time.clock import Clock
 
-SUPPLY_RANGE_V = (4.75, 5.25)  # MPX5100 data sheet: 5.0 V +- 5 %
 CAMERA_FRAMES = 10  # frames tried before both markers must have been found
-PUMP_TIMEOUT_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -95,16 +93,18 @@ def check_pump(
     config: PumpConfig,
     clock: Clock,
     port: str | None = None,
-    timeout_s: float = PUMP_TIMEOUT_S,
+    timeout_s: float | None = None,
     search_timeout_s: float | None = None,
 ) -> DeviceCheck:
     """The pump at ``config.address`` on ``port`` (default: the configured port), each
-    reply awaited ``timeout_s`` (host time); with no reply, a pump at another address
-    awaited ``search_timeout_s`` (default ``timeout_s``)."""
+    reply awaited ``timeout_s`` (host time; default the rig file's ``reply_timeout_s``,
+    as a run awaits it); with no reply, a pump at another address awaited
+    ``search_timeout_s`` (default ``timeout_s``)."""
     from labrig.drivers.phd_ultra import PhdUltra
     from labrig.drivers.phd_ultra_errors import PumpPortError, PumpTimeout
 
     port = port or config.port
+    timeout_s = config.reply_timeout_s if timeout_s is None else timeout_s
     expected = f"a PHD ULTRA at address {config.address} on {port} ({config.baud} baud)"
     try:
         pump = PhdUltra.open(
@@ -302,12 +302,15 @@ def check_pressure(
             found = "NI-DAQmx is not installed on this machine (nidaqmx finds no driver)"
         return DeviceCheck("pressure", False, found, expected, check)
     found = f"{where}: {seconds:g} s, {n} samples, {p_kpa:+.2f} kPa{supply}"
-    if supply_v is not None and not SUPPLY_RANGE_V[0] <= supply_v <= SUPPLY_RANGE_V[1]:
+    if (
+        supply_v is not None
+        and not mpx5100.SUPPLY_RANGE_V[0] <= supply_v <= mpx5100.SUPPLY_RANGE_V[1]
+    ):
         return DeviceCheck(
             "pressure",
             False,
             found,
-            f"a supply of {SUPPLY_RANGE_V[0]}-{SUPPLY_RANGE_V[1]} V",
+            f"a supply of {mpx5100.SUPPLY_RANGE_V[0]}-{mpx5100.SUPPLY_RANGE_V[1]} V",
             "the sensor's supply wiring and pressure.supply_channel",
         )
     if flagged == n or not abs(p_kpa) <= tolerance:

@@ -19,8 +19,8 @@ from labrig.rig.assembly import build_rig
 from labrig.rig.check import DeviceCheck, check_camera, check_pressure, check_pump
 
 # the emulator's thread shares the host with everything else: a starved host only
-# costs wall time here, so its replies are awaited longer than the bench's 0.5 s (but
-# not the runs' 10 s: the no-reply fault waits this eight times). The search for a pump
+# costs wall time here, so its replies are awaited as long as the rig file's default
+# (but not the runs' 10 s: the no-reply fault waits this eight times). The search for a pump
 # at another address has its own timeout: a test of the faults, where no reply is the
 # point, shortens the first and keeps the second (the answer it needs may come late).
 SIM_REPLY_TIMEOUT_S = 2.0

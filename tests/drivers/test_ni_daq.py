@@ -18,6 +18,7 @@ from labrig.drivers.ni_daq import (
     DaqNotInstalledError,
     DaqOverflowError,
     DaqTimeoutError,
+    DaqUnreachableError,
     NiDaqPressure,
 )
 from labrig.errors import DeviceError, InputError
@@ -430,3 +431,41 @@ def test_a_disagreement_no_crystal_has_is_not_believed(caplog):
     rig.daq.stop()
     assert "ppm off the host clock: not believed" in caplog.text
     np.testing.assert_allclose(np.diff(t), 0.01, rtol=1e-9)
+
+
+def test_an_unplugged_daq_gets_cable_advice_and_its_buffer_is_read_first():
+    """-201003 says the device cannot be reached, not that the wiring or rate is wrong;
+    what was in the host buffer when it went is still read."""
+    rig = Rig(ramp_after(0.0, 1.0), supply_channel="Dev1/ai1")
+    rig.daq.start(1000.0)
+    rig.clock.sleep(0.5)
+    rig.tasks[-1].fail("vanish")
+    rig.clock.sleep(0.3)
+    block = rig.daq.read()
+    assert block.t_s[-1] == pytest.approx(0.5, abs=2e-3)  # every sample up to the unplug
+    with pytest.raises(DaqUnreachableError, match="-201003.*cannot be reached.*USB cable"):
+        rig.daq.read()
+    # stop and close fail too, and the task is released all the same
+    with pytest.raises(DaqUnreachableError, match="while stopping"):
+        rig.daq.stop()
+    rig.daq.stop()  # nothing left to release
+
+
+@pytest.mark.parametrize(("failure", "check"), [("vout-cut", "low"), ("supply-cut", "nan")])
+def test_a_cut_sensor_wire_reads_as_no_pressure(failure, check):
+    """Vout cut: the input reads ground, -4.4 kPa (flagged); supply cut with the supply
+    measured: 0/0, converted to NaN, not a number that could pass for a pressure."""
+    rig = Rig(ramp_after(0.0, 10.0), supply_channel="Dev1/ai1")
+    rig.daq.start(1000.0)
+    rig.clock.sleep(0.5)
+    rig.tasks[-1].fail(failure)
+    rig.clock.sleep(0.5)
+    block = rig.daq.read()
+    before, after = block.t_s < 0.5, block.t_s >= 0.5
+    assert np.all(np.isfinite(block.pressure_kpa[before]))
+    assert not block.out_of_range[before].any()
+    if check == "low":
+        np.testing.assert_allclose(block.pressure_kpa[after], -0.04 / 0.009, atol=0.2)
+        assert block.out_of_range[after].all()
+    else:
+        assert np.isnan(block.pressure_kpa[after]).all()

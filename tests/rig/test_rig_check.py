@@ -85,6 +85,15 @@ def test_the_pump_check_finds_the_address_and_moves_nothing():
         assert emulator.net_volume_ml(clock.now()) == 0.0
 
 
+def test_the_pump_check_awaits_replies_as_long_as_the_rig_file_says():
+    """A pump that takes 0.6 s to answer passes with the rig file's 1.5 s, as a run would."""
+    clock = RealClock()
+    with PumpEmulator(clock) as emulator:
+        emulator.slow_replies(0.6)
+        check = check_pump(PumpConfig(port=emulator.port, reply_timeout_s=1.5), clock)
+        assert check.ok, check.line()
+
+
 def test_the_pump_check_on_a_pump_left_by_other_software_says_what_it_can_do():
     # poll on, only the manual's address form, infuse-only, no NVRAM command known
     clock = RealClock()
