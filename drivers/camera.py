@@ -22,9 +22,16 @@ What a frame's time is, per backend (``stamp``):
   shared clock read when the grab returns — late by the transfer, within a frame period;
 - a video file: the file's own position, ``CAP_PROP_POS_MSEC`` after the read.
 
-``configure`` sets the size, the rate, and locks exposure and focus where asked, then
-reads them back: a camera that silently stays at 640x480 would make a scale measured at
-1280x720 wrong, so a mismatch is refused in one line. The first ``warmup_frames`` frames
+``configure`` asks for MJPG first (a UVC webcam opens in YUYV, which USB 2.0 carries at
+about 10 fps at 1280x720), then sets the size, the rate, and locks exposure and focus
+where asked, then reads them all back: a camera that silently stays at 640x480 would
+make a scale measured at 1280x720 wrong, so a mismatch is refused in one line, and a
+rate the camera cannot give in the pixel format it took says which format that is.
+
+A capture stamp is checked against the shared clock read at the grab: a stamp ahead
+of it, far behind it (more than the driver's queue of frames), or not after the
+previous one means the camera's clock jumped, and the stream is failed rather than
+recorded out of time. The first ``warmup_frames`` frames
 after the stream starts are dropped: a webcam's auto exposure settles over them (its
 first frame is nearly black, and a scale taken from it would fail).
 
@@ -60,6 +67,15 @@ V4L2_MANUAL_EXPOSURE, V4L2_AUTO_EXPOSURE = 1.0, 3.0
 DEFAULT_WARMUP_FRAMES = 5
 # no frame for this long (clock seconds) from a live camera is a device fault
 FRAME_TIMEOUT_S = 2.0
+# the pixel format asked for first: compressed, so USB 2.0 carries 1280x720 at 30 fps
+PREFERRED_FOURCC = "MJPG"
+# a capture stamp may lead the clock read after the grab by rounding only, and trail it
+# by the frames queued in the driver (V4L2: 4) and the reader's delay
+STAMP_LEAD_S = 0.01
+STAMP_LAG_FRAMES = 6
+STAMP_LAG_MIN_S = 1.0
+# frames tried for the reference scale before the run is refused
+CALIBRATION_FRAMES = 10
 # A reader nobody has asked for a frame for this long (clock seconds) stops; the next
 # read() starts it again. An abandoned FrameSource (one never closed after an error)
 # would otherwise read forever, and on a virtual clock a lone reader runs flat out.
@@ -81,6 +97,7 @@ class CameraSettings:
     fps: float | None = None
     exposure: float | None = None  # manual exposure in the backend's units; None: auto
     focus: float | None = None  # manual focus in the backend's units; None: leave it
+    fourcc: str | None = PREFERRED_FOURCC  # the pixel format asked for; None: leave it
 
 
 class FrameSource:
@@ -118,6 +135,8 @@ class FrameSource:
         self._last_grab_s = float("-inf")
         self._keep_all = False  # take_frames() in use: every frame kept until taken
         self._kept: list[Frame] = []
+        self.fourcc = ""  # the pixel format the camera reports, once configured
+        self._last_stamp_s = float("-inf")
 
     @classmethod
     def open(
@@ -180,6 +199,9 @@ class FrameSource:
     def configure(self, settings: CameraSettings) -> None:
         """Set what ``settings`` asks for, then read each back; a mismatch is refused."""
         c = self.capture
+        if settings.fourcc is not None:
+            # first: on V4L2 a format change resets the rate
+            c.set(cv2.CAP_PROP_FOURCC, cv2.VideoWriter_fourcc(*settings.fourcc))
         asked: list[tuple[str, int, float]] = []
         if settings.width is not None:
             asked.append(("width", cv2.CAP_PROP_FRAME_WIDTH, float(settings.width)))
@@ -195,11 +217,22 @@ class FrameSource:
             asked.append(("focus", cv2.CAP_PROP_FOCUS, float(settings.focus)))
         for _, prop, value in asked:
             c.set(prop, value)
+        self.fourcc = fourcc_text(c.get(cv2.CAP_PROP_FOURCC))
         for what, prop, value in asked:
             got = float(c.get(prop))
             if what == "fps" and got == 0.0:
                 continue  # the backend does not report a rate: nothing to compare
             if abs(got - value) > 0.01 * max(abs(value), 1.0):
+                if what == "fps" and self.fourcc and self.fourcc != settings.fourcc:
+                    size = (
+                        f"{c.get(cv2.CAP_PROP_FRAME_WIDTH):g}x{c.get(cv2.CAP_PROP_FRAME_HEIGHT):g}"
+                    )
+                    raise DeviceError(
+                        f"{self.name}: streams {self.fourcc}, not {settings.fourcc}, and "
+                        f"gives {got:g} fps at {size} where {value:g} were asked: lower "
+                        "camera.fps or camera.width/height in the rig file, or use a camera "
+                        "that streams MJPG (v4l2-ctl --list-formats-ext lists its formats)"
+                    )
                 raise DeviceError(
                     f"{self.name}: asked for {what} {value:g}, the camera gives {got:g} "
                     f"(set camera.{what} in the rig file to what it supports; "
@@ -266,6 +299,9 @@ class FrameSource:
         look like a camera that stopped sending."""
         try:
             self._read_every_frame()
+        except DeviceError as exc:
+            with self._lock:
+                self._error = exc
         except Exception as exc:
             with self._lock:
                 self._error = DeviceError(f"{self.name} reader failed: {exc!r}")
@@ -287,7 +323,9 @@ class FrameSource:
             t_s = t_host_s
             if self.stamp == "capture":
                 t_capture_s = self.capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
-                t_s = t_capture_s if t_capture_s > 0 else t_host_s
+                if t_capture_s > 0:
+                    self._check_stamp(t_capture_s, t_host_s)
+                    t_s = t_capture_s
             frame = Frame(t_s=t_s, image=image)
             with self._lock:
                 if self._keep_all:
@@ -296,6 +334,35 @@ class FrameSource:
                 else:
                     self._latest = frame
                     self._latest_seq += 1
+
+    def _check_stamp(self, t_capture_s: float, t_host_s: float) -> None:
+        """A capture stamp must lie between the queue's depth before the grab and the
+        grab, and after the previous frame's (module docstring)."""
+        fps = float(self.capture.get(cv2.CAP_PROP_FPS) or 0.0)
+        lag_s = max(STAMP_LAG_MIN_S, STAMP_LAG_FRAMES / fps) if fps > 0 else STAMP_LAG_MIN_S
+        problem = None
+        if t_capture_s > t_host_s + STAMP_LEAD_S:
+            problem = f"{t_capture_s - t_host_s:.2f} s ahead of"
+        elif t_capture_s < t_host_s - lag_s:
+            problem = f"{t_host_s - t_capture_s:.2f} s behind"
+        elif t_capture_s <= self._last_stamp_s:
+            problem = f"not after the previous frame's ({self._last_stamp_s:.3f} s), against"
+        if problem is not None:
+            raise DeviceError(
+                f"{self.name}: frame stamped {t_capture_s:.3f} s, {problem} the host clock "
+                f"({t_host_s:.3f} s): the camera's clock jumped; reconnect the camera"
+            )
+        self._last_stamp_s = t_capture_s
+
+    @property
+    def last_grab_s(self) -> float:
+        """The clock time of the newest frame taken from the camera (warm-up included)."""
+        return self._last_grab_s
+
+    @property
+    def error(self) -> Exception | None:
+        """What stopped the reader, if anything did."""
+        return self._error
 
     def _read_file(self) -> Frame | None:
         ok, image = self.capture.read()
@@ -374,8 +441,43 @@ class CameraLength:
 
     def read_rest(self) -> list[LengthSample]:
         """``read_new``, then the frames it handed over, waited for: every frame taken so
-        far, measured."""
-        return self.read_new() + self._collect()
+        far, measured. A camera that failed still has its last batch measured."""
+        try:
+            done = self.read_new()
+        except DeviceError:
+            done = []  # nothing new came; the batch in hand is still there
+        return done + self._collect()
+
+    def calibrate(self) -> None:
+        """Take the scale from the first frame (after the warm-up) in which both markers
+        are found, a known ``reference_distance_mm`` apart: before a run moves anything,
+        so a camera that cannot see them refuses the run with nothing moved. A given
+        ``mm_per_px``, or a video file (its first frame is the reference when read),
+        needs nothing."""
+        if self.mm_per_px is not None or self.frames.is_file:
+            return
+        statuses = []
+        for _ in range(CALIBRATION_FRAMES):
+            fix = self.tracker.track(self.frames.read().image)
+            if fix.ok and fix.distance_px > 0:
+                self.mm_per_px = mm_per_px_from_reference(fix, self.reference_distance_mm)
+                return
+            statuses.append(fix.status)
+        raise DeviceError(
+            f"{self.frames.name}: no scale: both markers were not found in "
+            f"{CALIBRATION_FRAMES} frames (last: {statuses[-1]}) for the reference distance "
+            f"of {self.reference_distance_mm:g} mm; check the camera's view, focus and "
+            "light, or give camera.mm_per_px in the rig file"
+        )
+
+    def newest_frame_s(self) -> float:
+        """The clock time of the camera's newest frame (for the signal watch)."""
+        return self.frames.last_grab_s
+
+    def stream_fault(self) -> str | None:
+        """Why the camera's stream stopped, once it has (None while it streams)."""
+        error = self.frames.error
+        return None if error is None else str(error)
 
     def _collect(self) -> list[LengthSample]:
         frames, self._in_hand = self._in_hand, []
@@ -413,3 +515,10 @@ class CameraLength:
         self._in_hand = []
         if process is not None:
             process.close()
+
+
+def fourcc_text(code: float) -> str:
+    """A FOURCC as OpenCV reports it (a float of the packed code) as its four letters;
+    "" when the backend reports none."""
+    value = int(code)
+    return "" if value <= 0 else value.to_bytes(4, "little").decode("ascii", "replace").strip()

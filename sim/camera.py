@@ -11,7 +11,11 @@ at ``fps``; it streams at 640x480 until a size is set; it keeps 4 buffers and ha
 the oldest; its first frames after the stream starts are dark while the auto exposure
 settles; ``CAP_PROP_POS_MSEC`` is the frame's capture time on the clock (V4L2: the
 kernel's monotonic buffer timestamp); ``set``/``get`` take and read back the size, rate,
-exposure and focus. ``write_video`` writes frames to a real MJPG/AVI file.
+exposure, focus and pixel format: it opens in YUYV, takes MJPG when asked unless it is
+a YUYV-only camera (``formats``), and in YUYV gives at most the rate USB 2.0 carries
+(``YUYV_BYTES_PER_S``: 10 fps at 1280x720, 30 at 640x480). It dies as cameras die
+(``stop_frames``: the next grab never returns; ``jump_clock``: its stamps jump).
+``write_video`` writes frames to a real MJPG/AVI file.
 
 Frames are rendered where they are read (``SimFrame``): the tracker reads two small
 windows per frame, and a batch of frames has its windows rendered together
@@ -48,6 +52,11 @@ V4L2_DEFAULT_SIZE = (640, 480)  # what a UVC camera streams until the driver set
 # The light reaching the sensor in the first frames after the stream starts, while the
 # auto exposure settles (a webcam's first frame is nearly black).
 SETTLING_EXPOSURE = (0.0, 0.3, 0.7)
+# What a UVC webcam's YUYV stream gets over USB 2.0: 1280x720 at 10 fps, 640x480 at 30
+# (2 bytes a pixel), the rates such cameras list for YUYV.
+YUYV_BYTES_PER_S = 1280 * 720 * 2 * 10
+# How often (clock seconds) a camera whose frames stopped looks whether it was released.
+STOPPED_POLL_S = 0.1
 
 
 @dataclass(frozen=True)
@@ -99,6 +108,7 @@ class SimCamera:
         seed: int | None = 0,
         queue_frames: int = 4,
         monochrome: bool = False,
+        formats: tuple[str, ...] = ("YUYV", "MJPG"),
     ) -> None:
         if not mm_per_px > 0 or not fps > 0 or queue_frames < 1:
             raise ValueError("SimCamera: mm_per_px and fps must be > 0, queue_frames >= 1")
@@ -143,6 +153,11 @@ class SimCamera:
         self._noise = self._make_noise() if self.noise_grey > 0 else None
         self._noise_picks: list[tuple[int, int, int]] = []  # (noise frame, dy, dx), next last
         self.hidden_markers: set[int] = set()  # fault injection: 0 and/or 1 not drawn
+        self.formats = tuple(formats)
+        self.fourcc = self.formats[0]  # a UVC camera opens in its first format
+        self._asked_fps = float(fps)
+        self._frames_stop_s = math.inf  # fault injection: no frame exposed from then on
+        self._clock_jump_s = 0.0  # fault injection: added to every later stamp
         self._pos_msec = 0.0
         # as a capture: V4L2 streams at 640x480 until a size is set
         self.stream_size = V4L2_DEFAULT_SIZE
@@ -419,9 +434,11 @@ class SimCamera:
         self._last_frame = k
         t_s = k / self.fps
         self.clock.sleep(t_s - self.clock.now())
+        while self._opened and t_s >= self._frames_stop_s:
+            self.clock.sleep(STOPPED_POLL_S)  # a grab that never returns, until released
         if not self._opened:
             return False, None  # released while it waited for the frame
-        self._pos_msec = 1000.0 * t_s
+        self._pos_msec = 1000.0 * (t_s + self._clock_jump_s)
         settled = k - self._stream_first
         exposure = SETTLING_EXPOSURE[settled] if settled < len(SETTLING_EXPOSURE) else 1.0
         frame = self.frame_at(t_s, exposure)
@@ -441,16 +458,38 @@ class SimCamera:
             for mode in (V4L2_DEFAULT_SIZE, (self.width, self.height)):
                 if asked == mode and mode != self.stream_size:
                     self.stream_size = mode
-                    self._restart_stream()
+                    self._set_rate()
             return True
         if prop_id == cv2.CAP_PROP_FPS:
-            self.fps = float(value)
-            self._restart_stream()
+            self._asked_fps = float(value)
+            self._set_rate()
+            return True
+        if prop_id == cv2.CAP_PROP_FOURCC:
+            asked = int(value).to_bytes(4, "little").decode("ascii", "replace")
+            if asked in self.formats:
+                self.fourcc = asked
+                self._set_rate()
             return True
         if prop_id in self._controls:
             self._controls[prop_id] = float(value)
             return True
         return False
+
+    def _set_rate(self) -> None:
+        """The rate asked for, as far as the pixel format and size allow; a new format,
+        size or rate restarts the stream."""
+        width, height = self.stream_size
+        limit = YUYV_BYTES_PER_S / (2 * width * height) if self.fourcc == "YUYV" else math.inf
+        self.fps = min(self._asked_fps, limit)
+        self._restart_stream()
+
+    def stop_frames(self, at_s: float | None = None) -> None:
+        """From clock time ``at_s`` (default now) no frame comes: a grab blocks."""
+        self._frames_stop_s = self.clock.now() if at_s is None else float(at_s)
+
+    def jump_clock(self, by_s: float) -> None:
+        """Every later frame's stamp is off by ``by_s`` (the camera's clock jumped)."""
+        self._clock_jump_s = float(by_s)
 
     def _restart_stream(self) -> None:
         """A new format: the stream stops (its queued buffers are dropped) and starts
@@ -464,6 +503,7 @@ class SimCamera:
             cv2.CAP_PROP_FRAME_WIDTH: float(self.stream_size[0]),
             cv2.CAP_PROP_FRAME_HEIGHT: float(self.stream_size[1]),
             cv2.CAP_PROP_FPS: self.fps,
+            cv2.CAP_PROP_FOURCC: float(int.from_bytes(self.fourcc.encode("ascii"), "little")),
             **self._controls,
         }.get(prop_id, 0.0)
 

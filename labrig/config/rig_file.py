@@ -99,6 +99,13 @@ class CameraConfig(Strict):
     warmup_frames: int = Field(
         5, ge=0, le=300, description="Frames dropped at start while the auto exposure settles"
     )
+    fourcc: str | None = Field(
+        "MJPG",
+        min_length=4,
+        max_length=4,
+        description="Pixel format asked for first and read back (MJPG: 1280x720 at 30 fps "
+        "over USB 2.0; YUYV gives ~10 fps there); null leaves the camera's own",
+    )
 
     def settings(self, protocol_fps: float | None):
         """What the driver sets on the camera (the rate: this file's, else the
@@ -111,6 +118,7 @@ class CameraConfig(Strict):
             fps=self.fps or protocol_fps,
             exposure=self.exposure,
             focus=self.focus,
+            fourcc=self.fourcc,
         )
 
     @model_validator(mode="after")

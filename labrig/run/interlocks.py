@@ -54,6 +54,69 @@ class PressureCeiling(Interlock):
         )
 
 
+class PressureSignal(Interlock):
+    """Trips on a sample that is no pressure reading: not a number (the sensor's supply
+    lost: 0/0), or flagged beyond the sensor's or the ADC's range while not above the
+    limit (a cut output wire reads -4.4 kPa). A dead sensor reads low, never high, so
+    the ceiling alone would let the pump infuse into it."""
+
+    outcome = "faulted"
+
+    def check_pressure(self, block: PressureBlock) -> str | None:
+        p = block.pressure_kpa
+        bad = np.flatnonzero(~np.isfinite(p) | block.out_of_range)
+        if len(bad) == 0:
+            return None
+        first = int(bad[0])
+        t_s = block.t_s[first]
+        if not np.isfinite(p[first]):
+            return (
+                f"pressure signal lost at t = {t_s:.2f} s: the reading is not a number "
+                "(check the sensor's supply and its wires)"
+            )
+        return (
+            f"pressure reading {p[first]:.1f} kPa at t = {t_s:.2f} s is outside the "
+            "sensor's range (a cut output wire reads -4.4 kPa: check the sensor's wires)"
+        )
+
+
+class PressureStuck(Interlock):
+    """Trips when every sample for ``stuck_s`` (and at least ``min_samples``) is the
+    same number: a live sensor's noise moves the ADC's last bits, a frozen input does
+    not. Only the latest stretch of equal samples is followed, across blocks."""
+
+    outcome = "faulted"
+
+    def __init__(self, stuck_s: float, min_samples: int = 50) -> None:
+        self.stuck_s = stuck_s
+        self.min_samples = min_samples
+        self._value = np.nan
+        self._since_s = 0.0
+        self._count = 0
+
+    def check_pressure(self, block: PressureBlock) -> str | None:
+        p, t = block.pressure_kpa, block.t_s
+        if len(p) == 0:
+            return None
+        changes = np.flatnonzero(p[1:] != p[:-1])
+        if len(changes):
+            start = int(changes[-1]) + 1
+            self._since_s, self._count = float(t[start]), len(p) - start
+        elif p[0] == self._value:
+            self._count += len(p)
+        else:
+            self._since_s, self._count = float(t[0]), len(p)
+        self._value = float(p[-1])
+        stuck_s = float(t[-1]) - self._since_s
+        if stuck_s >= self.stuck_s and self._count >= self.min_samples:
+            return (
+                f"pressure signal stuck at {self._value:.2f} kPa for {stuck_s:.2f} s since "
+                f"t = {self._since_s:.2f} s ({self._count} identical samples: a frozen "
+                "sensor or input)"
+            )
+        return None
+
+
 @dataclass(frozen=True)
 class VolumeCeiling(Interlock):
     """Trips when the volume in the specimen exceeds the limit."""

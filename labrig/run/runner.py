@@ -8,12 +8,18 @@ timestamped by the device on the shared clock. Every wait goes through the clock
 (sleeps, conditions, the loops' start and end), so on the simulated rig's virtual
 clock no decision depends on how fast the host is: time moves only while all wait.
 The interlock monitor is evaluated inside those loops, so a busy main loop cannot delay
-a stop. The main thread walks the protocol's steps.
+a stop; a fourth loop watches that the pressure samples and the camera's frames keep
+coming (``labrig.run.signal_watch``), since a dead device sends nothing to trip on. The
+pump never starts unless a pressure sample came within that allowance, and a camera
+whose scale is taken from its first frame is calibrated before anything moves. The
+main thread walks the protocol's steps.
 
 Every way a run can end goes through one exit: the pump is stopped first, the loops
-are stopped, and the file is finalised with everything recorded so far and the run
-marked complete, aborted or faulted with the reason. The first Ctrl-C stops safely
-like any interlock; the second stops now (the pump is still sent a stop).
+are stopped, the samples still in the DAQ's buffer and the frames still being tracked
+are recorded, and the file is finalised with everything recorded so far and the run
+marked complete, aborted or faulted with the reason, whatever fails on the way out.
+The first Ctrl-C stops safely like any interlock; the second stops now (the pump is
+still sent a stop).
 
 Nothing is replayed: each infuse/withdraw step has an absolute target volume in the
 specimen, and the pump is asked only for the difference between that target and the
@@ -56,7 +62,15 @@ from labrig.rig.devices import (
     Pump,
     PumpState,
 )
-from labrig.run.interlocks import InterlockMonitor, PressureCeiling, PumpStall, VolumeCeiling
+from labrig.run.interlocks import (
+    InterlockMonitor,
+    PressureCeiling,
+    PressureSignal,
+    PressureStuck,
+    PumpStall,
+    VolumeCeiling,
+)
+from labrig.run.signal_watch import SignalWatch
 from labrig.time.clock import Clock, ClockThread
 
 MOVING = (PumpState.INFUSING, PumpState.WITHDRAWING)
@@ -116,6 +130,10 @@ class Timing:
     target_grace_s: float = 5.0
     first_readings_s: float = 10.0
     loop_exit_s: float = 5.0
+    # a signal quiet this long (no pressure sample; no camera frame, or three frame
+    # periods if longer) is a dead device, as is a pressure this long at one number
+    signal_timeout_s: float = 0.5
+    watch_period_s: float = 0.1
 
 
 @dataclass
@@ -127,6 +145,7 @@ class _Latest:
     pump_t_s: float = float("-inf")
     pump_seq: int = -1
     pressure_blocks: int = 0
+    pressure_samples: int = 0
     lock: threading.Lock = field(default_factory=threading.Lock)
 
 
@@ -155,10 +174,13 @@ class Runner:
             rig.pump,
             [
                 PressureCeiling(self.protocol.limits.max_pressure_kpa),
+                PressureSignal(),
+                PressureStuck(self.timing.signal_timeout_s),
                 VolumeCeiling(self.protocol.limits.max_volume_ml),
                 PumpStall(),
             ],
         )
+        self.watch = SignalWatch(rig.clock)
         self.latest = _Latest()
         self._repetition = 1
         # (start time, repetition) of each repetition entered, in order: frames are
@@ -289,7 +311,7 @@ class Runner:
         else:
             pump.set_withdraw_rate(rate_ml_min)
         pump.set_target_volume(remaining_ml)
-        if self.monitor.tripped:
+        if self.monitor.tripped or not self._pressure_is_live():
             return
         pump.infuse() if direction > 0 else pump.withdraw()
         with self.latest.lock:
@@ -300,6 +322,17 @@ class Runner:
         deadline_s = self.clock.now() + 1.2 * expected_s + self.timing.target_grace_s
         if self._wait_until_pump_stops(seq, deadline_s):
             self._check_arrival(target_ml)
+
+    def _pressure_is_live(self) -> bool:
+        """The pump starts only on a pressure signal that is live now: a sample within
+        the signal allowance (the interlocks have judged every sample as it came)."""
+        quiet_s = self.watch.quiet_s("pressure")
+        if quiet_s <= self.timing.signal_timeout_s:
+            return True
+        self.monitor.trip(
+            f"refusing to start the pump: no pressure sample for {quiet_s:.2f} s", "faulted"
+        )
+        return False
 
     def _wait_until_pump_stops(self, seq: int, deadline_s: float) -> bool:
         """True once a status newer than the run command shows the motor stopped."""
@@ -359,10 +392,14 @@ class Runner:
         if self._acquiring:
             return
         self._stop_loops.clear()
+        camera = self.rig.length is not None and self.protocol.acquisition.camera_fps > 0
+        if camera and hasattr(self.rig.length, "calibrate"):
+            self.rig.length.calibrate()  # a scale taken from a frame, before anything moves
         self.rig.pressure.start(self.protocol.acquisition.pressure_rate_hz)
         self._acquiring = True
-        loops = [self._pressure_loop, self._pump_loop]
-        if self.rig.length is not None and self.protocol.acquisition.camera_fps > 0:
+        self.watch.expect("pressure", self.timing.signal_timeout_s)
+        loops = [self._pressure_loop, self._pump_loop, self._watch_loop]
+        if camera:
             loops.append(self._camera_loop)
         self._threads = [self.clock.start_thread(loop, loop.__name__.strip("_")) for loop in loops]
         self._wait_for_first_readings()
@@ -373,11 +410,11 @@ class Runner:
         self.clock.wait_for(
             lambda: (
                 self.monitor.tripped is not None
-                or (latest.pressure_blocks > 0 and latest.pump_t_s > float("-inf"))
+                or (latest.pressure_samples > 0 and latest.pump_t_s > float("-inf"))
             ),
             timeout_s=self.timing.first_readings_s,
         )
-        if not self.monitor.tripped and latest.pressure_blocks == 0:
+        if not self.monitor.tripped and latest.pressure_samples == 0:
             self.monitor.trip(
                 f"no pressure readings within {self.timing.first_readings_s:g} s of starting",
                 "faulted",
@@ -393,8 +430,13 @@ class Runner:
             timeout_s=0.0 if self._hurry else self.timing.loop_exit_s,
         )
         self._threads = []
+        self.watch.forget()
         if self._acquiring:
             self._acquiring = False
+            try:
+                self._record_pressure(self.rig.pressure.read())  # what the buffer still holds
+            except (LabrigError, OSError) as exc:
+                self.shutdown_errors.append(f"pressure read at stop: {exc}")
             try:
                 self.rig.pressure.stop()
             except (LabrigError, OSError) as exc:
@@ -427,18 +469,39 @@ class Runner:
         # standing in for the camera is read and measured at camera_fps
         if getattr(self.rig.length, "waits_for_frames", False):
             since_s = self.clock.now()
+            self.watch.expect("camera", self._frame_allowance_s())
             self._device_loop(
                 "camera", self.timing.camera_period_s, lambda: self._read_lengths(since_s)
             )
-            if self._stop_loops.is_set() and not self._hurry:
-                # the batch still being measured and the frames since, up to the stop
-                # (a loop that ended on a camera fault has already reported it)
+            if not self._hurry:
+                # the batch still being measured and the frames since, up to the stop or
+                # the camera's fault (already reported: a second error changes nothing)
                 with contextlib.suppress(LabrigError, OSError):
                     self._read_lengths(since_s, self._stopped_at_s, rest=True)
         else:
             self._device_loop(
                 "camera", 1.0 / self.protocol.acquisition.camera_fps, self._read_length
             )
+
+    def _frame_allowance_s(self) -> float:
+        return max(self.timing.signal_timeout_s, 3.0 / self.protocol.acquisition.camera_fps)
+
+    def _watch_loop(self) -> None:
+        """Trips when a watched signal went quiet, or the camera's stream failed (its
+        reader keeps what went wrong: the camera loop would see it only at its next
+        batch, up to a camera period later)."""
+        length = self.rig.length
+        stream_fault = getattr(length, "stream_fault", None)
+
+        def watch_once() -> None:
+            if stream_fault is not None:
+                self.watch.arrived("camera", length.newest_frame_s())
+                if reason := stream_fault():
+                    self.monitor.trip(f"camera: {reason}", "faulted")
+            if reason := self.watch.overdue():
+                self.monitor.trip(reason, "faulted")
+
+        self._device_loop("watch", self.timing.watch_period_s, watch_once)
 
     def _device_loop(
         self,
@@ -476,15 +539,21 @@ class Runner:
 
     def _read_pressure(self) -> None:
         block = self.rig.pressure.read()
+        self._record_pressure(block)
+        if len(block):
+            self.monitor.check_pressure(block)
+
+    def _record_pressure(self, block: PressureBlock) -> None:
         if len(block):
             self.writer.append_pressure(
                 self._current_repetition(), block.t_s, block.pressure_kpa, block.out_of_range
             )
-            self.monitor.check_pressure(block)
+            self.watch.arrived("pressure", float(block.t_s[-1]))
         latest = self.latest
         with latest.lock:
             if len(block):
                 latest.pressure_kpa = float(block.pressure_kpa[-1])
+                latest.pressure_samples += len(block)
             latest.pressure_blocks += 1
 
     def _read_pump(self) -> None:
@@ -631,15 +700,24 @@ class Runner:
         except (LabrigError, OSError) as exc:
             if not reason:
                 status, reason = "faulted", f"pump stop failed: {exc}"
-        self._stop_acquisition()
-        if self.video is not None:
-            self.video.close()
-            if self.video.error is not None and not reason:
-                status, reason = "faulted", f"video: {self.video.error}"
-        if self._repetition_started:
-            self._leave_repetition(status, reason)
-        self.writer.finalise(status, reason)
-        self.rig.close()
+        try:
+            self._stop_acquisition()
+            if self.video is not None:
+                self.video.close()
+                if self.video.error is not None and not reason:
+                    status, reason = "faulted", f"video: {self.video.error}"
+        except Exception as exc:
+            # whatever broke on the way out, the file is finalised with what it holds
+            self.shutdown_errors.append(f"shutdown: {exc!r}")
+            if not reason:
+                status, reason = "faulted", f"shutdown failed: {exc!r}"
+        finally:
+            try:
+                if self._repetition_started:
+                    self._leave_repetition(status, reason)
+                self.writer.finalise(status, reason)
+            finally:
+                self.rig.close()
 
 
 class _StopNow(BaseException):

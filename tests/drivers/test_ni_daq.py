@@ -443,7 +443,7 @@ def test_an_unplugged_daq_gets_cable_advice_and_its_buffer_is_read_first():
     rig.clock.sleep(0.3)
     block = rig.daq.read()
     assert block.t_s[-1] == pytest.approx(0.5, abs=2e-3)  # every sample up to the unplug
-    with pytest.raises(DaqUnreachableError, match="-201003.*cannot be reached.*USB cable"):
+    with pytest.raises(DaqUnreachableError, match=r"-201003.*cannot be reached.*USB cable"):
         rig.daq.read()
     # stop and close fail too, and the task is released all the same
     with pytest.raises(DaqUnreachableError, match="while stopping"):

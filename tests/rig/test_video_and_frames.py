@@ -170,20 +170,41 @@ def test_compare_json_is_the_contract_and_the_snap_length_change_is_measured(vid
     assert snap["dl_meas_mm"] == pytest.approx(snap["dl_mm"], abs=0.5)
 
 
-def test_a_failed_scale_calibration_faults_the_run(tmp_path):
-    """No warm-up frames: the dark first frame is the reference frame, its markers
-    cannot be found, and the run must end faulted, not complete without lengths."""
+def test_a_failed_scale_calibration_faults_the_run_before_anything_moves(tmp_path):
+    """A marker covered: the scale cannot be taken from the reference distance, and the
+    run ends faulted with nothing moved, not after the first millilitres."""
+    config = RigConfig(
+        pump=PumpConfig(port="emulator"),
+        camera=CameraConfig(reference_distance_mm=60.0, warmup_frames=0),
+        sim=SimConfig(),
+    )
+    outcome = run_sim(
+        tmp_path,
+        short_protocol(camera_fps=30),
+        config=config,
+        inject=lambda rig: rig.simulation.camera.hide_marker(1),
+    )
+    assert outcome.result.status == "faulted"
+    assert "no scale: both markers were not found" in outcome.result.reason
+    emulator = outcome.rig.simulation.emulator
+    assert emulator.net_volume_ml(outcome.end_s) == 0.0
+    assert outcome.pump_is_stopped()
+    with open_run(outcome.path) as run:
+        assert run["entry/status"][()] == b"faulted"
+
+
+def test_the_scale_is_taken_once_the_exposure_settled(tmp_path):
+    """No warm-up frames: the first frames are dark; the scale comes from the first
+    frame in which both markers are found, before the pump moves."""
     config = RigConfig(
         pump=PumpConfig(port="emulator"),
         camera=CameraConfig(reference_distance_mm=60.0, warmup_frames=0),
         sim=SimConfig(),
     )
     outcome = run_sim(tmp_path, short_protocol(camera_fps=30), config=config)
-    assert outcome.result.status == "faulted"
-    assert outcome.result.reason.startswith("camera: reference frame: both markers")
-    assert outcome.pump_is_stopped()
-    with open_run(outcome.path) as run:
-        assert run["entry/status"][()] == b"faulted"
+    assert outcome.result.status == "complete", outcome.result.reason
+    camera = outcome.rig.simulation.camera
+    assert outcome.rig.length.mm_per_px == pytest.approx(camera.mm_per_px, rel=0.01)
 
 
 def test_a_video_file_standing_in_for_the_camera_is_read_at_camera_fps(tmp_path):

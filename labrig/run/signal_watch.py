@@ -1,0 +1,64 @@
+"""Signals that must keep arriving: the pressure samples and the camera's frames.
+
+An interlock on a reading sees only the readings that come; a sensor whose DAQ stalls
+or is unplugged, or a camera that stops streaming, sends none, and nothing would trip.
+``SignalWatch`` keeps, per signal, the clock time of its newest sample and names the
+first signal that has been quiet for longer than its allowance; the runner asks it a
+few times a second from a loop of its own, so a reading loop blocked inside a driver
+cannot hide its own silence.
+"""
+
+from __future__ import annotations
+
+import threading
+
+from labrig.time.clock import Clock
+
+
+class SignalWatch:
+    """Per signal: the newest sample's clock time and how long it may be quiet."""
+
+    def __init__(self, clock: Clock) -> None:
+        self.clock = clock
+        self._lock = threading.Lock()
+        self._newest_s: dict[str, float] = {}
+        self._allowed_s: dict[str, float] = {}
+
+    def expect(self, name: str, allowed_s: float) -> None:
+        """Watch ``name`` from now on: its first sample is due within ``allowed_s``."""
+        with self._lock:
+            self._newest_s[name] = self.clock.now()
+            self._allowed_s[name] = allowed_s
+
+    def forget(self) -> None:
+        """Stop watching every signal (acquisition paused: nothing is due)."""
+        with self._lock:
+            self._newest_s.clear()
+            self._allowed_s.clear()
+
+    def arrived(self, name: str, t_s: float) -> None:
+        """A sample of ``name`` taken at clock time ``t_s``."""
+        with self._lock:
+            if name in self._newest_s:
+                self._newest_s[name] = max(self._newest_s[name], t_s)
+
+    def quiet_s(self, name: str) -> float:
+        """How long ``name`` has sent nothing (0 when it is not watched)."""
+        with self._lock:
+            newest_s = self._newest_s.get(name)
+        return 0.0 if newest_s is None else self.clock.now() - newest_s
+
+    def overdue(self) -> str | None:
+        """The reason to stop for the first signal quiet beyond its allowance, or None."""
+        now_s = self.clock.now()
+        with self._lock:
+            watched = list(self._newest_s.items())
+        for name, newest_s in watched:
+            quiet_s = now_s - newest_s
+            if quiet_s > self._allowed_s[name]:
+                return (
+                    f"{name}: no sample for {quiet_s:.2f} s (since t = {newest_s:.2f} s; "
+                    f"{self._allowed_s[name]:g} s allowed): the device stalled or was "
+                    "disconnected"
+                )
+        return None
