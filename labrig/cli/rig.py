@@ -52,3 +52,45 @@ def check(rig_file: Path | None, sim: bool, fault: str | None) -> None:
     click.echo(text)
     if code:
         raise click.exceptions.Exit(code)
+
+
+@rig.command()
+@click.option("--sim", is_flag=True, help="On the simulated rig (the only one a soak may kill).")
+@click.option("--runs", type=click.IntRange(min=1), default=200, show_default=True)
+@click.option("--seed", type=click.IntRange(min=0), default=1, show_default=True)
+@click.option("--json", "as_json", is_flag=True, help="One JSON object: summary and runs.")
+def soak(sim: bool, runs: int, seed: int, as_json: bool) -> None:
+    """RUNS simulated runs, each with one device fault at a random rig time; checks the
+    pump stopped within 1 s of the fault, the file finalised with the reason, no sample
+    before the fault lost, memory flat. One summary line; exit 0 only if all were safe."""
+    import json
+    import logging
+
+    from labrig.errors import InputError
+    from labrig.rig.soak import soak as run_soak
+    from labrig.rig.soak import verdict_dict
+
+    if not sim:
+        raise InputError(
+            "rig soak: it kills devices, so it runs on the simulated rig only: add --sim"
+        )
+
+    def report(verdict) -> None:
+        if not verdict.safe and not as_json:
+            click.echo(
+                f"run {verdict.run} ({verdict.fault}): UNSAFE: {'; '.join(verdict.problems)}"
+            )
+
+    # every run breaks a device on purpose: the drivers' warnings about it are expected
+    logging.getLogger("labrig").setLevel(logging.ERROR)
+    summary, verdicts = run_soak(runs, seed, on_run=report)
+    if as_json:
+        payload = {
+            "summary": {**summary.__dict__, "ok": summary.ok, "line": summary.line()},
+            "runs": [verdict_dict(v) for v in verdicts],
+        }
+        click.echo(json.dumps(payload))
+    else:
+        click.echo(summary.line())
+    if not summary.ok:
+        raise click.exceptions.Exit(1)

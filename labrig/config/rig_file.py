@@ -129,6 +129,12 @@ class CameraConfig(Strict):
         return self
 
 
+# The simulated pump's reply deadline in host seconds, by default. The emulator answers
+# at once in virtual time; this only bounds how long a starved host thread may take to
+# do it (and how long a pump that went silent costs in wall time: the soak shortens it).
+SIM_REPLY_TIMEOUT_S = 10.0
+
+
 class SimConfig(Strict):
     speed: float | None = Field(
         None,
@@ -144,6 +150,12 @@ class SimConfig(Strict):
     offset_error_kpa: float = Field(0.8, description="Sensor zero offset (removed by zeroing)")
     mm_per_px: float | None = Field(
         None, gt=0, description="Rendered camera scale; default fits the specimen"
+    )
+    reply_timeout_s: float = Field(
+        SIM_REPLY_TIMEOUT_S,
+        gt=0,
+        description="Host seconds the simulated pump's replies are awaited (virtual time "
+        "stands still meanwhile)",
     )
 
 

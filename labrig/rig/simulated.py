@@ -13,9 +13,6 @@ from labrig.config.rig_file import CameraConfig, RigConfig, rig_config_text
 from labrig.rig.connect import pressure_driver, set_up_pump
 from labrig.run.runner import Rig
 
-# The simulated pump's reply deadline in host seconds. The emulator answers at once in
-# virtual time; this only bounds how long a starved host thread may take to do it.
-SIM_REPLY_TIMEOUT_S = 10.0
 # The simulated camera's sensor (px) when the rig file has no camera section: a small
 # monochrome camera, so a simulated run's video (every frame rendered whole and encoded)
 # costs a fraction of a 1280x720 colour one; tracking reads only the markers' windows
@@ -63,7 +60,7 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
             emulator.port,
             address=config.pump.address,
             clock=clock,
-            timeout_s=SIM_REPLY_TIMEOUT_S,
+            timeout_s=sim.reply_timeout_s,
         )
         stack.callback(pump.close)
         set_up_pump(pump, config.pump, protocol)

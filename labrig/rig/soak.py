@@ -1,0 +1,300 @@
+"""The fault soak: many simulated runs, each killed by one device fault at a random rig
+time, each checked for what a technician counts on.
+
+Every run infuses and withdraws on the simulated rig (virtual time: a run of 22 s of
+rig time takes a fraction of that on the host) while one of ``FAULTS`` strikes at a
+time drawn from the seed: a sensor wire cut, a frozen sensor, a DAQ that stalls or is
+unplugged, a pump whose reply line dies mid-reply, a camera whose frames stop or whose
+clock jumps. A run is safe when
+- the emulated plunger stood still from at most ``MAX_STOP_S`` of rig time after the
+  fault on (the firmware's own record of the volume, not the driver's),
+- the run file is finalised (readable, not "running") with status faulted and a reason
+  that names the fault,
+- no pressure sample and no camera frame from before the fault is missing (the
+  samples are evenly spaced from the first to the fault, the frames up to one
+  allowance before it).
+The process's resident memory is read after every run: it must stay flat, since a
+leak of threads, pseudo-terminals or tracker processes would show there first.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import gc
+import random
+import resource
+import tempfile
+import time
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from labrig.config.protocol import load_protocol
+from labrig.config.rig_file import PressureConfig, PumpConfig, RigConfig, SimConfig
+from labrig.recording.run_reader import open_run, read_log
+from labrig.rig.assembly import build_rig
+from labrig.run.runner import Rig, Runner
+
+# the plunger must stand still this long (rig seconds) after the fault at the latest
+MAX_STOP_S = 1.0
+# a pump whose replies stopped costs this many host seconds per unanswered exchange
+# (virtual time stands still meanwhile); the runs' default 10 s would make the soak
+# wait minutes for nothing
+REPLY_TIMEOUT_S = 1.0
+# the fault strikes between these rig times after the run starts: after the zeroing
+# and the first samples, before the protocol's end
+FAULT_WINDOW_S = (1.5, 20.0)
+# memory is flat when the last run's resident size exceeds the one after the warm-up
+# runs (the first tenth, at least 5) by less than this
+RSS_GROWTH_LIMIT_MB = 32.0
+PRESSURE_RATE_HZ = 1000.0
+CAMERA_FPS = 10.0
+PROTOCOL = f"""\
+name: fault soak
+specimen: {{segments: [B46-T20, B46-T22], fittings_length_mm: 10}}
+rig: sim
+limits: {{max_pressure_kpa: 95, max_volume_ml: 40}}
+acquisition: {{pressure_rate_hz: {PRESSURE_RATE_HZ:g}, camera_fps: {CAMERA_FPS:g}}}
+steps:
+  - zero_pressure: {{duration_s: 0.5}}
+  - infuse: {{rate_ml_min: 60, volume_ml: 10}}
+  - hold: {{seconds: 1}}
+  - withdraw: {{rate_ml_min: 60, volume_ml: 10}}
+"""
+
+
+def _daq(rig: Rig):
+    return rig.simulation.daq_tasks[-1]  # the task acquiring now
+
+
+@dataclass(frozen=True)
+class Fault:
+    """How to inflict one fault on a simulated rig, and what its run's reason says."""
+
+    inflict: Callable[[Rig, random.Random], None]
+    reason: str
+
+
+FAULTS: dict[str, Fault] = {
+    "sensor-vout-cut": Fault(
+        lambda rig, rng: _daq(rig).fail("vout-cut"), "outside the sensor's range"
+    ),
+    "sensor-supply-cut": Fault(lambda rig, rng: _daq(rig).fail("supply-cut"), "not a number"),
+    "sensor-frozen": Fault(lambda rig, rng: _daq(rig).fail("frozen"), "pressure signal stuck"),
+    "daq-stall": Fault(lambda rig, rng: _daq(rig).fail("stall"), "pressure: no sample"),
+    "daq-unplugged": Fault(lambda rig, rng: _daq(rig).fail("vanish"), "cannot be reached"),
+    "pump-silent": Fault(
+        lambda rig, rng: rig.simulation.emulator.go_silent(), "no complete reply from the pump"
+    ),
+    "camera-stops": Fault(
+        lambda rig, rng: rig.simulation.camera.stop_frames(), "camera: no sample"
+    ),
+    "camera-clock-jump": Fault(
+        lambda rig, rng: rig.simulation.camera.jump_clock(rng.choice((-1, 1)) * rng.uniform(2, 30)),
+        "the camera's clock jumped",
+    ),
+}
+
+
+@dataclass(frozen=True)
+class RunVerdict:
+    """One soak run: its fault, what happened, and each check's outcome."""
+
+    run: int
+    fault: str
+    fault_s: float  # rig seconds after the run started
+    status: str
+    reason: str
+    stopped_after_s: float  # rig seconds from the fault to the plunger's last movement
+    finalised: bool
+    samples_kept: bool
+    frames_kept: bool
+    rss_mb: float
+    wall_s: float
+    problems: tuple[str, ...]
+
+    @property
+    def safe(self) -> bool:
+        return not self.problems
+
+
+@dataclass(frozen=True)
+class SoakSummary:
+    runs: int
+    safe: int
+    seed: int
+    faults: dict[str, int]
+    max_stop_s: float
+    rss_start_mb: float
+    rss_end_mb: float
+    memory_flat: bool
+    wall_s: float
+
+    @property
+    def ok(self) -> bool:
+        return self.safe == self.runs and self.memory_flat
+
+    def line(self) -> str:
+        kinds = ", ".join(f"{kind} {n}" for kind, n in sorted(self.faults.items()))
+        return (
+            f"soak {'PASS' if self.ok else 'FAIL'}: {self.safe}/{self.runs} runs safe "
+            f"(seed {self.seed}; {kinds}); pump stopped at most {self.max_stop_s:.2f} s "
+            f"after the fault ({MAX_STOP_S:g} s allowed); memory {self.rss_start_mb:.0f} -> "
+            f"{self.rss_end_mb:.0f} MB ({'flat' if self.memory_flat else 'GROWING'}); "
+            f"{self.wall_s:.0f} s"
+        )
+
+
+def resident_mb() -> float:
+    """This process's resident memory now (Linux), else its peak."""
+    with contextlib.suppress(OSError, ValueError, IndexError):
+        pages = int(Path("/proc/self/statm").read_text().split()[1])
+        return pages * resource.getpagesize() / 2**20
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def fault_plan(runs: int, seed: int) -> list[tuple[str, float]]:
+    """(fault, rig time after the start) per run: every kind in turn from a shuffled
+    order, so each comes ``runs // len(FAULTS)`` times or once more; times uniform."""
+    rng = random.Random(seed)
+    kinds = list(FAULTS)
+    rng.shuffle(kinds)
+    return [(kinds[i % len(kinds)], rng.uniform(*FAULT_WINDOW_S)) for i in range(runs)]
+
+
+def soak(
+    runs: int, seed: int, on_run: Callable[[RunVerdict], None] | None = None
+) -> tuple[SoakSummary, list[RunVerdict]]:
+    """Run the soak; ``on_run`` sees each run's verdict as it comes."""
+    wall0 = time.monotonic()
+    verdicts = []
+    with tempfile.TemporaryDirectory(prefix="labrig-soak-") as tmp:
+        protocol_path = Path(tmp) / "soak.yaml"
+        protocol_path.write_text(PROTOCOL, encoding="utf-8")
+        loaded = load_protocol(protocol_path)
+        for i, (kind, fault_s) in enumerate(fault_plan(runs, seed)):
+            verdict = _one_run(loaded, Path(tmp) / "run.h5", i, kind, fault_s, seed)
+            gc.collect()  # the run's rig gone before its memory is read
+            verdict = replace(verdict, rss_mb=round(resident_mb(), 1))
+            verdicts.append(verdict)
+            if on_run is not None:
+                on_run(verdict)
+    warm = verdicts[min(len(verdicts) - 1, max(5, runs // 10))].rss_mb if verdicts else 0.0
+    end = verdicts[-1].rss_mb if verdicts else 0.0
+    summary = SoakSummary(
+        runs=runs,
+        safe=sum(v.safe for v in verdicts),
+        seed=seed,
+        faults=dict(Counter(v.fault for v in verdicts)),
+        max_stop_s=max((v.stopped_after_s for v in verdicts), default=0.0),
+        rss_start_mb=warm,
+        rss_end_mb=end,
+        memory_flat=end - warm < RSS_GROWTH_LIMIT_MB,
+        wall_s=time.monotonic() - wall0,
+    )
+    return summary, verdicts
+
+
+def _one_run(loaded, path: Path, index: int, kind: str, fault_s: float, seed: int) -> RunVerdict:
+    wall0 = time.monotonic()
+    config = RigConfig(
+        pump=PumpConfig(port="emulator"),
+        # the supply measured, as the docs advise: a cut supply then reads NaN
+        pressure=PressureConfig(supply_channel="Dev1/ai1"),
+        sim=SimConfig(seed=seed * 1009 + index, reply_timeout_s=REPLY_TIMEOUT_S),
+    )
+    rig = build_rig(loaded.protocol, config)
+    rng = random.Random(seed * 7919 + index)
+    start_s = rig.clock.now()
+    fault_at_s = start_s + fault_s
+
+    def strike() -> None:
+        rig.clock.sleep(fault_at_s - rig.clock.now())
+        FAULTS[kind].inflict(rig, rng)
+
+    with rig.clock.participate():
+        rig.clock.start_thread(strike, "fault")
+        result = Runner(loaded, rig, path).run()
+    end_s = rig.clock.now()
+    problems = []
+    if result.status != "faulted" or FAULTS[kind].reason not in result.reason:
+        problems.append(f"ended {result.status}: {result.reason!r}")
+    stopped_after_s = _stopped_after_s(rig, fault_at_s, end_s)
+    if stopped_after_s > MAX_STOP_S:
+        problems.append(f"the plunger moved until {stopped_after_s:.2f} s after the fault")
+    finalised, samples_kept, frames_kept = _check_file(path, result, fault_at_s, problems)
+    path.unlink(missing_ok=True)
+    return RunVerdict(
+        run=index,
+        fault=kind,
+        fault_s=round(fault_s, 3),
+        status=result.status,
+        reason=result.reason,
+        stopped_after_s=round(stopped_after_s, 3),
+        finalised=finalised,
+        samples_kept=samples_kept,
+        frames_kept=frames_kept,
+        rss_mb=0.0,  # read by the caller once the run's objects are collected
+        wall_s=round(time.monotonic() - wall0, 2),
+        problems=tuple(problems),
+    )
+
+
+def _stopped_after_s(rig: Rig, fault_at_s: float, end_s: float) -> float:
+    """Rig seconds from the fault to the plunger's last movement (0: it stood still),
+    from the emulated firmware's volume on a 10 ms grid up to well after the run."""
+    emulator = rig.simulation.emulator
+    grid = np.arange(fault_at_s, end_s + 30.0, 0.01)
+    volume = np.array([emulator.net_volume_ml(t) for t in grid])
+    moving = np.flatnonzero(np.abs(volume - volume[-1]) > 1e-9)
+    return 0.0 if len(moving) == 0 else float(grid[moving[-1] + 1] - fault_at_s)
+
+
+def _check_file(path: Path, result, fault_at_s: float, problems: list[str]):
+    """Finalised with the run's status and reason; every pressure sample from the first
+    to the fault there, evenly spaced; the frames up to the camera's allowance before."""
+    try:
+        with open_run(path) as run:
+            entry = run["entry"]
+            status = entry["status"][()].decode()
+            reason = entry["reason"][()].decode()
+            pressure = read_log(run, 1, "pressure").time_s
+            frames = read_log(run, 1, "length").time_s
+    except (OSError, KeyError) as exc:
+        problems.append(f"the run file cannot be read: {exc}")
+        return False, False, False
+    finalised = status == result.status and reason == result.reason[: len(reason)]
+    if not finalised:
+        problems.append(f"the file says {status!r} ({reason!r}), the run {result.status!r}")
+    period_s = 1.0 / PRESSURE_RATE_HZ
+    before = pressure[pressure < fault_at_s]
+    samples_kept = (
+        len(before) > 0
+        and np.all(np.abs(np.diff(before) - period_s) < 0.01 * period_s)
+        and before[-1] >= fault_at_s - 1.5 * period_s
+    )
+    if not samples_kept:
+        problems.append(
+            f"pressure samples before the fault missing ({len(before)} kept, the last at "
+            f"{before[-1] if len(before) else float('nan'):.3f} s, the fault at {fault_at_s:.3f} s)"
+        )
+    frame_s = 1.0 / CAMERA_FPS
+    seen = frames[frames < fault_at_s]
+    frames_kept = (
+        len(seen) > 0
+        and np.all(np.abs(np.diff(seen) - frame_s) < 0.01 * frame_s)
+        and seen[-1] >= fault_at_s - 0.5 - frame_s
+    )
+    if not frames_kept:
+        problems.append(
+            f"camera frames before the fault missing ({len(seen)} kept, the last at "
+            f"{seen[-1] if len(seen) else float('nan'):.3f} s, the fault at {fault_at_s:.3f} s)"
+        )
+    return finalised, bool(samples_kept), bool(frames_kept)
+
+
+def verdict_dict(verdict: RunVerdict) -> dict:
+    return {**asdict(verdict), "safe": verdict.safe}
