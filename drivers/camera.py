@@ -323,7 +323,8 @@ class FrameSource:
             t_s = t_host_s
             if self.stamp == "capture":
                 t_capture_s = self.capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
-                if t_capture_s > 0:
+                # a backend that gave stamps and now gives none (0, or less) has jumped
+                if t_capture_s > 0 or self._last_stamp_s > float("-inf"):
                     self._check_stamp(t_capture_s, t_host_s)
                     t_s = t_capture_s
             frame = Frame(t_s=t_s, image=image)

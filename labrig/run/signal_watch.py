@@ -55,7 +55,7 @@ class SignalWatch:
             watched = list(self._newest_s.items())
         for name, newest_s in watched:
             quiet_s = now_s - newest_s
-            if quiet_s > self._allowed_s[name]:
+            if quiet_s >= self._allowed_s[name]:
                 return (
                     f"{name}: no sample for {quiet_s:.2f} s (since t = {newest_s:.2f} s; "
                     f"{self._allowed_s[name]:g} s allowed): the device stalled or was "

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from labrig.drivers.camera import CameraLength, CameraSettings, FrameSource
+from labrig.drivers.camera import CameraLength, CameraSettings, FrameSource, fourcc_text
 from labrig.errors import DeviceError, InputError
 from labrig.rig.devices import LengthSource
 from labrig.sim.camera import SimCamera
@@ -169,6 +169,45 @@ def test_a_size_rate_or_exposure_the_camera_cannot_do_is_refused_in_one_line():
         assert cam.get(cv2.CAP_PROP_AUTO_EXPOSURE) == 1.0  # locked: manual exposure
         assert cam.get(cv2.CAP_PROP_EXPOSURE) == 80.0 and cam.get(cv2.CAP_PROP_AUTOFOCUS) == 0.0
         assert np.asarray(frames.read().image).shape == (720, 1280, 3)
+
+
+def test_mjpg_is_asked_first_and_a_yuyv_only_camera_short_of_the_rate_is_refused():
+    """A UVC webcam opens in YUYV, which USB 2.0 carries at 10 fps at 1280x720: MJPG is
+    asked for and read back; a camera that cannot do it and so cannot give 30 fps is
+    refused in one line that names the pixel format."""
+    clock = VirtualClock()
+    with clock.participate():
+        cam = SimCamera(clock, lambda t: 35.0, size=(1280, 720), mm_per_px=MM_PER_PX)
+        assert fourcc_text(cam.get(cv2.CAP_PROP_FOURCC)) == "YUYV"  # as it opens
+        frames = live_source(clock, cam, width=1280, height=720, fps=30.0)
+        assert frames.fourcc == "MJPG" and cam.get(cv2.CAP_PROP_FPS) == 30.0
+        yuyv_only = SimCamera(
+            clock, lambda t: 35.0, size=(1280, 720), mm_per_px=MM_PER_PX, formats=("YUYV",)
+        )
+        with pytest.raises(DeviceError) as error:
+            live_source(clock, yuyv_only, width=1280, height=720, fps=30.0)
+        message = str(error.value)
+        assert "streams YUYV, not MJPG, and gives 10 fps at 1280x720 where 30 were asked" in (
+            message
+        )
+        assert "\n" not in message
+        # what YUYV carries at a smaller size is accepted
+        small = live_source(clock, yuyv_only, width=640, height=480, fps=30.0)
+        assert small.fourcc == "YUYV"
+
+
+def test_a_capture_stamp_off_the_host_clock_fails_the_stream():
+    clock = VirtualClock()
+    with clock.participate():
+        cam = SimCamera(clock, lambda t: 35.0, size=(640, 360), mm_per_px=MM_PER_PX, fps=10.0)
+        frames = live_source(clock, cam, width=640, height=360, fps=10.0)
+        clock.sleep(5.0)
+        assert frames.read() is not None
+        cam.jump_clock(-3.0)
+        with pytest.raises(DeviceError, match=r"behind the host clock.*clock jumped"):
+            for _ in range(5):
+                frames.read()
+        frames.close()
 
 
 def first_sample(length, clock, batched):

@@ -7,7 +7,14 @@ import numpy as np
 import pytest
 
 from labrig.rig.devices import PressureBlock, PumpState, PumpStatus
-from labrig.run.interlocks import InterlockMonitor, PressureCeiling, PumpStall, VolumeCeiling
+from labrig.run.interlocks import (
+    InterlockMonitor,
+    PressureCeiling,
+    PressureSignal,
+    PressureStuck,
+    PumpStall,
+    VolumeCeiling,
+)
 
 
 class RecordingPump:
@@ -26,6 +33,12 @@ class RecordingPump:
 def block(*pressures_kpa):
     p = np.array(pressures_kpa, dtype=float)
     return PressureBlock(np.arange(len(p)) * 0.001, p, np.zeros(len(p), bool))
+
+
+def samples(p_kpa, t0_s=0.0, out_of_range=None):
+    p = np.asarray(p_kpa, dtype=float)
+    flags = np.zeros(len(p), bool) if out_of_range is None else np.asarray(out_of_range)
+    return PressureBlock(t0_s + np.arange(len(p)) * 0.001, p, flags)
 
 
 def status(infused=0.0, withdrawn=0.0, state=PumpState.INFUSING):
@@ -102,3 +115,33 @@ def test_start_is_refused_when_an_interlock_is_already_tripped(pump_status, pres
     else:
         assert expected in reason
     assert monitor.tripped is None and pump.stops == []
+
+
+def test_a_reading_that_is_no_pressure_trips_the_signal_interlock():
+    signal = PressureSignal()
+    assert signal.outcome == "faulted"
+    assert signal.check_pressure(samples([0.3, 12.0, 40.0])) is None
+    nan = signal.check_pressure(samples([12.0, 12.1, np.nan, 12.2], t0_s=3.0))
+    assert nan.startswith("pressure signal lost at t = 3.00 s: the reading is not a number")
+    # a cut output wire: -4.4 kPa less the zero offset, flagged by the driver
+    low = signal.check_pressure(samples([12.0, -5.2], out_of_range=[False, True]))
+    assert low.startswith("pressure reading -5.2 kPa at t = 0.00 s is outside the sensor's range")
+
+
+def test_a_frozen_signal_trips_after_its_allowance_across_blocks():
+    stuck = PressureStuck(0.5, min_samples=50)
+    rng = np.random.default_rng(0)
+    live = np.round(20.0 + rng.normal(0.0, 0.05, 2000), 2)  # noise moves the last digits
+    assert stuck.check_pressure(samples(live)) is None
+    # frozen from 2.0 s on, read in 0.2 s blocks: trips in the block reaching 0.5 s
+    tripped_at = None
+    for k in range(5):
+        reason = stuck.check_pressure(samples(np.full(200, 20.37), t0_s=2.0 + 0.2 * k))
+        if reason and tripped_at is None:
+            tripped_at = k
+    assert tripped_at == 2  # samples 2.000 .. 2.599 s: 0.599 s of one number
+    assert "stuck at 20.37 kPa" in reason and "since t = 2.00 s" in reason
+    # too few samples to call it stuck (a slow acquisition): no trip
+    slow = PressureStuck(0.5, min_samples=50)
+    few = PressureBlock(np.arange(10) * 0.1, np.full(10, 20.0), np.zeros(10, bool))
+    assert slow.check_pressure(few) is None
