@@ -357,7 +357,8 @@ def check_camera(length, config: CameraConfig | None, source: str) -> DeviceChec
         return DeviceCheck("camera", False, f"{source} gave no frame", "frames", "camera.source")
     height, width = frame.image.shape[:2]
     fps = length.frames.capture.get(cv2.CAP_PROP_FPS)
-    seen = f"{source}: {width}x{height}, {fps:g} fps"
+    fourcc = length.frames.fourcc
+    seen = f"{source}: {width}x{height}, {fps:g} fps" + (f" {fourcc}" if fourcc else "")
     if not fix.ok:
         return DeviceCheck(
             "camera",
