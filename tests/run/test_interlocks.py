@@ -7,14 +7,8 @@ import numpy as np
 import pytest
 
 from labrig.rig.devices import PressureBlock, PumpState, PumpStatus
-from labrig.run.interlocks import (
-    InterlockMonitor,
-    PressureCeiling,
-    PressureSignal,
-    PressureStuck,
-    PumpStall,
-    VolumeCeiling,
-)
+from labrig.run import interlocks
+from labrig.run.interlocks import InterlockMonitor, PressureCeiling, PumpStall, VolumeCeiling
 
 
 class RecordingPump:
@@ -118,7 +112,7 @@ def test_start_is_refused_when_an_interlock_is_already_tripped(pump_status, pres
 
 
 def test_a_reading_that_is_no_pressure_trips_the_signal_interlock():
-    signal = PressureSignal()
+    signal = interlocks.PressureSignal()
     assert signal.outcome == "faulted"
     assert signal.check_pressure(samples([0.3, 12.0, 40.0])) is None
     nan = signal.check_pressure(samples([12.0, 12.1, np.nan, 12.2], t0_s=3.0))
@@ -129,7 +123,7 @@ def test_a_reading_that_is_no_pressure_trips_the_signal_interlock():
 
 
 def test_a_frozen_signal_trips_after_its_allowance_across_blocks():
-    stuck = PressureStuck(0.5, min_samples=50)
+    stuck = interlocks.PressureStuck(0.5, min_samples=50)
     rng = np.random.default_rng(0)
     live = np.round(20.0 + rng.normal(0.0, 0.05, 2000), 2)  # noise moves the last digits
     assert stuck.check_pressure(samples(live)) is None
@@ -142,6 +136,6 @@ def test_a_frozen_signal_trips_after_its_allowance_across_blocks():
     assert tripped_at == 2  # samples 2.000 .. 2.599 s: 0.599 s of one number
     assert "stuck at 20.37 kPa" in reason and "since t = 2.00 s" in reason
     # too few samples to call it stuck (a slow acquisition): no trip
-    slow = PressureStuck(0.5, min_samples=50)
+    slow = interlocks.PressureStuck(0.5, min_samples=50)
     few = PressureBlock(np.arange(10) * 0.1, np.full(10, 20.0), np.zeros(10, bool))
     assert slow.check_pressure(few) is None
