@@ -44,6 +44,8 @@ LONG_FIRST = (
     "tests/model/baselines/test_nelder_mead.py::test_the_papers_named_combinations",  # 12
     "tests/cli/test_model_scan.py::test_ctrl_c_keeps",  # 8
     "tests/rig/test_video_and_frames.py::",  # 10
+    "tests/rig/test_soak.py::test_a_short_soak",  # 10-15: eight runs, one per fault
+    "tests/rig/test_device_deaths.py::",  # 14
     "tests/rig/test_faults.py::",
     "tests/model/baselines/test_nelder_mead.py::",
 )
