@@ -95,7 +95,7 @@ def _run(loaded, rig_config, out_path: Path, live_view=None) -> None:
     from rich.progress import BarColumn, Progress, TextColumn
 
     from labrig.rig.assembly import build_rig
-    from labrig.run.runner import Runner
+    from labrig.run.runner import Runner, Timing
 
     console = Console(stderr=True)
     rig = build_rig(loaded.protocol, rig_config)
@@ -139,7 +139,8 @@ def _run(loaded, rig_config, out_path: Path, live_view=None) -> None:
         wall0 = time.monotonic()
         rig_t0 = rig.clock.now()
         tap = live_view.state.tap if live_view is not None else None
-        result = Runner(loaded, rig, out_path, on_progress=show, data_tap=tap).run()
+        timing = Timing(signal_timeout_s=rig_config.signal_timeout_s)
+        result = Runner(loaded, rig, out_path, on_progress=show, data_tap=tap, timing=timing).run()
         rig_s, wall_s = rig.clock.now() - rig_t0, time.monotonic() - wall0
     if live_view is not None:
         live_view.finish(result.status, result.reason)

@@ -168,6 +168,13 @@ class RigConfig(Strict):
     )
     camera: CameraConfig | None = Field(None, description="The camera; none: no length")
     sim: SimConfig | None = Field(None, description="Present only on the simulated rig")
+    signal_timeout_s: float = Field(
+        0.5,
+        gt=0,
+        le=5,
+        description="A pressure signal with no sample (or one number) this long, or a camera "
+        "with no frame this long or three frame periods, is a dead device: the run faults",
+    )
 
 
 def sim_rig_config(speed: float | None = None, seed: int = 0) -> RigConfig:

@@ -116,3 +116,16 @@ def test_the_pump_is_set_up_from_the_rig_file_and_refuses_what_it_cannot_do(tmp_
         set_up_pump(pump, config, infusing)
         assert emulator.firmware._force_pct == 30
         assert emulator.firmware._diameter_mm == 27.6
+
+
+def test_the_signal_allowance_is_the_runners_by_default_and_checked(tmp_path):
+    from labrig.run.runner import Timing
+
+    base = "pump: {port: /dev/ttyACM0}\n"
+    assert load_rig_config(write_protocol(tmp_path, base)).signal_timeout_s == (
+        Timing.signal_timeout_s
+    )
+    longer = load_rig_config(write_protocol(tmp_path, base + "signal_timeout_s: 1.5\n"))
+    assert longer.signal_timeout_s == 1.5
+    with pytest.raises(InputError, match="signal_timeout_s"):
+        load_rig_config(write_protocol(tmp_path, base + "signal_timeout_s: 0\n"))
