@@ -516,6 +516,9 @@ class PhdUltra:
         are let through and discarded, then a second stop is sent and its reply read:
         the pump is stopped before anything waits."""
         if self._deaf:
+            # no waiting for late replies first: from a deaf pump any that come are
+            # replies to stops, as good as this one's
+            self._resync_due = False
             try:
                 reply = self._transfer(
                     "stop", expect_payload=False, timeout_s=min(self.timeout_s, DEAF_CONFIRM_S)
