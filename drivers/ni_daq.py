@@ -30,6 +30,7 @@ the host clock over the next interval, keeping them continuous and increasing.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from collections.abc import Callable
 from typing import Any
@@ -286,7 +287,9 @@ class NiDaqPressure:
             raise self._translate(exc, "configuring the acquisition", rate_hz) from exc
         finally:
             if not started:
-                task.close()
+                # a device that is gone fails this too: the first error says why
+                with contextlib.suppress(DaqError):
+                    task.close()
         self._task, self._reader = task, reader
         self.sample_clock_hz, self.adc_ranges_v, self.adc_bits = sample_clock_hz, ranges_v, bits
         self._t_start_s = 0.5 * (before_s + after_s)

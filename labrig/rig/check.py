@@ -209,12 +209,17 @@ def _daq_hint(exc: DeviceError, config: PressureConfig) -> tuple[str, str]:
     """(expected, what to check) for a DAQ error, from its DAQmx code."""
     from nidaqmx.error_codes import DAQmxErrors
 
-    from labrig.drivers.ni_daq import DaqNotInstalledError, DaqTimeoutError
+    from labrig.drivers.ni_daq import DaqNotInstalledError, DaqTimeoutError, DaqUnreachableError
 
     device = config.channel.strip("/").split("/")[0]
     code = getattr(exc.__cause__, "error_code", None)
     if isinstance(exc, DaqNotInstalledError):
         return "the NI-DAQmx driver", "`python -m nidaqmx installdriver` (or run with --sim)"
+    if isinstance(exc, DaqUnreachableError):
+        return (
+            f"the DAQ {device} reachable",
+            f"its USB cable and light, and that nilsdev (or NI MAX) lists it as {device}",
+        )
     if code == DAQmxErrors.INVALID_DEVICE_ID.value:
         return (
             f"a DAQ named {device}",

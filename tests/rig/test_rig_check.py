@@ -189,3 +189,24 @@ def test_the_pressure_check_shows_the_range_daqmx_uses(seed):
     # 300 seeds; the test once failed on an unseeded task), within one 13-bit step
     supply_v = float(re.search(r"supply ([0-9.]+) V on Dev1/ai1", check.found)[1])
     assert abs(supply_v - 5.0) <= 20.0 / 2**13
+
+
+def test_an_unreachable_daq_gets_cable_advice_not_wiring():
+    """DAQmx -201003 (the device cannot be accessed) is a cable or power matter."""
+    from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
+    from labrig.time.virtual import VirtualClock
+
+    clock = VirtualClock()
+
+    def unplugged():
+        task = SimDaqTask(clock, lambda t: np.zeros(np.shape(t)), seed=0)
+        task.fail("vanish", at_s=0.0)
+        return task
+
+    check = check_pressure(
+        PressureConfig(), clock, task_factory=unplugged, reader_factory=SimAnalogMultiChannelReader
+    )
+    assert not check.ok
+    assert "DAQmx error -201003" in check.found
+    assert "USB cable" in check.check and "nilsdev" in check.check
+    assert "terminal" not in check.check
