@@ -101,7 +101,7 @@ NVRAM_OFF_COMMANDS = ("nvram off", "nvram none", "rsave off")
 # How long a stop waits for the port before it writes beside the exchange in flight: an
 # answered exchange takes milliseconds, one waiting out its timeout takes seconds; a stop
 # must reach the pump within 0.3 s of being asked for.
-STOP_WAIT_S = 0.2
+STOP_WAIT_S = 0.1
 # How long a stop to a pump that left an earlier stop unanswered waits for its reply:
 # long enough for an answering pump (milliseconds), short enough not to hold up a
 # shutdown once per stop.
@@ -181,6 +181,7 @@ class PhdUltra:
         self._write_lock = threading.Lock()
         self._stops_written = 0  # stops written beside an exchange: it abandons its reply
         self._deaf = False  # a stop went unanswered: later stops are written, not awaited
+        self.stop_wait_s = STOP_WAIT_S  # how long a stop waits for the port (above)
         # Set while no stop is waiting: ordinary commands wait on it, so a stop never
         # queues behind a stream of status polls.
         self._no_stop_pending = threading.Event()
@@ -489,10 +490,10 @@ class PhdUltra:
     def stop(self) -> None:
         """Stop the motor (and silence a target or stall alarm). Safe from any thread.
 
-        The stop reaches the pump within ``STOP_WAIT_S`` whatever the port is doing; the
+        The stop reaches the pump within ``stop_wait_s`` whatever the port is doing; the
         call returns once the pump has confirmed it (or raises saying it did not)."""
         with self._stop_first():
-            if not self._io_lock.acquire(timeout=STOP_WAIT_S):
+            if not self._io_lock.acquire(timeout=self.stop_wait_s):
                 self._write_stop_beside()
                 self._io_lock.acquire()
             try:
