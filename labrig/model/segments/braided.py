@@ -87,13 +87,37 @@ def tube_pressure_ratio(lambda_z, force_ratio):
     return 1 / lz - 1 / (a**2 * lz**3)
 
 
+def envelope_volume_mm3(theta, l_braid_mm: float, end_radius_mm: float):
+    """Volume enclosed by braids of length L_braid at half-angle theta (S40): a double
+    cone frustum of radius r at the ends and r + (L_braid/2) sin(theta) in the middle."""
+    bulge = 0.5 * l_braid_mm * np.sin(theta)
+    r = end_radius_mm
+    return 2 * np.pi / (3 * np.tan(theta)) * ((r + bulge) ** 3 - r**3)
+
+
+def envelope_volume_slope(theta, l_braid_mm: float, end_radius_mm: float):
+    """d(envelope volume)/d(theta) in mm^3/rad."""
+    bulge = 0.5 * l_braid_mm * np.sin(theta)
+    r = end_radius_mm
+    outer = 3 * (r + bulge) ** 2 * 0.5 * l_braid_mm * np.cos(theta) / np.tan(theta)
+    return 2 * np.pi / 3 * (outer - ((r + bulge) ** 3 - r**3) / np.sin(theta) ** 2)
+
+
+def neo_hookean_gradient(stretch_theta, stretch_z):
+    """(dW/dlambda_theta, dW/dlambda_z) / mu of the membrane energy S14 with
+    lambda_r = 1/(lambda_theta lambda_z)."""
+    inverse = 1 / (stretch_theta * stretch_z) ** 2
+    return stretch_theta - inverse / stretch_theta, stretch_z - inverse / stretch_z
+
+
 @dataclass(frozen=True)
 class BraidedSegment:
     """A latex tube of length ``l_tube_mm`` inside n braids of length ``l_braid_mm``.
 
     ``force_n`` overrides the braid force of S31/S32 (0 gives the free tube before
-    contact). Curves are parametrised by the tube's axial stretch before contact and
-    by the braid angle after it.
+    contact); ``envelope_radius_mm`` is the radius of the braids' envelope at its ends
+    (the SI takes the tube's R). Curves are parametrised by the tube's axial stretch
+    before contact and by the braid angle after it.
     """
 
     l_braid_mm: float
@@ -102,6 +126,7 @@ class BraidedSegment:
     thickness_mm: float = H_TUBE_MM
     shear_modulus_mpa: float = MU_LATEX_MPA
     force_n: float | None = None
+    envelope_radius_mm: float | None = None
 
     def __post_init__(self) -> None:
         for field in ("l_braid_mm", "l_tube_mm", "radius_mm", "thickness_mm"):
@@ -126,6 +151,11 @@ class BraidedSegment:
         return self.axial_force_n / (
             np.pi * self.shear_modulus_mpa * self.thickness_mm * self.radius_mm
         )
+
+    @property
+    def end_radius_mm(self) -> float:
+        """Radius of the braid envelope at the couplings (S40's R)."""
+        return self.radius_mm if self.envelope_radius_mm is None else self.envelope_radius_mm
 
     @property
     def pressure_scale_kpa(self) -> float:
@@ -153,18 +183,11 @@ class BraidedSegment:
         return v_ml, p_kpa, lz * self.l_tube_mm
 
     def braid_volume_mm3(self, theta):
-        """Volume enclosed by the braids at half-angle theta (S40): a double cone frustum
-        of radius R at the ends and R + (L_braid/2) sin(theta) in the middle."""
-        bulge = 0.5 * self.l_braid_mm * np.sin(theta)
-        r = self.radius_mm
-        return 2 * np.pi / (3 * np.tan(theta)) * ((r + bulge) ** 3 - r**3)
+        """Volume enclosed by the braids at half-angle theta (S40)."""
+        return envelope_volume_mm3(theta, self.l_braid_mm, self.end_radius_mm)
 
     def _braid_volume_slope(self, theta):
-        """d(braid volume)/d(theta) in mm^3/rad."""
-        bulge = 0.5 * self.l_braid_mm * np.sin(theta)
-        r = self.radius_mm
-        outer = 3 * (r + bulge) ** 2 * 0.5 * self.l_braid_mm * np.cos(theta) / np.tan(theta)
-        return 2 * np.pi / 3 * (outer - ((r + bulge) ** 3 - r**3) / np.sin(theta) ** 2)
+        return envelope_volume_slope(theta, self.l_braid_mm, self.end_radius_mm)
 
     def _angle(self, lambda_z):
         return np.arccos(np.asarray(lambda_z) * self.l_tube_mm / self.l_braid_mm)  # S41
@@ -209,6 +232,10 @@ class BraidedSegment:
         return lz if interior and higher else None
 
     # --- after contact ---------------------------------------------------------------
+    def membrane_gradient(self, stretch_theta, stretch_z):
+        """dW/dlambda per unit shear modulus: the neo-Hookean latex of S14."""
+        return neo_hookean_gradient(stretch_theta, stretch_z)
+
     @cached_property
     def wall_angle(self) -> float:
         """Braid angle at which the enclosed volume is largest: the volume cannot grow
@@ -221,8 +248,8 @@ class BraidedSegment:
 
         The tube fills the envelope: V = braid volume, l = L_braid cos(theta),
         lambda_theta^2 = V/(pi R^2 l). The pressure is dPi/dV along this path, Pi the
-        tube's neo-Hookean energy (S14, thin membrane) plus the braids' energy
-        F (L_braid - l) of a constant force F (S31).
+        tube's membrane energy (``membrane_gradient``, thin membrane) plus the braids'
+        energy F (L_braid - l) of a constant force F (S31).
         """
         th = np.asarray(theta, dtype=float)
         r, lt, lb = self.radius_mm, self.l_tube_mm, self.l_braid_mm
@@ -234,11 +261,11 @@ class BraidedSegment:
         d_stretch_z = d_length / lt
         a = enclosed / (np.pi * r**2 * length)  # lambda_theta^2
         d_a = (d_enclosed * length - enclosed * d_length) / (np.pi * r**2 * length**2)
-        c = self.shear_modulus_mpa * np.pi * r * self.thickness_mm * lt  # mu/2 * 2 pi R H L
-        d_tube = c * (
-            (1 - 1 / (a * stretch_z) ** 2) * d_a
-            + (2 * stretch_z - 2 / (a * stretch_z**3)) * d_stretch_z
-        )
+        stretch_theta = np.sqrt(a)
+        w_theta, w_z = self.membrane_gradient(stretch_theta, stretch_z)
+        wall_mm3 = 2 * np.pi * r * self.thickness_mm * lt  # undeformed membrane
+        d_stretch_theta = d_a / (2 * stretch_theta)
+        d_tube = self.shear_modulus_mpa * wall_mm3 * (w_theta * d_stretch_theta + w_z * d_stretch_z)
         d_braids = -self.axial_force_n * d_length
         p_kpa = (d_tube + d_braids) / d_enclosed * KPA_PER_MPA
         return enclosed / MM3_PER_ML - self.V0_ml, p_kpa, length
@@ -264,24 +291,25 @@ class BraidedSegment:
         pre, post = self.tube_state(lz), self.contact_state(th)
         return tuple(np.where(before, a, b) for a, b in zip(pre, post, strict=True))
 
+    def peak_knot(self) -> float | None:
+        """The table parameter t of the pressure peak (``_state``), None without a peak."""
+        if self.peak_stretch is None:
+            return None
+        return (self.peak_stretch - self.lambda_z0) / (self.contact_stretch - self.lambda_z0)
+
+    def describe(self) -> str:
+        return (
+            f"analytical braided segment (SI S14-S46, corrected): L_braid = "
+            f"{self.l_braid_mm:g} mm, L_tube = {self.l_tube_mm:g} mm, F = "
+            f"{self.axial_force_n:.3f} N; contact at {self.contact_ml:.3f} mL"
+        )
+
     def curve(self, name: str | None = None) -> SegmentCurve:
         """The segment's p(v), l(v) from the unpressurised state to P_END_KPA."""
         knots = [np.linspace(0, 1, 33), np.linspace(1, 2, 33)[1:]]
-        if self.peak_stretch is not None:
-            span = self.contact_stretch - self.lambda_z0
-            knots.append([(self.peak_stretch - self.lambda_z0) / span])
+        if self.peak_knot() is not None:
+            knots.append([self.peak_knot()])
         _, v, p, length = tabulate(self._state, np.unique(np.concatenate(knots)))
         v[0], p[0] = 0.0, 0.0  # the unpressurised state, exactly (not a rounding residue)
         label = name or f"B{self.l_braid_mm:g}-T{self.l_tube_mm:g}"
-        return SegmentCurve(
-            label,
-            v,
-            p,
-            length,
-            V0_ml=self.V0_ml,
-            source=(
-                f"analytical braided segment (SI S14-S46, corrected): L_braid = "
-                f"{self.l_braid_mm:g} mm, L_tube = {self.l_tube_mm:g} mm, F = "
-                f"{self.axial_force_n:.3f} N; contact at {self.contact_ml:.3f} mL"
-            ),
-        )
+        return SegmentCurve(label, v, p, length, V0_ml=self.V0_ml, source=self.describe())
