@@ -150,7 +150,7 @@ def compiled_path_cached():
     from labrig.model.scan.scan import ScanLibrary, solve_actuator
     from labrig.model.segments.catalog import analytical_segment
 
-    names = ("B46-T20", "B46-T22")
+    names = ("SI-B46-T20", "SI-B46-T22")
     solve_actuator(ScanLibrary("warm-up", tuple(analytical_segment(n) for n in names)), (0, 1))
 
 
@@ -162,25 +162,25 @@ def _compiled_path_first(request):
 
 @pytest.fixture(scope="session")
 def snap_run(tmp_path_factory):
-    """B46-T20 + B46-T22 (the paper's Fig. 2 pair) inflated at 20 mL/min to 22 mL, five
+    """SI-B46-T20 + SI-B46-T22 (the paper's Fig. 2 pair) inflated at 20 mL/min to 22 mL, five
     times, through water-like flow resistance (R = 1 kPa s/mL): the plant snaps through
     on inflation; pressure noise 0.3 kPa, the top of the issue's range."""
     from support.simulated_runs import simulate_run
 
     path = tmp_path_factory.mktemp("runs") / "snap.h5"
-    return simulate_run(path, ("B46-T20", "B46-T22"), volume_ml=22.0, noise_kpa=0.3, seed=11)
+    return simulate_run(path, ("SI-B46-T20", "SI-B46-T22"), volume_ml=22.0, noise_kpa=0.3, seed=11)
 
 
 @pytest.fixture(scope="session")
 def library_run(tmp_path_factory):
-    """B44-T22 + B50-T20 in the slow limit (R = 0.05 kPa s/mL), where the plant follows
+    """SI-B44-T22 + SI-B50-T20 in the slow limit (R = 0.05 kPa s/mL), where the plant follows
     the model's quasi-static path: one snap on inflation, one on deflation."""
     from support.simulated_runs import simulate_run
 
     path = tmp_path_factory.mktemp("runs") / "library.h5"
     return simulate_run(
         path,
-        ("B44-T22", "B50-T20"),
+        ("SI-B44-T22", "SI-B50-T20"),
         volume_ml=36.0,
         resistance_kpa_s_per_ml=0.05,
         noise_kpa=0.1,
@@ -190,14 +190,14 @@ def library_run(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def segment_run(tmp_path_factory):
-    """A single segment, B46-T20, past its valley onto the stiffening wall; the third
+    """A single segment, SI-B46-T20, past its valley onto the stiffening wall; the third
     repetition faulted (so the mean is of repetitions 1, 2, 4 and 5)."""
     from support.simulated_runs import simulate_run
 
     path = tmp_path_factory.mktemp("runs") / "segment.h5"
     statuses = ("complete", "complete", "faulted", "complete", "complete")
     return simulate_run(
-        path, ("B46-T20",), volume_ml=20.8, noise_kpa=0.15, statuses=statuses, seed=13
+        path, ("SI-B46-T20",), volume_ml=20.8, noise_kpa=0.15, statuses=statuses, seed=13
     )
 
 

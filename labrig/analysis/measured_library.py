@@ -34,13 +34,14 @@ def check_new_name(name: str, directory: Path, replace: bool) -> None:
     """InputError unless ``name`` can be added to the library at ``directory``."""
     from labrig.model.segments.catalog import LIBRARY_NAMES
     from labrig.model.segments.gent import GENT_NAMES
+    from labrig.model.segments.catalog import is_library_name
 
     if not is_measured_name(name):
         raise InputError(
             f"--name {name!r}: use 1-64 letters, digits, '_', '-' or '.', starting with a "
             "letter or digit, not ending in .csv"
         )
-    if name.upper() in LIBRARY_NAMES or name.lower() in GENT_NAMES:
+    if is_library_name(name) or name.lower() in GENT_NAMES:
         raise InputError(
             f"--name {name!r} is the name of an analytical segment; choose another "
             "(e.g. add the date or the specimen number)"

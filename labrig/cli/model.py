@@ -8,7 +8,9 @@ from labrig.cli import LazyGroup
 
 # name -> ("module", "attribute"), imported on first use.
 MODEL_COMMANDS: dict[str, tuple[str, str]] = {
+    "calibrate": ("labrig.cli.model_paper", "calibrate"),
     "curve": ("labrig.cli.model_curve", "curve"),
+    "paper": ("labrig.cli.model_paper", "paper"),
     "path": ("labrig.cli.model_path", "path"),
     "rank": ("labrig.cli.model_scan", "rank"),
     "scan": ("labrig.cli.model_scan", "scan"),

@@ -25,13 +25,11 @@ def _extremum(extremum) -> dict | None:
 
 def _contact_ml(spec: str) -> float | None:
     """Volume at which the braids touch the tube, for an analytical library segment."""
-    from labrig.model.segments.catalog import LIBRARY_NAMES, library_geometry
+    from labrig.model.segments.catalog import is_library_name, library_segment
 
-    if spec.strip().upper() not in LIBRARY_NAMES:
+    if not is_library_name(spec):
         return None
-    from labrig.model.segments.braided import BraidedSegment
-
-    return BraidedSegment(*library_geometry(spec)).contact_ml
+    return library_segment(spec).contact_ml
 
 
 def summary_lines(curve, contact_ml: float | None) -> list[str]:

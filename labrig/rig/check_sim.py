@@ -35,7 +35,7 @@ FAULTS = {
 # a protocol only to build the simulated rig: its specimen and its camera
 _CHECK_PROTOCOL = """\
 name: rig check
-specimen: {segments: [B48-T30, B50-T20], fittings_length_mm: 10}
+specimen: {segments: [SI-B48-T30, SI-B50-T20], fittings_length_mm: 10}
 rig: sim
 limits: {max_pressure_kpa: 95, max_volume_ml: 45}
 acquisition: {pressure_rate_hz: 1000, camera_fps: 2}

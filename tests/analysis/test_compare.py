@@ -63,7 +63,7 @@ def test_snaps_pair_with_the_nearest_measurement_of_their_direction():
 
 
 def test_a_single_segment_is_predicted_by_its_own_curve_both_ways():
-    curve = analytical_segment("B46-T20")
+    curve = analytical_segment("SI-B46-T20")
     prediction = predict([curve], 10.0, 20.0, deflate=True)
     assert prediction.transitions == ()
     grid = np.linspace(0.0, 20.0, 41)
@@ -79,7 +79,7 @@ def test_a_single_segment_is_predicted_by_its_own_curve_both_ways():
 def test_single_segment_run_against_its_curve(segment_run):
     result = analyse(segment_run.path)
     comparison = result.comparison
-    assert comparison.prediction.segments == ("B46-T20",)
+    assert comparison.prediction.segments == ("SI-B46-T20",)
     # the plant's sensor sits on the inlet, R Q = 0.33 kPa above the segment while
     # infusing and below it while withdrawing, plus the 0.1 kPa offset left after
     # zeroing: the model cannot know either
@@ -94,7 +94,7 @@ def test_library_actuator_run_matches_the_model(library_run):
     pytest.importorskip("labrig.model.actuator.path", reason="the actuator path solver")
     result = analyse(library_run.path)
     comparison = result.comparison
-    assert comparison.prediction.segments == ("B44-T22", "B50-T20")
+    assert comparison.prediction.segments == ("SI-B44-T22", "SI-B50-T20")
     for phase in (INFLATE, DEFLATE):
         assert comparison.rmse_p_kpa[phase] < 0.5
         assert comparison.rmse_l_mm[phase] < 0.5

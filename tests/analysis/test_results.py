@@ -95,7 +95,7 @@ def test_summary_text_tabulates_repetitions_and_the_model(segment_run):
     result = analyse(segment_run.path)
     text = summary_text(result)
     assert "repetition 3 faulted: simulated fault" in text
-    assert "against the model (B46-T20)" in text
+    assert "against the model (SI-B46-T20)" in text
     rmse = result.comparison.rmse_p_kpa[INFLATE]
     assert f"{rmse:.3f}" in text
 

@@ -231,7 +231,7 @@ def staircase_sweep(draws: int = 200, seed: int = 12345) -> list[str]:
             n = int(rng.integers(2, 4))
             braids = rng.choice(BRAID_LENGTHS_MM, n, replace=False)
             tubes = rng.choice(TUBE_LENGTHS_MM, n)
-            names = [f"B{b}-T{t}" for b, t in zip(braids, tubes, strict=True)]
+            names = [f"SI-B{b}-T{t}" for b, t in zip(braids, tubes, strict=True)]
             step = float(rng.uniform(*steps) if steps else rng.choice([0.27, 0.5]))
             spacing = float(10 ** rng.uniform(np.log10(0.05), np.log10(0.5)))
             uniform = bool(rng.integers(0, 2))

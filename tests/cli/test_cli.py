@@ -72,7 +72,7 @@ def test_help_imports_no_heavy_module():
         (["run", "protocols/demo.yaml", "--sim"], True),
         (["run", "protocols/demo.yaml", "--dry-run"], True),
         (["compare", "runs/RUN.h5", "--json"], True),
-        (["model", "path", "B48-T30", "B50-T20"], True),
+        (["model", "path", "SI-B48-T30", "SI-B50-T20"], True),
         (["library", "add", "runs/RUN.h5", "--name", "S"], True),
         (["model", "scan", "--n", "3"], False),
         (["--debug", "model", "scan", "--n", "3"], False),

@@ -29,12 +29,12 @@ def test_add_makes_a_segment_with_its_provenance(segment_run, tmp_path, capsys):
     provenance = json.loads((library / "S46-20a.json").read_text())
     run_file = provenance["run"]
     assert run_file["sha256"] == hashlib.sha256(segment_run.path.read_bytes()).hexdigest()
-    assert run_file["specimen"] == ["B46-T20"]
+    assert run_file["specimen"] == ["SI-B46-T20"]
     assert provenance["repetitions_averaged"] == [1, 2, 4, 5]
 
     # the measured segment reproduces the plant's segment, which the analysis never saw
     measured = load_segment("S46-20a", library_dir=library)
-    truth = analytical_segment("B46-T20")
+    truth = analytical_segment("SI-B46-T20")
     assert measured.peak.p_kpa == pytest.approx(truth.peak.p_kpa, abs=0.25)
     assert measured.peak.v_ml == pytest.approx(truth.peak.v_ml, abs=0.5)
     assert measured.valley.v_ml == pytest.approx(truth.valley.v_ml, abs=0.5)
@@ -65,13 +65,13 @@ def test_a_library_segment_works_where_a_seg_does(segment_run, tmp_path, capsys,
 def test_add_refuses_what_is_not_a_single_segment_run(snap_run, tmp_path, capsys):
     code, _, err = run(["library", "add", snap_run.path, "--name", "x"], capsys)
     assert code == 2
-    assert "the specimen has 2 segments (B46-T20 + B46-T22)" in err
+    assert "the specimen has 2 segments (SI-B46-T20 + SI-B46-T22)" in err
 
 
 @pytest.mark.parametrize(
     ("name", "message"),
     [
-        ("B46-T20", "is the name of an analytical segment"),
+        ("SI-B46-T20", "is the name of an analytical segment"),
         ("gent-a", "is the name of an analytical segment"),
         ("../escape", "use 1-64 letters"),
         ("seg.csv", "use 1-64 letters"),
@@ -94,7 +94,7 @@ def test_add_does_not_overwrite_unless_asked(segment_run, tmp_path, capsys):
     assert code == 2 and "already exists" in err and "--replace" in err
     assert run([*argv, "--replace"], capsys)[0] == 0
     code, out, _ = run(["library", "list", "--library", tmp_path], capsys)
-    assert out.splitlines()[0].startswith("twice\tsimulated B46-T20\t")
+    assert out.splitlines()[0].startswith("twice\tsimulated SI-B46-T20\t")
 
 
 def test_a_failed_fit_names_the_run_file_not_a_temporary_csv(tmp_path):
@@ -103,7 +103,7 @@ def test_a_failed_fit_names_the_run_file_not_a_temporary_csv(tmp_path):
     from labrig.analysis.measured_library import add_measured
     from labrig.errors import InputError
 
-    clean = analytical_segment("B46-T20")
+    clean = analytical_segment("SI-B46-T20")
     v = np.linspace(0.0, 0.9 * clean.valley.v_ml, 400)  # still falling at the end
     with pytest.raises(InputError) as error:
         add_measured(
@@ -121,7 +121,7 @@ def test_a_failed_fit_names_the_run_file_not_a_temporary_csv(tmp_path):
 
 
 def test_the_dry_run_warns_when_a_segment_run_stops_before_its_valley(tmp_path, capsys):
-    """B46-T20's valley is at 19.78 mL: infusing 15 mL makes a run that library add
+    """SI-B46-T20's valley is at 19.78 mL: infusing 15 mL makes a run that library add
     cannot use, 20.8 mL (the shipped protocol) one it can."""
     shipped = Path("protocols/segment_characterization.yaml").read_text(encoding="utf-8")
     for volume, warned in (("15", True), ("20.8", False)):
@@ -129,4 +129,4 @@ def test_the_dry_run_warns_when_a_segment_run_stops_before_its_valley(tmp_path, 
         protocol.write_text(shipped.replace("volume_ml: 20.8", f"volume_ml: {volume}"))
         code, out, err = run(["run", str(protocol), "--dry-run"], capsys)
         assert code == 0
-        assert ("before B46-T20's valley at 19.78 mL" in out + err) is warned
+        assert ("before SI-B46-T20's valley at 19.78 mL" in out + err) is warned

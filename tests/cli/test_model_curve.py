@@ -18,7 +18,7 @@ def run(argv, capsys):
 
 
 def test_summary_names_peak_valley_and_contact(capsys):
-    code, out, _ = run(["model", "curve", "B46-T20"], capsys)
+    code, out, _ = run(["model", "curve", "SI-B46-T20"], capsys)
     assert code == 0
     assert "peak     39.55 kPa at 5.358 mL" in out
     assert "valley   32.99 kPa at 19.780 mL" in out
@@ -27,12 +27,12 @@ def test_summary_names_peak_valley_and_contact(capsys):
 
 
 def test_json_is_the_table_with_its_extrema(capsys):
-    code, out, _ = run(["model", "curve", "b46-t22", "--json"], capsys)
+    code, out, _ = run(["model", "curve", "si-b46-t22", "--json"], capsys)
     assert code == 0
     doc = json.loads(out)
     assert list(doc) == ["name", "V0_ml", "peak", "valley", "v_ml", "p_kpa", "l_mm"]
-    assert doc["name"] == "B46-T22"
-    curve = analytical_segment("B46-T22")
+    assert doc["name"] == "SI-B46-T22"
+    curve = analytical_segment("SI-B46-T22")
     np.testing.assert_array_equal(doc["p_kpa"], curve.p_kpa)
     k = doc["v_ml"].index(doc["peak"]["v_ml"])  # the peak is a sample of the table
     assert doc["p_kpa"][k] == doc["peak"]["p_kpa"] == max(doc["p_kpa"][: k + 10])
@@ -40,14 +40,14 @@ def test_json_is_the_table_with_its_extrema(capsys):
 
 
 def test_json_has_null_extrema_when_contact_comes_first(capsys):
-    code, out, _ = run(["model", "curve", "B40-T30", "--json"], capsys)
+    code, out, _ = run(["model", "curve", "SI-B40-T30", "--json"], capsys)
     assert code == 0
     doc = json.loads(out)
     assert doc["peak"] is None and doc["valley"] is None
 
 
 def test_plot_and_csv_input(tmp_path, capsys):
-    write_csv(analytical_segment("B50-T20"), tmp_path / "b50.csv")
+    write_csv(analytical_segment("SI-B50-T20"), tmp_path / "b50.csv")
     png = tmp_path / "b50.png"
     code, out, _ = run(["model", "curve", str(tmp_path / "b50.csv"), "--plot", str(png)], capsys)
     assert code == 0
@@ -59,9 +59,9 @@ def test_plot_and_csv_input(tmp_path, capsys):
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["model", "curve", "B47-T20"], "unknown segment 'B47-T20'"),
+        (["model", "curve", "SI-B47-T20"], "unknown segment 'SI-B47-T20'"),
         (["model", "curve", "missing.csv"], "missing.csv: no such file"),
-        (["model", "curve", "B46-T20", "--plot", "/no/such/dir/x.png"], "does not exist"),
+        (["model", "curve", "SI-B46-T20", "--plot", "/no/such/dir/x.png"], "does not exist"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(argv, message, capsys):
@@ -79,7 +79,7 @@ def test_bad_csv_is_one_line_and_exit_2(tmp_path, capsys):
 
 
 def test_a_measured_table_says_what_was_done_and_plots_the_raw_rows(tmp_path, capsys):
-    clean = analytical_segment("B42-T24")
+    clean = analytical_segment("SI-B42-T24")
     v = np.linspace(0.0, clean.v_max_ml, 8000).tolist()
     rows = ["volume_ml,pressure_kpa,length_mm"]
     p = np.round(clean.pressure_kpa(v), 2).tolist()

@@ -19,11 +19,11 @@ def run(argv, capsys):
 
 
 def test_json_follows_the_design_contract(capsys):
-    code, out, err = run(["model", "path", "B48-T30", "B50-T20", "--json"], capsys)
+    code, out, err = run(["model", "path", "SI-B48-T30", "SI-B50-T20", "--json"], capsys)
     assert code == 0 and err == ""
     doc = json.loads(out)
     assert list(doc) == ["segments", "path", "transitions"]
-    assert doc["segments"] == ["B48-T30", "B50-T20"]
+    assert doc["segments"] == ["SI-B48-T30", "SI-B50-T20"]
     path = doc["path"]
     assert list(path) == ["v_ml", "p_kpa", "l_mm", "v_i_ml"]
     n_points = len(path["v_ml"])
@@ -47,7 +47,7 @@ def test_json_follows_the_design_contract(capsys):
 
 
 def test_deflate_adds_the_way_back_with_its_own_transitions(capsys):
-    code, out, _ = run(["model", "path", "B48-T30", "B50-T20", "--deflate", "--json"], capsys)
+    code, out, _ = run(["model", "path", "SI-B48-T30", "SI-B50-T20", "--deflate", "--json"], capsys)
     assert code == 0
     doc = json.loads(out)
     v = np.array(doc["path"]["v_ml"])
@@ -64,7 +64,7 @@ def test_deflate_adds_the_way_back_with_its_own_transitions(capsys):
 
 
 def test_the_table_lists_every_transition(capsys):
-    code, out, _ = run(["model", "path", "B44-T30", "B48-T26", "--deflate"], capsys)
+    code, out, _ = run(["model", "path", "SI-B44-T30", "SI-B48-T26", "--deflate"], capsys)
     assert code == 0
     rows = [
         line.split() for line in out.splitlines() if line.strip().startswith(("inflate", "deflate"))
@@ -77,7 +77,7 @@ def test_the_table_lists_every_transition(capsys):
 def test_three_segments_and_a_plot(tmp_path, capsys):
     png = tmp_path / "path.png"
     code, out, _ = run(
-        ["model", "path", "B40-T28", "B44-T30", "B50-T24", "--plot", str(png)], capsys
+        ["model", "path", "SI-B40-T28", "SI-B44-T30", "SI-B50-T24", "--plot", str(png)], capsys
     )
     assert code == 0 and f"plot: {png}" in out
     import matplotlib.image
@@ -90,7 +90,7 @@ def test_three_segments_and_a_plot(tmp_path, capsys):
 def test_pairs_plot_the_v1_v2_plane(tmp_path, capsys):
     png = tmp_path / "pair.png"
     code, _, _ = run(
-        ["model", "path", "B46-T20", "B46-T22", "--deflate", "--plot", str(png)], capsys
+        ["model", "path", "SI-B46-T20", "SI-B46-T22", "--deflate", "--plot", str(png)], capsys
     )
     assert code == 0
     import matplotlib.image
@@ -100,13 +100,13 @@ def test_pairs_plot_the_v1_v2_plane(tmp_path, capsys):
 
 def test_measured_csv_segments(tmp_path, capsys):
     paths = []
-    for name in ("B44-T30", "B48-T26"):
+    for name in ("SI-B44-T30", "SI-B48-T26"):
         paths.append(str(tmp_path / f"{name}.csv"))
         write_csv(analytical_segment(name), paths[-1])
     code, out, _ = run(["model", "path", *paths, "--json"], capsys)
     assert code == 0
     from_csv = json.loads(out)["transitions"]
-    _, out, _ = run(["model", "path", "B44-T30", "B48-T26", "--json"], capsys)
+    _, out, _ = run(["model", "path", "SI-B44-T30", "SI-B48-T26", "--json"], capsys)
     from_library = json.loads(out)["transitions"]
     assert [(t["alpha"], t["beta"], t["stable"]) for t in from_csv] == [
         (t["alpha"], t["beta"], t["stable"]) for t in from_library
@@ -118,11 +118,11 @@ def test_measured_csv_segments(tmp_path, capsys):
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["B46-T20"], "at least two segments, got 1"),
+        (["SI-B46-T20"], "at least two segments, got 1"),
         ([], "at least two segments, got 0"),
-        (["B46-T20", "B99-T20"], "unknown segment 'B99-T20'"),
-        (["B46-T20", "B46-T22", "--v-end-ml", "-3"], "--v-end-ml -3.0: must be > 0"),
-        (["B46-T20", "B46-T22", "--plot", "/no/such/dir/x.png"], "--plot /no/such/dir/x.png"),
+        (["SI-B46-T20", "SI-B99-T20"], "unknown segment 'SI-B99-T20'"),
+        (["SI-B46-T20", "SI-B46-T22", "--v-end-ml", "-3"], "--v-end-ml -3.0: must be > 0"),
+        (["SI-B46-T20", "SI-B46-T22", "--plot", "/no/such/dir/x.png"], "--plot /no/such/dir/x.png"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(argv, message, capsys):
@@ -146,12 +146,14 @@ def test_an_unresolvable_state_is_one_line_naming_segments_and_volume(capsys, mo
         raise ValueError("no sign change between the ends of the bracket")
 
     monkeypatch.setattr(path_module, "bracketed_root", no_root)
-    code, _, err = run(["model", "path", "B42-T24", "B50-T22"], capsys)
+    code, _, err = run(["model", "path", "SI-B42-T24", "SI-B50-T22"], capsys)
     assert code == 2
-    assert err.startswith("error: B42-T24 + B50-T22: the model cannot resolve the state near v = ")
+    assert err.startswith(
+        "error: SI-B42-T24 + SI-B50-T22: the model cannot resolve the state near v = "
+    )
     assert "no sign change" in err and "Traceback" not in err and len(err.splitlines()) == 1
     with pytest.raises(path_module.PathError):
-        main(["--debug", "model", "path", "B42-T24", "B50-T22"])
+        main(["--debug", "model", "path", "SI-B42-T24", "SI-B50-T22"])
 
 
 def test_any_other_error_is_one_line_unless_debug(capsys, monkeypatch):
@@ -161,10 +163,10 @@ def test_any_other_error_is_one_line_unless_debug(capsys, monkeypatch):
         raise ZeroDivisionError("a bug")
 
     monkeypatch.setattr(transitions_module, "transitions", broken)
-    code, _, err = run(["model", "path", "B42-T24", "B50-T22"], capsys)
+    code, _, err = run(["model", "path", "SI-B42-T24", "SI-B50-T22"], capsys)
     assert code == 1
     assert err.strip() == (
         "error: internal error (ZeroDivisionError: a bug); labrig --debug ... shows the traceback"
     )
     with pytest.raises(ZeroDivisionError):
-        main(["--debug", "model", "path", "B42-T24", "B50-T22"])
+        main(["--debug", "model", "path", "SI-B42-T24", "SI-B50-T22"])

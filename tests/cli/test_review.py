@@ -22,7 +22,7 @@ def run(argv, capsys):
 def test_show_tables_metadata_protocol_and_repetitions(segment_run, capsys):
     code, out, err = run(["show", segment_run.path], capsys)
     assert code == 0, err
-    assert "simulated B46-T20" in out
+    assert "simulated SI-B46-T20" in out
     assert "repeat x5" in out and "infuse rate_ml_min 20, volume_ml 20.8" in out
     assert "repetition 3 faulted: simulated fault" in out
     table = out[out.index("repetitions (") :].splitlines()
@@ -40,7 +40,7 @@ def test_show_uses_the_stored_analysis(segment_run, copy_of, capsys):
     code, out, _ = run(["show", path], capsys)
     assert code == 0
     assert "no stored analysis" not in out
-    assert "RMSE of the mean against the model (B46-T20)" in out
+    assert "RMSE of the mean against the model (SI-B46-T20)" in out
 
 
 def test_plot_writes_a_png(snap_run, tmp_path, capsys):
@@ -113,23 +113,23 @@ def test_compare_against_the_specimen_and_against_other_segments(segment_run, co
     assert 0.3 < own < 0.55  # the inlet's R Q and the residual offset, see test_compare
     assert "none predicted, none measured" in out
 
-    code, out, _ = run(["compare", segment_run.path, "--segments", "B46-T22"], capsys)
+    code, out, _ = run(["compare", segment_run.path, "--segments", "SI-B46-T22"], capsys)
     assert code == 0
-    assert "against the model (B46-T22)" in out
+    assert "against the model (SI-B46-T22)" in out
     line = next(s for s in out.splitlines() if s.strip().startswith("inflate"))
     assert float(line.split()[1]) > 2 * own  # another segment fits worse
 
     path = copy_of(segment_run)
-    code, out, _ = run(["compare", path, "--segments", "B46-T22", "--store"], capsys)
+    code, out, _ = run(["compare", path, "--segments", "SI-B46-T22", "--store"], capsys)
     assert code == 0 and f"stored in {path}" in out
     with h5py.File(path, "r") as f:
-        assert f["entry/analysis/model/segments"][()].tolist() == [b"B46-T22"]
+        assert f["entry/analysis/model/segments"][()].tolist() == [b"SI-B46-T22"]
 
 
 def test_compare_with_an_unknown_segment_is_one_line(segment_run, capsys):
-    code, _, err = run(["compare", segment_run.path, "--segments", "B99-T99"], capsys)
+    code, _, err = run(["compare", segment_run.path, "--segments", "SI-B99-T99"], capsys)
     assert code == 2
-    assert err.startswith("error: unknown segment 'B99-T99'")
+    assert err.startswith("error: unknown segment 'SI-B99-T99'")
     assert len(err.strip().splitlines()) == 1
 
 

@@ -12,7 +12,7 @@ from labrig.errors import InputError
 GOOD = textwrap.dedent(
     """\
     name: combined actuator
-    specimen: {segments: [B46-T20, B46-T22]}
+    specimen: {segments: [SI-B46-T20, SI-B46-T22]}
     rig: sim
     limits: {max_pressure_kpa: 95, max_volume_ml: 50}
     acquisition: {pressure_rate_hz: 1000, camera_fps: 2}
@@ -86,7 +86,7 @@ def test_defaults_fill_optional_sections():
         ("times: 5", "times: 0", "line 9: steps[1].repeat.times: Input should be greater"),
         ("times: 5", "times: '5'", "steps[1].repeat.times: Input should be a valid integer"),
         ("max_pressure_kpa: 95", "max_pressure_kpa: 250", "limits.max_pressure_kpa"),
-        ("segments: [B46-T20, B46-T22]", "segments: []", "specimen.segments"),
+        ("segments: [SI-B46-T20, SI-B46-T22]", "segments: []", "specimen.segments"),
         ("name: combined actuator\n", "", "line 1: name: required key is missing"),
     ],
 )

@@ -9,7 +9,7 @@ from labrig.errors import InputError
 
 PROTOCOL = """\
 name: bench
-specimen: {segments: [B46-T20]}
+specimen: {segments: [SI-B46-T20]}
 rig: rigs/bench.yaml
 limits: {max_pressure_kpa: 95, max_volume_ml: 25}
 steps:

@@ -113,4 +113,4 @@ def assert_read_only(url: str) -> None:
         raise AssertionError("a file outside the page was served")
     except urllib.error.HTTPError as exc:
         assert exc.code == 404
-    assert get(url + "api/info")["segments"] == ["B48-T30", "B50-T20"]
+    assert get(url + "api/info")["segments"] == ["SI-B48-T30", "SI-B50-T20"]

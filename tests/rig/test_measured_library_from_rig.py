@@ -11,8 +11,8 @@ from labrig.model.segments.catalog import analytical_segment, load_segment
 
 PROTOCOL = textwrap.dedent(
     """\
-    name: characterise B46-T20
-    specimen: {segments: [B46-T20], fittings_length_mm: 10}
+    name: characterise SI-B46-T20
+    specimen: {segments: [SI-B46-T20], fittings_length_mm: 10}
     rig: sim
     limits: {max_pressure_kpa: 95, max_volume_ml: 25}
     acquisition: {pressure_rate_hz: 1000, camera_fps: 2}
@@ -35,7 +35,7 @@ def test_a_characterised_segment_reproduces_the_specimen(tmp_path, monkeypatch):
     library = tmp_path / "library"
     add_from_run(outcome.path, "MEASURED-B46", library)
     monkeypatch.setenv("LABRIG_LIBRARY", str(library))
-    measured, truth = load_segment("MEASURED-B46"), analytical_segment("B46-T20")
+    measured, truth = load_segment("MEASURED-B46"), analytical_segment("SI-B46-T20")
     # p(0) is extrapolated from the first bins, where the curve is steepest: the pump's
     # start, between two polls (and the previous repetition's log), is reconstructed
     # from its rate (analysis.curves.pump_path), else that bent or emptied the first

@@ -14,7 +14,7 @@ from labrig.cli import main
 GOOD = textwrap.dedent(
     """\
     name: cli test
-    specimen: {segments: [B48-T30, B50-T20]}
+    specimen: {segments: [SI-B48-T30, SI-B50-T20]}
     rig: sim
     limits: {max_pressure_kpa: 95, max_volume_ml: 45}
     acquisition: {pressure_rate_hz: 1000, camera_fps: 0}
@@ -53,7 +53,7 @@ def run_cli(args, capsys):
             "runs at 0.000124 to 128.9 mL/min",
         ),
         ("max_volume_ml: 45", "max_volume_ml: 5", "above limits.max_volume_ml = 5 mL"),
-        ("[B48-T30, B50-T20]", "[B48-T30, B51-T20]", "B51-T20"),
+        ("[SI-B48-T30, SI-B50-T20]", "[SI-B48-T30, SI-B51-T20]", "SI-B51-T20"),
     ],
 )
 def test_bad_protocols_are_refused_before_the_pump_moves(tmp_path, capsys, old, new, expected):

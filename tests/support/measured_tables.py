@@ -87,7 +87,7 @@ def unresolved_fold_pair(snap, tables) -> bool:
 def dip_hidden_by_step(clean_curves, step_kpa: float) -> bool:
     """Whether a clean segment's dip (peak minus valley) is shallower than the tables'
     rounding step: then no level need lie between its peak and its valley, and its
-    staircase may rise all along (B40-T26's 0.05 kPa dip at 0.27 or 0.5 kPa). The
+    staircase may rise all along (SI-B40-T26's 0.05 kPa dip at 0.27 or 0.5 kPa). The
     table does not hold the dip, and an actuator of that segment is another actuator:
     its snaps are not asked of it. A dip at least a step deep always shows in a
     staircase (rounding is monotone: values a step apart round to different levels)."""

@@ -15,7 +15,7 @@ DEMO = Path(__file__).parents[2] / "protocols" / "demo.yaml"
 SHORT = textwrap.dedent(
     """\
     name: short fault test
-    specimen: {{segments: [B46-T20, B46-T22], fittings_length_mm: 10}}
+    specimen: {{segments: [SI-B46-T20, SI-B46-T22], fittings_length_mm: 10}}
     rig: sim
     limits: {{max_pressure_kpa: {max_pressure_kpa}, max_volume_ml: 40}}
     acquisition: {{pressure_rate_hz: 1000, camera_fps: {camera_fps}}}

@@ -272,7 +272,7 @@ def _true_jump(t_mid, internal, t, length_mm, k, t_peak, fit_s=1.0) -> float:
 PROTOCOL = textwrap.dedent(
     """\
     name: tiny
-    specimen: {segments: [B46-T20]}
+    specimen: {segments: [SI-B46-T20]}
     limits: {max_pressure_kpa: 90, max_volume_ml: 5}
     steps:
       - repeat: {times: 2, steps: [{infuse: {rate_ml_min: 60, volume_ml: 2}},

@@ -48,6 +48,7 @@ from labrig.model.segments.curve import SegmentCurve
 
 ANALYTICAL = "analytical"
 GENT = "gent"
+SI = "si"
 # the most segments an actuator of a scan may have; the 36-segment library gives
 # 376,992 actuators at n = 5 and 1.9 million at n = 6
 MAX_N = 6
@@ -77,13 +78,17 @@ class ScanLibrary:
 
 
 def load_library(spec: str | None) -> ScanLibrary:
-    """``analytical`` (default: the 36 braided segments), ``gent`` (the three membranes
-    of Fig. S1) or a folder of measured curves (every ``*.csv`` in it, by file name)."""
+    """``analytical`` (default: the 36 calibrated braided segments), ``si`` (the SI's 36
+    uncalibrated ones), ``gent`` (the three membranes of Fig. S1) or a folder of measured
+    curves (every ``*.csv`` in it, by file name)."""
     from labrig.model.segments import catalog
 
     if spec is None or spec.strip().lower() == ANALYTICAL:
         names = catalog.LIBRARY_NAMES
         return ScanLibrary(ANALYTICAL, tuple(catalog.analytical_segment(n) for n in names))
+    if spec.strip().lower() == SI:
+        names = catalog.SI_NAMES
+        return ScanLibrary(SI, tuple(catalog.analytical_segment(n) for n in names))
     if spec.strip().lower() == GENT:
         from labrig.model.segments.gent import GENT_NAMES, gent_membrane
 
@@ -91,7 +96,8 @@ def load_library(spec: str | None) -> ScanLibrary:
     folder = Path(spec)
     if not folder.is_dir():
         raise InputError(
-            f"--library {spec!r}: use 'analytical' (the 36 braided segments), 'gent', or a "
+            f"--library {spec!r}: use 'analytical' (the 36 braided segments), 'si' (the SI's), "
+            "'gent', or a "
             "folder of measured curves (CSV files volume_ml,pressure_kpa,length_mm)"
         )
     from labrig.model.segments.measured import load_csv

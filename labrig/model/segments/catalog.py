@@ -1,10 +1,12 @@
-"""Segments by name: the 36 analytical braided segments, the Gent membranes, CSV files.
+"""Segments by name: the 36 braided segments (calibrated and the SI's), the Gent
+membranes, CSV files.
 
 ``load_segment`` is what every command that takes a ``SEG`` argument calls: a library
-name (``B46-T20``: L_braid = 46 mm, L_tube = 20 mm), a Gent membrane of Fig. S1
-(``gent-a``, ``gent-b``, ``gent-c``) or a path to a measured curve (CSV). Analytical
-curves are built once per process and cached, because scans build all 36 again and
-again.
+name (``B46-T20``: L_braid = 46 mm, L_tube = 20 mm, the calibrated segment of
+``labrig.model.segments.calibrated``), the SI's uncalibrated segment of the same
+geometry (``SI-B46-T20``), a Gent membrane of Fig. S1 (``gent-a``, ``gent-b``,
+``gent-c``) or a path to a measured curve (CSV). Analytical curves are built once per
+process and cached, because scans build all 36 again and again.
 """
 
 from __future__ import annotations
@@ -22,35 +24,52 @@ TUBE_LENGTHS_MM = tuple(range(20, 31, 2))
 LIBRARY_NAMES: tuple[str, ...] = tuple(
     f"B{braid}-T{tube}" for braid in BRAID_LENGTHS_MM for tube in TUBE_LENGTHS_MM
 )
-_NAME = re.compile(r"B(\d+)-T(\d+)")
+SI_PREFIX = "SI-"
+SI_NAMES: tuple[str, ...] = tuple(SI_PREFIX + name for name in LIBRARY_NAMES)
+_NAME = re.compile(r"(?:SI-)?B(\d+)-T(\d+)")
 MEASURED_ENV_VAR = "LABRIG_LIBRARY"
 MEASURED_DEFAULT_DIR = Path("library")
 _MEASURED_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 _VALID = (
     f"B{BRAID_LENGTHS_MM[0]}..B{BRAID_LENGTHS_MM[-1]} x T{TUBE_LENGTHS_MM[0]}.."
-    f"T{TUBE_LENGTHS_MM[-1]} in steps of 2, e.g. B46-T20"
+    f"T{TUBE_LENGTHS_MM[-1]} in steps of 2, e.g. B46-T20 (calibrated) or SI-B46-T20 (the SI's)"
 )
 
 
 def library_geometry(name: str) -> tuple[int, int]:
     """(L_braid, L_tube) in mm of a library name; InputError for anything else."""
     canonical = name.strip().upper()
-    if canonical not in LIBRARY_NAMES:
+    if canonical not in LIBRARY_NAMES and canonical not in SI_NAMES:
         raise InputError(f"unknown segment {name!r}: library names are {_VALID}")
     braid, tube = _NAME.fullmatch(canonical).groups()
     return int(braid), int(tube)
 
 
+def library_segment(name: str):
+    """The segment object behind a library name: ``SI-B46-T20`` the SI's
+    ``BraidedSegment``, ``B46-T20`` the calibrated one."""
+    braid, tube = library_geometry(name)
+    if name.strip().upper().startswith(SI_PREFIX):
+        from labrig.model.segments.braided import BraidedSegment
+
+        return BraidedSegment(braid, tube)
+    from labrig.model.segments.calibrated import calibrated_segment
+
+    return calibrated_segment(braid, tube)
+
+
+def is_library_name(name: str) -> bool:
+    canonical = name.strip().upper()
+    return canonical in LIBRARY_NAMES or canonical in SI_NAMES
+
+
 @cache
 def _analytical(canonical: str) -> SegmentCurve:
-    from labrig.model.segments.braided import BraidedSegment
-
-    braid, tube = library_geometry(canonical)
-    return BraidedSegment(braid, tube).curve(canonical)
+    return library_segment(canonical).curve(canonical)
 
 
 def analytical_segment(name: str) -> SegmentCurve:
-    """The analytical braided segment ``name`` (case-insensitive), built once."""
+    """The braided segment ``name`` (case-insensitive; calibrated or ``SI-``), built once."""
     return _analytical(name.strip().upper())
 
 
@@ -97,7 +116,7 @@ def load_segment(spec: str, library_dir: Path | None = None) -> SegmentCurve:
     text = spec.strip()
     if text.lower() in GENT_NAMES:
         return gent_membrane(text.lower())
-    if text.upper() in LIBRARY_NAMES:
+    if is_library_name(text):
         return analytical_segment(text)
     measured = find_measured(text, library_dir)
     if measured is not None or _looks_like_path(text):

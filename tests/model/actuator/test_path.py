@@ -39,8 +39,10 @@ ACTUATORS = {
     "cubic pair": lambda: cubic_actuator(PAIR),
     "cubic triple": lambda: cubic_actuator(TRIPLE),
     "random quadruple": lambda: random_actuator(7, 4),
-    "B48-T30 + B50-T20": lambda: library_actuator("B48-T30", "B50-T20"),
-    "B40-T28 + B44-T30 + B50-T24": lambda: library_actuator("B40-T28", "B44-T30", "B50-T24"),
+    "SI-B48-T30 + SI-B50-T20": lambda: library_actuator("SI-B48-T30", "SI-B50-T20"),
+    "SI-B40-T28 + SI-B44-T30 + SI-B50-T24": lambda: library_actuator(
+        "SI-B40-T28", "SI-B44-T30", "SI-B50-T24"
+    ),
 }
 
 
@@ -248,10 +250,10 @@ def test_coincident_peaks_with_no_stable_way_on_snap():
 
 
 def test_coincident_library_peaks_take_the_continuous_stable_branch():
-    """B46-T20 and B46-T22 peak at exactly the same pressure. Of the two ways on, only
-    B46-T22 crossing is stable and continuous (its fall is flatter than B46-T20's
+    """SI-B46-T20 and SI-B46-T22 peak at exactly the same pressure. Of the two ways on, only
+    SI-B46-T22 crossing is stable and continuous (its fall is flatter than SI-B46-T20's
     rise), so the crossing is stable and the volumes move continuously through it."""
-    actuator = library_actuator("B46-T20", "B46-T22")
+    actuator = library_actuator("SI-B46-T20", "SI-B46-T22")
     a, b = actuator.segments
     assert a.peak.p_kpa == b.peak.p_kpa
     path = quasi_static_path(actuator)
@@ -263,7 +265,7 @@ def test_coincident_library_peaks_take_the_continuous_stable_branch():
 
 
 def test_a_segment_without_a_peak_is_never_right_of_it():
-    actuator = library_actuator("B40-T28", "B46-T20")  # B40-T28 only rises
+    actuator = library_actuator("SI-B40-T28", "SI-B46-T20")  # SI-B40-T28 only rises
     assert actuator.segments[0].peak is None
     for t in transitions(quasi_static_path(actuator, deflate=True)):
         assert max(t.alpha, t.beta) <= 1
@@ -312,11 +314,11 @@ def test_transition_numbers_follow_the_papers_definitions():
 
 
 TRICKY = [
-    ("B40-T28", "B50-T22"),  # B40-T28's contact kink under the other's long fall
-    ("B46-T26", "B46-T28"),  # coincident peaks, a 0.08 mL snap right after them
-    ("B40-T20", "B40-T24"),  # coincident peaks, snaps back on deflation next to them
-    ("B44-T22", "B44-T30"),  # B44-T30's 0.007 kPa dip
-    ("B42-T20", "B42-T26", "B50-T20"),
+    ("SI-B40-T28", "SI-B50-T22"),  # SI-B40-T28's contact kink under the other's long fall
+    ("SI-B46-T26", "SI-B46-T28"),  # coincident peaks, a 0.08 mL snap right after them
+    ("SI-B40-T20", "SI-B40-T24"),  # coincident peaks, snaps back on deflation next to them
+    ("SI-B44-T22", "SI-B44-T30"),  # SI-B44-T30's 0.007 kPa dip
+    ("SI-B42-T20", "SI-B42-T26", "SI-B50-T20"),
 ]
 
 

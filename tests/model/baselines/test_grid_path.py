@@ -13,10 +13,10 @@ from labrig.model.baselines.grid_path import grid_path
 from labrig.model.segments.catalog import analytical_segment
 
 NAMED = [
-    ("B48-T30", "B50-T20"),
-    ("B46-T20", "B46-T22"),
-    ("B44-T30", "B48-T26"),
-    ("B40-T28", "B44-T30", "B50-T24"),
+    ("SI-B48-T30", "SI-B50-T20"),
+    ("SI-B46-T20", "SI-B46-T22"),
+    ("SI-B44-T30", "SI-B48-T26"),
+    ("SI-B40-T28", "SI-B44-T30", "SI-B50-T24"),
 ]
 
 

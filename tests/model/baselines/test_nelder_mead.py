@@ -79,10 +79,10 @@ def test_random_triples(seed):
 
 
 NAMED = {
-    "(46,20)+(46,22), Movie S3": ("B46-T20", "B46-T22"),
-    "(48,30)+(50,20), Movie S4": ("B48-T30", "B50-T20"),
-    "(44,30)+(48,26), Movie S5": ("B44-T30", "B48-T26"),
-    "(40,28)+(44,30)+(50,24), Movie S6": ("B40-T28", "B44-T30", "B50-T24"),
+    "(46,20)+(46,22), Movie S3": ("SI-B46-T20", "SI-B46-T22"),
+    "(48,30)+(50,20), Movie S4": ("SI-B48-T30", "SI-B50-T20"),
+    "(44,30)+(48,26), Movie S5": ("SI-B44-T30", "SI-B48-T26"),
+    "(40,28)+(44,30)+(50,24), Movie S6": ("SI-B40-T28", "SI-B44-T30", "SI-B50-T24"),
 }
 
 
@@ -90,7 +90,7 @@ NAMED = {
 @pytest.mark.parametrize("name", NAMED)
 def test_the_papers_named_combinations(name):
     actuator = Actuator([analytical_segment(n) for n in NAMED[name]])
-    # B46-T20 + B46-T22 snaps back by 0.35 mL on deflation; the default threshold at
+    # SI-B46-T20 + SI-B46-T22 snaps back by 0.35 mL on deflation; the default threshold at
     # 0.02 mL increments (0.42 mL) would see it as continuous
     fast = assert_paths_agree(actuator, dv_ml=0.02, jump_ml=0.3)
     assert any(not t.stable for t in fast if t.direction == INFLATE)
@@ -98,16 +98,16 @@ def test_the_papers_named_combinations(name):
 
 def test_the_reference_with_a_large_simplex_hops_at_coincident_peaks():
     """Model-notes traps 1 and 2, shown on the reference itself: with a simplex the size
-    of the increment, Nelder-Mead jumps at B46-T20 + B46-T22's common peak to a
-    disconnected stable branch (B46-T20 across its peak, 0.58 mL away); a tenth of the
+    of the increment, Nelder-Mead jumps at SI-B46-T20 + SI-B46-T22's common peak to a
+    disconnected stable branch (SI-B46-T20 across its peak, 0.58 mL away); a tenth of the
     increment follows the stable branch the state is on, as the fast path does."""
-    actuator = Actuator([analytical_segment("B46-T20"), analytical_segment("B46-T22")])
+    actuator = Actuator([analytical_segment("SI-B46-T20"), analytical_segment("SI-B46-T22")])
     large = reference_path(actuator, 11.4, dv_ml=0.02, simplex_fraction=1.0).transitions[0]
     small = reference_path(actuator, 11.4, dv_ml=0.02).transitions[0]
     fast = transitions(quasi_static_path(actuator, v_end_ml=11.4))[0]
     assert not large.stable and large.v_i_post_ml[0] > actuator.segments[0].peak.v_ml + 0.5
     assert small.stable and fast.stable
-    assert small.v_i_post_ml[1] > actuator.segments[1].peak.v_ml  # B46-T22 crossed
+    assert small.v_i_post_ml[1] > actuator.segments[1].peak.v_ml  # SI-B46-T22 crossed
     assert fast.post.branches == (0, 1)
 
 

@@ -5,7 +5,7 @@ In each, one segment is just past its peak (falling, k < 0) and its 1/k term is 
 cancelled by the others' (Eq. 10: sum 1/k comes within ~1e-4 of zero along a stretch
 of otherwise stable states). Four of the five do it with two segments of the same braid
 length, which peak at exactly the same pressure (docs/model.md), one either side of
-it; the fifth with B46-T26 against three rising B48 segments. There sum 1/k crosses
+it; the fifth with SI-B46-T26 against three rising B48 segments. There sum 1/k crosses
 zero twice, 1e-7 to 9e-5 kPa apart: a fold pair. Inflating, the state is lost at the
 first fold and the same branches are stable again past the second, the volume regained
 within 1e-9 mL. So a state to snap to exists: the same branches, just past the second
@@ -44,13 +44,38 @@ from labrig.model.segments.catalog import analytical_segment
 # the failures of `labrig model scan --n 5`, and one of n = 6 met by
 # tests/benchmarks/bench_scan_plan.py's sample
 FOLD_PAIRS = [
-    (("B40-T20", "B40-T24", "B40-T26", "B42-T20", "B44-T20"), (2, 0, 1, 2, 2), 38.182135, 2e-5),
-    (("B40-T22", "B46-T28", "B48-T28", "B50-T20", "B50-T30"), (2, 2, 2, 0, 1), 40.455383, 2e-5),
-    (("B44-T28", "B48-T22", "B48-T26", "B50-T24", "B50-T26"), (2, 2, 2, 0, 1), 40.429914, 2e-5),
-    (("B44-T30", "B46-T20", "B46-T28", "B50-T20", "B50-T30"), (2, 2, 2, 0, 1), 40.455383, 2e-5),
-    (("B46-T20", "B46-T26", "B48-T24", "B48-T28", "B48-T30"), (2, 1, 0, 0, 0), 39.237506, 2e-3),
     (
-        ("B40-T30", "B42-T22", "B46-T22", "B48-T28", "B50-T20", "B50-T30"),
+        ("SI-B40-T20", "SI-B40-T24", "SI-B40-T26", "SI-B42-T20", "SI-B44-T20"),
+        (2, 0, 1, 2, 2),
+        38.182135,
+        2e-5,
+    ),
+    (
+        ("SI-B40-T22", "SI-B46-T28", "SI-B48-T28", "SI-B50-T20", "SI-B50-T30"),
+        (2, 2, 2, 0, 1),
+        40.455383,
+        2e-5,
+    ),
+    (
+        ("SI-B44-T28", "SI-B48-T22", "SI-B48-T26", "SI-B50-T24", "SI-B50-T26"),
+        (2, 2, 2, 0, 1),
+        40.429914,
+        2e-5,
+    ),
+    (
+        ("SI-B44-T30", "SI-B46-T20", "SI-B46-T28", "SI-B50-T20", "SI-B50-T30"),
+        (2, 2, 2, 0, 1),
+        40.455383,
+        2e-5,
+    ),
+    (
+        ("SI-B46-T20", "SI-B46-T26", "SI-B48-T24", "SI-B48-T28", "SI-B48-T30"),
+        (2, 1, 0, 0, 0),
+        39.237506,
+        2e-3,
+    ),
+    (
+        ("SI-B40-T30", "SI-B42-T22", "SI-B46-T22", "SI-B48-T28", "SI-B50-T20", "SI-B50-T30"),
         (0, 2, 2, 2, 0, 1),
         40.455383,
         2e-5,

@@ -5,7 +5,13 @@ import pytest
 
 from labrig.errors import InputError
 from labrig.model.segments.braided import BraidedSegment
-from labrig.model.segments.catalog import LIBRARY_NAMES, analytical_segment, load_segment
+from labrig.model.segments.calibrated import calibrated_segment
+from labrig.model.segments.catalog import (
+    LIBRARY_NAMES,
+    SI_NAMES,
+    analytical_segment,
+    load_segment,
+)
 from labrig.model.segments.measured import write_csv
 
 
@@ -13,26 +19,33 @@ def test_the_36_names_of_the_paper():
     assert len(LIBRARY_NAMES) == 36 == len(set(LIBRARY_NAMES))
     assert LIBRARY_NAMES[0] == "B40-T20" and LIBRARY_NAMES[-1] == "B50-T30"
     assert "B46-T22" in LIBRARY_NAMES and "B47-T20" not in LIBRARY_NAMES
+    assert tuple("SI-" + name for name in LIBRARY_NAMES) == SI_NAMES
 
 
 def test_a_name_is_its_geometry_and_is_built_once():
     curve = analytical_segment("B46-T20")
     assert curve is analytical_segment("b46-t20")
     assert curve.name == "B46-T20"
-    direct = BraidedSegment(46, 20).curve()
-    np.testing.assert_array_equal(curve.p_kpa, direct.p_kpa)
+    np.testing.assert_array_equal(curve.p_kpa, calibrated_segment(46, 20).curve().p_kpa)
+    si = analytical_segment("si-b46-t20")
+    assert si.name == "SI-B46-T20" and si is analytical_segment("SI-B46-T20")
+    np.testing.assert_array_equal(si.p_kpa, BraidedSegment(46, 20).curve().p_kpa)
 
 
-def test_every_library_segment_is_a_usable_curve():
+@pytest.mark.parametrize(
+    ("names", "without_peak"),
+    [(LIBRARY_NAMES, []), (SI_NAMES, ["SI-B40-T28", "SI-B40-T30", "SI-B42-T30"])],
+)
+def test_every_library_segment_is_a_usable_curve(names, without_peak):
     no_peak = []
-    for name in LIBRARY_NAMES:
+    for name in names:
         curve = analytical_segment(name)
         assert curve.v_ml[0] == 0 and curve.p_kpa[0] == 0 and np.all(curve.p_kpa[1:] > 0)
         assert curve.p_kpa[-1] == pytest.approx(300)
         assert len(curve.branch_bounds) in (1, 3)
         if curve.peak is None:
             no_peak.append(name)
-    assert no_peak == ["B40-T28", "B40-T30", "B42-T30"]
+    assert no_peak == without_peak
 
 
 @pytest.mark.parametrize("spec", ["B47-T20", "B46", "foo", "B46-T20x"])
@@ -41,7 +54,8 @@ def test_unknown_names_list_the_valid_ones_compactly(spec):
         load_segment(spec)
     message = str(info.value)
     assert repr(spec) in message and "B40..B50 x T20..T30 in steps of 2, e.g. B46-T20" in message
-    assert len(message) < 250
+    assert "SI-B46-T20" in message
+    assert len(message) < 300
 
 
 def test_load_segment_takes_names_gent_membranes_and_csv_paths(tmp_path):

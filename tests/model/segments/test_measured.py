@@ -41,7 +41,9 @@ def write_table(path, table, fmt="%.6f"):
     return path
 
 
-@pytest.mark.parametrize(("name", "seed"), [("B46-T20", 1), ("B46-T22", 2), ("B50-T24", 3)])
+@pytest.mark.parametrize(
+    ("name", "seed"), [("SI-B46-T20", 1), ("SI-B46-T22", 2), ("SI-B50-T24", 3)]
+)
 def test_noisy_data_give_the_clean_peak_and_valley(tmp_path, name, seed):
     clean = analytical_segment(name)
     raw = mpx5100_like(clean, seed)
@@ -60,7 +62,7 @@ def test_noisy_data_give_the_clean_peak_and_valley(tmp_path, name, seed):
 
 
 def test_spikes_and_a_rising_curve_give_no_spurious_peak(tmp_path):
-    clean = analytical_segment("B40-T30")  # contact before the peak: p(v) only rises
+    clean = analytical_segment("SI-B40-T30")  # contact before the peak: p(v) only rises
     curve = load_csv(write_table(tmp_path / "run.csv", mpx5100_like(clean, 4, spikes=30)))
     assert curve.peak is None and curve.branch_bounds == [(0, len(curve.v_ml) - 1)]
     grid = np.linspace(0.5, 12.0, 200)
@@ -68,7 +70,7 @@ def test_spikes_and_a_rising_curve_give_no_spurious_peak(tmp_path):
 
 
 def test_curve_is_extended_monotonically_past_the_last_sample(tmp_path):
-    clean = analytical_segment("B46-T20")
+    clean = analytical_segment("SI-B46-T20")
     raw = mpx5100_like(clean, 5)
     curve = load_csv(write_table(tmp_path / "run.csv", raw))
     assert curve.p_kpa[-1] == pytest.approx(300.0)
@@ -78,7 +80,7 @@ def test_curve_is_extended_monotonically_past_the_last_sample(tmp_path):
 
 
 def test_round_trip_is_lossless(tmp_path):
-    clean = analytical_segment("B46-T22")
+    clean = analytical_segment("SI-B46-T22")
     write_csv(clean, tmp_path / "b46.csv")
     assert (tmp_path / "b46.csv").read_text().splitlines()[0] == HEADER
     back = load_csv(tmp_path / "b46.csv", V0_ml=clean.V0_ml)
@@ -89,14 +91,14 @@ def test_round_trip_is_lossless(tmp_path):
 
 
 def test_unknown_enclosed_volume_is_estimated_from_the_tube_bore(tmp_path):
-    clean = analytical_segment("B46-T22")
+    clean = analytical_segment("SI-B46-T22")
     write_csv(clean, tmp_path / "b46.csv")
     back = load_csv(tmp_path / "b46.csv")
     assert back.V0_ml == pytest.approx(np.pi * 6.35**2 * clean.l_mm[0] / 1000)
 
 
 def test_a_curve_that_ends_while_falling_is_refused(tmp_path):
-    clean = analytical_segment("B46-T20")
+    clean = analytical_segment("SI-B46-T20")
     raw = mpx5100_like(clean, 6)
     raw = raw[raw[:, 0] < 15.0]  # stops on the softening branch
     with pytest.raises(InputError, match="still falls"):
@@ -139,7 +141,7 @@ def test_bad_files_are_refused_with_one_line(tmp_path, text, message):
 def test_rows_at_a_repeated_volume_are_averaged(tmp_path):
     """A 1 kHz-like log whose volume was written to two decimals: each volume ten times,
     the pressures of one volume averaged into one row (their mean, checked here)."""
-    clean = analytical_segment("B46-T22")
+    clean = analytical_segment("SI-B46-T22")
     v = np.round(np.arange(0.0, clean.v_max_ml, 0.001), 2)
     rng = np.random.default_rng(7)
     p = clean.pressure_kpa(v) + rng.normal(0.0, 0.3, len(v))

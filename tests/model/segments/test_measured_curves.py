@@ -85,7 +85,7 @@ def check_same_snaps(
     against the standard error of a slope that the measured rows give over the clean
     snap's flow (the criterion of ``transitions``, applied to the clean snap: where the
     clean path is marginally stable, a table off by a few per cent in slope decides
-    whether it folds at all: B40-T28's lowest slope within 0.14 kPa/mL of B44-T20's
+    whether it folds at all: SI-B40-T28's lowest slope within 0.14 kPa/mL of SI-B44-T20's
     fall, 2.9 standard errors of rows every 0.01 mL at 0.006-0.012 kPa). Two snaps
     within 1e-3 mL are one (the path reports a snap that ends on a state lost at once
     as two events at the same volume, to 1e-6 mL)."""
@@ -123,7 +123,7 @@ def unseen(step_kpa: float, curves) -> float:
 
 
 # --- the issue's failing tables, kept as regression tests -------------------------------
-PAIR = ("B42-T24", "B50-T22")  # the library's snap at 25.600 mL
+PAIR = ("SI-B42-T24", "SI-B50-T22")  # the library's snap at 25.600 mL
 
 
 def pair_curves():
@@ -159,8 +159,8 @@ def test_quantised_tables_give_the_librarys_snap(spacing_ml, round_to_kpa):
 # What the fit reaches on this pair (measured over ten noise seeds): exactly the one
 # snap (no spurious one, none missed, the issue's complaint), within 0.46 mL of the
 # clean 25.6 mL at 50 rows/mL and 0.3 kPa (rms 0.23 mL), 0.40 mL at 0.2 kPa, 0.19 mL
-# at 1,000 rows/mL. B50-T22's falling branch (-0.5 kPa/mL) turns every 0.1 kPa of
-# error in B42-T24's fitted valley into 0.2 mL (docs/model.md); the offset at v = 0
+# at 1,000 rows/mL. SI-B50-T22's falling branch (-0.5 kPa/mL) turns every 0.1 kPa of
+# error in SI-B42-T24's fitted valley into 0.2 mL (docs/model.md); the offset at v = 0
 # is removed only where it stands out of its own uncertainty, which halved these errors
 NOISY_TOLERANCE_ML = {50: 0.5, 1000: 0.5}
 
@@ -189,7 +189,7 @@ def test_noisy_raw_rows_give_the_librarys_snap_and_no_spurious_one(
 
 # --- what the resolution estimates say -----------------------------------------------------
 def test_the_step_is_found_on_an_offset_adc_lattice_and_plateaus_never_stay():
-    clean = analytical_segment("B46-T22")
+    clean = analytical_segment("SI-B46-T22")
     v = np.linspace(0.0, clean.v_max_ml, 5000)
     counts = np.round((clean.pressure_kpa(v) + 0.1234) / ADC_STEP_KPA)
     p = counts * ADC_STEP_KPA - 0.1234  # an offset lattice: no decimal rounding
@@ -242,7 +242,7 @@ def test_the_rise_of_one_minimum_slope_is_the_constrained_least_squares_solution
 
 
 def test_full_precision_values_have_no_step_and_a_sparse_table_no_noise():
-    clean = analytical_segment("B44-T24")
+    clean = analytical_segment("SI-B44-T24")
     v = np.linspace(0.0, clean.v_max_ml, 40)
     res = resolution_of(v, clean.pressure_kpa(v))
     assert res.step_kpa == 0.0
@@ -256,8 +256,8 @@ def test_full_precision_values_have_no_step_and_a_sparse_table_no_noise():
 
 
 def test_a_dip_of_a_few_rounding_steps_is_not_a_peak():
-    # B44-T30's dip is 0.007 kPa: at 0.01 kPa rounding at most two steps, not a feature
-    clean = analytical_segment("B44-T30")
+    # SI-B44-T30's dip is 0.007 kPa: at 0.01 kPa rounding at most two steps, not a feature
+    clean = analytical_segment("SI-B44-T30")
     (curve,) = measured([clean], 0.01, round_to_kpa=0.01)
     assert dip_kpa(clean) < 3 * 0.01
     assert curve.peak is None and not curve.measured.peak_kept
@@ -277,7 +277,7 @@ def library_actuators():
                 st.lists(st.sampled_from(TUBE_LENGTHS_MM), min_size=n, max_size=n),
             )
         )
-        .map(lambda bt: tuple(f"B{b}-T{t}" for b, t in zip(*bt, strict=True)))
+        .map(lambda bt: tuple(f"SI-B{b}-T{t}" for b, t in zip(*bt, strict=True)))
     )
 
 
@@ -287,7 +287,7 @@ spacings = st.floats(np.log10(0.0005), np.log10(0.5)).map(lambda x: 10.0**x)
 # found by this property with more examples: a sparse table rounded to 0.1 kPa, used
 # as tabulated, had slopes off by up to 70 % on its falling branch (5 snaps for 2); the
 # clean path's snap of 0.004 kPa; a jittered sparse table's peak in a 0.46 mL gap; a
-# 0.5 kPa staircase whose step, taken as 0.5 kPa, made B40-T22's 1.8 kPa dip no peak
+# 0.5 kPa staircase whose step, taken as 0.5 kPa, made SI-B40-T22's 1.8 kPa dip no peak
 # (the snap moved by 3 mL: that step estimate is not used); staircases at 0.27-0.5 kPa
 # whose stair values put the snap beyond 1.5 mL per kPa of step or made a snap vanish
 # (found by a sweep of 80 random draws; within it with the stair-edge extrema); a
@@ -295,46 +295,46 @@ spacings = st.floats(np.log10(0.0005), np.log10(0.5)).map(lambda x: 10.0**x)
 # corner rows kept now); with 40 examples, a dense table rounded to 0.001 kPa whose real
 # snaps at 17.5 and 30.4 mL were each followed by a train of unresolved 0.001 kPa fold
 # pairs within a bin, and dropped as 'one snap in two steps' (both missed)
-@example(names=("B40-T28", "B42-T20", "B44-T20"), spacing_ml=0.001, uniform=False,
+@example(names=("SI-B40-T28", "SI-B42-T20", "SI-B44-T20"), spacing_ml=0.001, uniform=False,
          round_to_kpa=0.001, seed=0)  # fmt: skip
 # found with 40 examples instead of 5 (a local run): a clean fold pair of 0.042 kPa
 # at 26.24 mL, missed, whose slope deficit (0.094 kPa/mL) is 0.8 standard errors of
 # the slope the ADC staircase's rows give over its 0.087 mL flow (not resolvable)
-@example(names=("B44-T20", "B40-T22", "B42-T30"), spacing_ml=10.0**-1.921875, uniform=True,
+@example(names=("SI-B44-T20", "SI-B40-T22", "SI-B42-T30"), spacing_ml=10.0**-1.921875, uniform=True,
          round_to_kpa=ADC_STEP_KPA, seed=0)  # fmt: skip
 # found by a sweep of 200 random draws of staircases at 0.27/0.5 kPa every 0.05-0.5 mL:
-# a dip of one or two steps (B40-T24's 0.73 kPa, B42-T26's 0.61, B44-T28's 0.51 at 0.5
+# a dip of one or two steps (SI-B40-T24's 0.73 kPa, SI-B42-T26's 0.61, SI-B44-T28's 0.51 at 0.5
 # kPa) fell under the 3-step prominence and the partner's snap moved by 0.7-1.8 mL; an
 # undithered staircase that falls shows a real dip now (``stair_edges.shows_dip``), and
-# its peak and valley come from its edges: 0.05-0.2 mL. The last: B40-T26's 0.05 kPa
+# its peak and valley come from its edges: 0.05-0.2 mL. The last: SI-B40-T26's 0.05 kPa
 # dip, under the step, which the table does not hold (``dip_hidden_by_step``)
-@example(names=("B40-T24", "B48-T24"), spacing_ml=0.3030689851144785, uniform=False,
+@example(names=("SI-B40-T24", "SI-B48-T24"), spacing_ml=0.3030689851144785, uniform=False,
          round_to_kpa=0.5, seed=263)  # fmt: skip
-@example(names=("B42-T26", "B46-T20"), spacing_ml=0.1539189974542332, uniform=True,
+@example(names=("SI-B42-T26", "SI-B46-T20"), spacing_ml=0.1539189974542332, uniform=True,
          round_to_kpa=0.5, seed=767)  # fmt: skip
-@example(names=("B44-T28", "B48-T24", "B40-T22"), spacing_ml=0.10281950495084123,
+@example(names=("SI-B44-T28", "SI-B48-T24", "SI-B40-T22"), spacing_ml=0.10281950495084123,
          uniform=True, round_to_kpa=0.5, seed=178)  # fmt: skip
-@example(names=("B48-T26", "B40-T26", "B42-T24"), spacing_ml=0.11078768967212878,
+@example(names=("SI-B48-T26", "SI-B40-T26", "SI-B42-T24"), spacing_ml=0.11078768967212878,
          uniform=True, round_to_kpa=0.5, seed=36)  # fmt: skip
-@example(names=("B40-T22", "B42-T20"), spacing_ml=0.1, uniform=False, round_to_kpa=0.5,
+@example(names=("SI-B40-T22", "SI-B42-T20"), spacing_ml=0.1, uniform=False, round_to_kpa=0.5,
          seed=0)  # fmt: skip
-@example(names=("B44-T20", "B48-T20", "B46-T26"), spacing_ml=0.1, uniform=False,
+@example(names=("SI-B44-T20", "SI-B48-T20", "SI-B46-T26"), spacing_ml=0.1, uniform=False,
          round_to_kpa=0.27, seed=744)  # fmt: skip
-@example(names=("B40-T24", "B46-T26", "B42-T22"), spacing_ml=0.1, uniform=False,
+@example(names=("SI-B40-T24", "SI-B46-T26", "SI-B42-T22"), spacing_ml=0.1, uniform=False,
          round_to_kpa=0.27, seed=623)  # fmt: skip
-@example(names=("B50-T20", "B48-T20", "B44-T28"), spacing_ml=0.1, uniform=False,
+@example(names=("SI-B50-T20", "SI-B48-T20", "SI-B44-T28"), spacing_ml=0.1, uniform=False,
          round_to_kpa=0.5, seed=820)  # fmt: skip
-@example(names=("B44-T28", "B50-T20"), spacing_ml=0.003224633495381667, uniform=False,
+@example(names=("SI-B44-T28", "SI-B50-T20"), spacing_ml=0.003224633495381667, uniform=False,
          round_to_kpa=0.27, seed=863)  # fmt: skip
-@example(names=("B42-T20", "B48-T20"), spacing_ml=0.15736293507864732, uniform=False,
+@example(names=("SI-B42-T20", "SI-B48-T20"), spacing_ml=0.15736293507864732, uniform=False,
          round_to_kpa=0.5, seed=316)  # fmt: skip
-@example(names=("B44-T22", "B46-T28", "B42-T30"), spacing_ml=10.0**-0.5, uniform=True,
+@example(names=("SI-B44-T22", "SI-B46-T28", "SI-B42-T30"), spacing_ml=10.0**-0.5, uniform=True,
          round_to_kpa=0.1, seed=962)  # fmt: skip
-@example(names=("B40-T20", "B42-T20"), spacing_ml=10.0**-2.5, uniform=False,
+@example(names=("SI-B40-T20", "SI-B42-T20"), spacing_ml=10.0**-2.5, uniform=False,
          round_to_kpa=0.1, seed=0)  # fmt: skip
-@example(names=("B40-T28", "B50-T28", "B42-T20"), spacing_ml=10.0**-0.5, uniform=False,
+@example(names=("SI-B40-T28", "SI-B50-T28", "SI-B42-T20"), spacing_ml=10.0**-0.5, uniform=False,
          round_to_kpa=None, seed=0)  # fmt: skip
-@example(names=("B42-T20", "B40-T20"), spacing_ml=10.0**-0.5, uniform=False,
+@example(names=("SI-B42-T20", "SI-B40-T20"), spacing_ml=10.0**-0.5, uniform=False,
          round_to_kpa=None, seed=0)  # fmt: skip
 @PROPERTY
 @given(
@@ -363,13 +363,13 @@ def test_clean_and_quantised_library_tables_snap_like_the_clean_curves(
 
 
 def test_a_monotone_segment_rounded_to_a_tenth_beside_a_snapping_one():
-    """Was a strict xfail, found by the property above: B44-T30 (no peak) + B46-T20
+    """Was a strict xfail, found by the property above: SI-B44-T30 (no peak) + SI-B46-T20
     every 0.1 mL (jittered), rounded to 0.1 kPa, snapped 0.51 mL off the clean 15.594
-    mL. B44-T30's braid contact is a corner inside one row gap (39.1 kPa up to 8.357 mL,
+    mL. SI-B44-T30's braid contact is a corner inside one row gap (39.1 kPa up to 8.357 mL,
     39.3 at 8.513); the plateau's centre joined to the next row spread it, and the fold
     moved to 39.30 kPa (clean 39.09). The plateau's row at the jump is now kept
     (``keep_corner_rows``): the fold at 39.13 kPa, the snap 0.39 mL off."""
-    names = ("B44-T30", "B46-T20")
+    names = ("SI-B44-T30", "SI-B46-T20")
     clean = [analytical_segment(n) for n in names]
     curves = measured(clean, 0.1, uniform=False, round_to_kpa=0.1, seed=1)
     tolerance = issue_tolerance(0.1, curves)
@@ -377,12 +377,12 @@ def test_a_monotone_segment_rounded_to_a_tenth_beside_a_snapping_one():
     check_same_snaps(clean_snaps(names), got, tolerance, True, unseen(0.1, curves), curves)
 
 
-# found by this property with 25 examples: B40-T20 + B42-T26 + B44-T20 at 1,000 rows/mL,
-# 0.5 kPa noise on a 0.27 kPa step snapped 1.17 mL off: B42-T26's 0.6 kPa dip, within
+# found by this property with 25 examples: SI-B40-T20 + SI-B42-T26 + SI-B44-T20 at 1,000 rows/mL,
+# 0.5 kPa noise on a 0.27 kPa step snapped 1.17 mL off: SI-B42-T26's 0.6 kPa dip, within
 # three steps, was taken for rounding although the noise dithers the steps (its bins'
 # means resolve it by 10 standard errors); its peak lost, the path was another one.
 # The valleys fitted were within 0.1 kPa all along (docs/model.md, section 9)
-@example(names=("B40-T20", "B42-T26", "B44-T20"), noise_kpa=0.5, averaging=0.015625,
+@example(names=("SI-B40-T20", "SI-B42-T26", "SI-B44-T20"), noise_kpa=0.5, averaging=0.015625,
          round_to_kpa=0.27, seed=0)  # fmt: skip
 @PROPERTY
 @given(
@@ -492,11 +492,11 @@ def test_noisy_synthetic_pairs_that_had_spurious_snaps(case):
 
 
 def test_a_noisy_library_triple_at_half_a_kpa_has_no_fold_pairs():
-    """Was a strict xfail: the spline fitted to B40-T26's rising branch (no peak at 0.5
+    """Was a strict xfail: the spline fitted to SI-B40-T26's rising branch (no peak at 0.5
     kPa noise) let its slope flicker by up to 1.5 kPa/mL from bin to bin, down to the
-    falling B42-T20's 0.44 kPa/mL: four fold pairs of 0.02-0.05 kPa. A rising branch
+    falling SI-B42-T20's 0.44 kPa/mL: four fold pairs of 0.02-0.05 kPa. A rising branch
     is now fitted with a slope of one minimum (``one_minimum_slope_rise``)."""
-    names = ("B42-T20", "B44-T20", "B40-T26")
+    names = ("SI-B42-T20", "SI-B44-T20", "SI-B40-T26")
     clean = [analytical_segment(n) for n in names]
     curves = measured(clean, (0.015625 / 0.5) ** 2, noise_kpa=0.5, seed=0)
     got = snap_volumes(curves)
@@ -505,14 +505,14 @@ def test_a_noisy_library_triple_at_half_a_kpa_has_no_fold_pairs():
 
 
 def test_a_marginal_noisy_library_pair_reports_no_fold_pair_its_rows_cannot_resolve():
-    """Was a strict xfail: B42-T30's smallest slope (0.5 kPa/mL just before its braids'
-    contact) is within a few hundredths of B44-T24's falling 0.44 kPa/mL: the clean path
+    """Was a strict xfail: SI-B42-T30's smallest slope (0.5 kPa/mL just before its braids'
+    contact) is within a few hundredths of SI-B44-T24's falling 0.44 kPa/mL: the clean path
     is marginally stable, and at 0.21 kPa noise the fit's slope there dips below it, a
     fold pair of 0.09 kPa over 0.22 mL of flow. Even its whole slope, 0.42 kPa/mL (its
     slope deficit is less), is within 1.2 standard errors of the slope that the rows
     over 0.22 mL resolve (0.35 kPa/mL): not a snap those tables can show
     (``transitions``)."""
-    names = ("B42-T30", "B44-T24")
+    names = ("SI-B42-T30", "SI-B44-T24")
     noise_kpa = 0.21295878053605966
     spacing_ml = (0.010472597057400279 / noise_kpa) ** 2
     clean = [analytical_segment(n) for n in names]
@@ -578,24 +578,24 @@ FORMATS = {"%.2f": 0.01, "%.5f": 1e-5, "%.9f": 0.0, "%g": 1e-3, "%.6e": 1e-4}
 # found by this property: volumes written to 2 decimals repeat (refused, then averaged);
 # a merged table's slopes hidden by its noise (tabulated, 16 snaps); a fold pair of
 # 0.007 kPa and 0.007 mL at a valley's exit (below the tables' resolution, not reported)
-@example(names=("B40-T20", "B42-T20"), spacing_ml=0.01, uniform=False, fmt="%.2f", adc=False,
+@example(names=("SI-B40-T20", "SI-B42-T20"), spacing_ml=0.01, uniform=False, fmt="%.2f", adc=False,
          seed=0)  # fmt: skip
-@example(names=("B40-T20", "B42-T20", "B44-T20"), spacing_ml=0.001, uniform=False,
+@example(names=("SI-B40-T20", "SI-B42-T20", "SI-B44-T20"), spacing_ml=0.001, uniform=False,
          fmt="%.2f", adc=False, seed=0)  # fmt: skip
-@example(names=("B40-T20", "B42-T20", "B44-T20"), spacing_ml=10.0**-1.3125, uniform=False,
+@example(names=("SI-B40-T20", "SI-B42-T20", "SI-B44-T20"), spacing_ml=10.0**-1.3125, uniform=False,
          fmt="%.2f", adc=False, seed=0)  # fmt: skip
-@example(names=("B40-T20", "B42-T20"), spacing_ml=10.0**-0.5, uniform=False, fmt="%.2f",
+@example(names=("SI-B40-T20", "SI-B42-T20"), spacing_ml=10.0**-0.5, uniform=False, fmt="%.2f",
          adc=False, seed=0)  # fmt: skip
-@example(names=("B40-T20", "B42-T20"), spacing_ml=0.1, uniform=False, fmt="%.5f", adc=True,
+@example(names=("SI-B40-T20", "SI-B42-T20"), spacing_ml=0.1, uniform=False, fmt="%.5f", adc=True,
          seed=0)  # fmt: skip
 # two valleys 0.006 kPa apart, swapped by an offset of -0.04 kPa that the quadratic
 # through the first rows' steep start made up (a spurious snap at 41.46 mL): the
 # quadratic's misfit now counts in the offset's uncertainty (``zero_offset``)
-@example(names=("B50-T30", "B40-T20", "B46-T28"), spacing_ml=0.1, uniform=False, fmt="%.2f",
-         adc=False, seed=0)  # fmt: skip
+@example(names=("SI-B50-T30", "SI-B40-T20", "SI-B46-T28"), spacing_ml=0.1, uniform=False,
+         fmt="%.2f", adc=False, seed=0)  # fmt: skip
 # the clean fold pair of 0.10 kPa at 14.93 mL, missed: its slope deficit (0.14
 # kPa/mL) is 2.9 standard errors of the rows' slope over its 0.2 mL flow (``unseen``)
-@example(names=("B44-T20", "B40-T28"), spacing_ml=0.01, uniform=False, fmt="%.2f", adc=False,
+@example(names=("SI-B44-T20", "SI-B40-T28"), spacing_ml=0.01, uniform=False, fmt="%.2f", adc=False,
          seed=0)  # fmt: skip
 @PROPERTY
 @given(
@@ -643,7 +643,7 @@ def test_csvs_written_by_other_tools_through_model_path(
 
 
 # --- scans of measured libraries -----------------------------------------------------------
-SCAN_SEGMENTS = ("B42-T24", "B46-T28", "B50-T22")
+SCAN_SEGMENTS = ("SI-B42-T24", "SI-B46-T28", "SI-B50-T22")
 
 
 def snapping_actuators(library, n: int) -> dict[tuple[int, ...], int]:

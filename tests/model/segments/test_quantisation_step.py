@@ -16,7 +16,7 @@ from support.measured_tables import ADC_STEP_KPA
 from labrig.model.segments.catalog import BRAID_LENGTHS_MM, TUBE_LENGTHS_MM, analytical_segment
 from labrig.model.segments.resolution import quantisation_step
 
-NAMES = [f"B{b}-T{t}" for b in BRAID_LENGTHS_MM for t in TUBE_LENGTHS_MM]
+NAMES = [f"SI-B{b}-T{t}" for b in BRAID_LENGTHS_MM for t in TUBE_LENGTHS_MM]
 PROPERTY = settings(max_examples=40, deadline=None, derandomize=True, database=None)
 
 

@@ -13,7 +13,7 @@ from support.measured_tables import sample_table
 from labrig.model.segments.catalog import BRAID_LENGTHS_MM, TUBE_LENGTHS_MM, analytical_segment
 from labrig.model.segments.stair_edges import refine_extrema, shows_dip, stair_edges
 
-NAMES = [f"B{b}-T{t}" for b in BRAID_LENGTHS_MM for t in TUBE_LENGTHS_MM]
+NAMES = [f"SI-B{b}-T{t}" for b in BRAID_LENGTHS_MM for t in TUBE_LENGTHS_MM]
 WITH_DIP = [n for n in NAMES[::3] if analytical_segment(n).peak is not None]
 
 
