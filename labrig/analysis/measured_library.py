@@ -32,9 +32,8 @@ LIBRARY_GRID_ML = 0.01
 
 def check_new_name(name: str, directory: Path, replace: bool) -> None:
     """InputError unless ``name`` can be added to the library at ``directory``."""
-    from labrig.model.segments.catalog import LIBRARY_NAMES
-    from labrig.model.segments.gent import GENT_NAMES
     from labrig.model.segments.catalog import is_library_name
+    from labrig.model.segments.gent import GENT_NAMES
 
     if not is_measured_name(name):
         raise InputError(

@@ -101,7 +101,8 @@ PLOT_OPTION = click.option(
     "library_spec",
     default="analytical",
     show_default=True,
-    help="'analytical' (36 braided segments), 'gent', or a folder of measured CSV curves.",
+    help="'analytical' (36 calibrated braided segments), 'si' (the SI's), 'gent', or a "
+    "folder of measured CSV curves.",
 )
 @click.option(
     "--out",

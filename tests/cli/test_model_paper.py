@@ -85,7 +85,7 @@ def test_at_least_eight_of_the_nine_statements_hold(calibrated_table):
 
 
 def test_calibrate_reports_the_fit_and_never_worsens_the_start(capsys):
-    code, out, _ = run(["model", "calibrate", "--max-evaluations", "3", "--json"], capsys)
+    code, out, _ = run(["model", "calibrate", "--max-evaluations", "1", "--json"], capsys)
     assert code == 0
     doc = json.loads(out)
     assert list(doc["calibration"]) == list(FIELDS)

@@ -13,7 +13,7 @@ import pytest
 
 from labrig.cli import main
 from labrig.model.scan.scan_file import read_scan
-from labrig.model.segments.catalog import LIBRARY_NAMES, analytical_segment
+from labrig.model.segments.catalog import SI_NAMES, analytical_segment
 from labrig.model.segments.measured import write_csv
 
 
@@ -32,7 +32,9 @@ def csv_library(folder, names):
 
 
 def test_scan_a_measured_library_then_summary_and_rank(tmp_path, capsys):
-    library = csv_library(tmp_path / "lib", ["B48-T30", "B50-T20", "B46-T20", "B46-T22"])
+    library = csv_library(
+        tmp_path / "lib", ["SI-B48-T30", "SI-B50-T20", "SI-B46-T20", "SI-B46-T22"]
+    )
     out = tmp_path / "pairs.h5"
     code, text, err = run(
         [
@@ -53,11 +55,11 @@ def test_scan_a_measured_library_then_summary_and_rank(tmp_path, capsys):
     assert "6 of 6 actuators (complete)" in text
     assert "(0, 1)   stable" in text and "snap" in text
     data = read_scan(out)
-    assert data.names == ["B46-T20", "B46-T22", "B48-T30", "B50-T20"]
+    assert data.names == ["SI-B46-T20", "SI-B46-T22", "SI-B48-T30", "SI-B50-T20"]
     code, text, _ = run(["model", "rank", str(out), "--by", "dv", "--top", "2"], capsys)
     assert code == 0
     lines = [line for line in text.splitlines() if line.lstrip().startswith(("1 ", "2 "))]
-    assert len(lines) == 2 and "B48-T30 + B50-T20" in lines[0]  # the 0.45 volume flow
+    assert len(lines) == 2 and "SI-B48-T30 + SI-B50-T20" in lines[0]  # the 0.45 volume flow
     png = tmp_path / "fig4.png"
     code, text, _ = run(["model", "scan-summary", str(out), "--plot", str(png)], capsys)
     assert code == 0 and f"plot: {png}" in text and png.stat().st_size > 10_000
@@ -81,7 +83,7 @@ def test_ctrl_c_keeps_the_finished_chunks_and_resume_completes(tmp_path, capsys)
     # 14 segments, 1,001 quadruples in 63 chunks of 16: long enough to be interrupted
     # after two chunks (it was 3,060 quadruples: 36 s of the test alone, 62-70 s in a
     # fresh-clone suite, for the same check)
-    library = csv_library(tmp_path / "lib", LIBRARY_NAMES[::2][:14])
+    library = csv_library(tmp_path / "lib", SI_NAMES[::2][:14])
     out = tmp_path / "quadruples.h5"
     argv = ["model", "scan", "--n", "4", "--library", str(library), "--out", str(out)]
     process = subprocess.Popen(
@@ -147,7 +149,7 @@ def test_an_existing_file_is_not_overwritten(tmp_path, capsys):
 
 
 def test_rank_rejects_a_non_positive_top(tmp_path, capsys):
-    library = csv_library(tmp_path / "lib", ["B48-T30", "B50-T20"])
+    library = csv_library(tmp_path / "lib", ["SI-B48-T30", "SI-B50-T20"])
     out = tmp_path / "one.h5"
     assert (
         run(["model", "scan", "--n", "2", "--library", str(library), "--out", str(out)], capsys)[0]

@@ -27,7 +27,7 @@ from labrig.model.paper.statements import (
     peak_pressures,
     second_peak_crossings,
 )
-from labrig.model.segments.calibrated import CALIBRATION, Calibration, calibrated_segment
+from labrig.model.segments.calibrated import CALIBRATION, Calibration, calibrated_curve
 
 FIELDS = (
     "shear_modulus_mpa",
@@ -36,8 +36,9 @@ FIELDS = (
     "force_scale",
     "envelope_radius_mm",
     "contact_compliance",
+    "drop_kpa_per_ml",
 )
-BOUNDS = ((0.2, 1.5), (1.0, 2.0), (0.0, 15.0), (0.3, 1.5), (6.35, 7.94), (1.0, 12.0))
+BOUNDS = ((0.2, 1.5), (1.0, 2.0), (0.0, 15.0), (0.3, 1.5), (4.0, 7.94), (1.0, 20.0), (1.0, 1000.0))
 MARGIN_KPA = 1.0
 S3_VOLUME_ML = 23.0
 
@@ -56,7 +57,7 @@ def library_of(calibration: Calibration) -> Callable:
     @cache
     def build(name: str):
         braid, tube = name.removeprefix("B").split("-T")
-        return calibrated_segment(float(braid), float(tube), calibration).curve(name)
+        return calibrated_curve(float(braid), float(tube), name, calibration)
 
     return build
 

@@ -176,43 +176,39 @@ def _elongation_outcome(key, statement, snap, snaps, minimum, paper, role) -> Ou
     )
 
 
+def _lengthening_snap(library, prefix, names, volume, elongation, role) -> list[Outcome]:
+    """A movie's snap: its volume (key, statement, paper's volume) and its elongation
+    (statement, least dl, the paper's value as text)."""
+    key, statement, v_paper = volume
+    snaps = inflation_snaps(library, names, prefix)
+    found, snap = _volume_outcome(f"{key}-volume", statement, snaps, v_paper, role)
+    text, minimum, paper = elongation
+    return [
+        found,
+        _elongation_outcome(f"{key}-elongation", text, snap, snaps, minimum, paper, role),
+    ]
+
+
 def evaluate(library: Library, prefix: str = "") -> list[Outcome]:
     """The nine statements for the library that ``library`` builds (names ``prefix`` +
     ``B46-T20``)."""
     outcomes = _peak_outcomes(peak_pressures(library, prefix))
 
-    s3 = inflation_snaps(library, MOVIE_S3, prefix)
-    found, snap = _volume_outcome(
-        "S3-volume", "Movie S3, (46,20)+(46,22): a snap at 23 mL", s3, 23.0, "fitted"
+    outcomes += _lengthening_snap(
+        library,
+        prefix,
+        MOVIE_S3,
+        ("S3", "Movie S3, (46,20)+(46,22): a snap at 23 mL", 23.0),
+        ("Movie S3: the snap lengthens the actuator", 0.0, "dl > 0"),
+        "fitted",
     )
-    outcomes.append(found)
-    outcomes.append(
-        _elongation_outcome(
-            "S3-elongation",
-            "Movie S3: the snap lengthens the actuator",
-            snap,
-            s3,
-            0.0,
-            "dl > 0",
-            "fitted",
-        )
-    )
-
-    s4 = inflation_snaps(library, MOVIE_S4, prefix)
-    found, snap = _volume_outcome(
-        "S4-volume", "Movie S4, (48,30)+(50,20): a snap at 26 mL", s4, 26.0, "prediction"
-    )
-    outcomes.append(found)
-    outcomes.append(
-        _elongation_outcome(
-            "S4-elongation",
-            "Movie S4: the snap lengthens the actuator by 10 mm (11 %)",
-            snap,
-            s4,
-            0.05 - 1e-12,
-            "dl >= +5 %",
-            "prediction",
-        )
+    outcomes += _lengthening_snap(
+        library,
+        prefix,
+        MOVIE_S4,
+        ("S4", "Movie S4, (48,30)+(50,20): a snap at 26 mL", 26.0),
+        ("Movie S4: the snap lengthens the actuator by 10 mm (11 %)", 0.05 - 1e-12, "dl >= +5 %"),
+        "prediction",
     )
 
     s5 = inflation_snaps(library, MOVIE_S5, prefix)

@@ -110,6 +110,17 @@ def neo_hookean_gradient(stretch_theta, stretch_z):
     return stretch_theta - inverse / stretch_theta, stretch_z - inverse / stretch_z
 
 
+def interior_maximum(pressure, lo: float, hi: float) -> float | None:
+    """The parameter in (lo, hi) where ``pressure`` peaks (bounded Brent to 1e-12), or
+    None when it is highest at ``hi``, the braids' contact: no peak before contact."""
+    found = minimize_scalar(
+        lambda x: -pressure(x), bounds=(lo, hi), method="bounded", options={"xatol": 1e-12 * hi}
+    )
+    x = float(found.x)
+    interior = x < hi - 1e-9 * (hi - lo)
+    return x if interior and pressure(x) > pressure(hi) else None
+
+
 @dataclass(frozen=True)
 class BraidedSegment:
     """A latex tube of length ``l_tube_mm`` inside n braids of length ``l_braid_mm``.
@@ -217,19 +228,11 @@ class BraidedSegment:
     @cached_property
     def peak_stretch(self) -> float | None:
         """Axial stretch of the pressure peak, or None when contact comes first."""
-        lo, hi = self.lambda_z0, self.contact_stretch
-        found = minimize_scalar(
-            lambda lz: -tube_pressure_ratio(lz, self.force_ratio),
-            bounds=(lo, hi),
-            method="bounded",
-            options={"xatol": 1e-12 * hi},
+        return interior_maximum(
+            lambda lz: tube_pressure_ratio(lz, self.force_ratio),
+            self.lambda_z0,
+            self.contact_stretch,
         )
-        lz = float(found.x)
-        interior = lz < hi - 1e-9 * (hi - lo)
-        higher = tube_pressure_ratio(lz, self.force_ratio) > tube_pressure_ratio(
-            hi, self.force_ratio
-        )
-        return lz if interior and higher else None
 
     # --- after contact ---------------------------------------------------------------
     def membrane_gradient(self, stretch_theta, stretch_z):

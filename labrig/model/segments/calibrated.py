@@ -16,7 +16,10 @@ names as the model's limits (docs/model.md, "Calibration"):
 - the braids' envelope has the radius of the braid tubing at its ends, a fitted value
   between the latex's 6.35 mm and the braid tubing's 7.94 mm;
 - the braids give way after contact (``contact_compliance``): the stiffening is spread
-  over a fitted multiple of the rigid braids' volume.
+  over a fitted multiple of the rigid braids' volume;
+- past its peak the tube bulges (``labrig.model.segments.bulge``): the pressure drops
+  with a fitted slope to the bulge's Maxwell propagation pressure and stays there until
+  the tube lies against the braids.
 
 The values are the result of ``labrig model calibrate`` (``labrig.model.paper.fit``),
 fitted to the peak range of the 36 segments and Movie S3 only.
@@ -27,6 +30,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 from labrig.model.segments.braided import R_TUBE_MM, braid_force_n
+from labrig.model.segments.bulge import bulging_curve
+from labrig.model.segments.curve import SegmentCurve
 from labrig.model.segments.ogden_braided import OgdenBraidedSegment
 
 
@@ -40,6 +45,7 @@ class Calibration:
     force_scale: float
     envelope_radius_mm: float
     contact_compliance: float
+    drop_kpa_per_ml: float
 
     def as_dict(self) -> dict[str, float]:
         return asdict(self)
@@ -47,12 +53,13 @@ class Calibration:
 
 # Fitted by `labrig model calibrate` (objective in docs/model.md).
 CALIBRATION = Calibration(
-    shear_modulus_mpa=0.6219,
-    ogden_alpha=1.195,
-    end_stiffening=5.399,
-    force_scale=0.9357,
-    envelope_radius_mm=6.356,
-    contact_compliance=2.158,
+    shear_modulus_mpa=0.6302,
+    ogden_alpha=1.290,
+    end_stiffening=5.010,
+    force_scale=0.7699,
+    envelope_radius_mm=5.461,
+    contact_compliance=1.547,
+    drop_kpa_per_ml=357.7,
 )
 
 
@@ -72,3 +79,11 @@ def calibrated_segment(
         ogden_alpha=calibration.ogden_alpha,
         contact_compliance=calibration.contact_compliance,
     )
+
+
+def calibrated_curve(
+    l_braid_mm: float, l_tube_mm: float, name: str, calibration: Calibration = CALIBRATION
+) -> SegmentCurve:
+    """The calibrated segment's p(v), l(v): the uniform tube's curve with its bulge."""
+    uniform = calibrated_segment(l_braid_mm, l_tube_mm, calibration).curve(name)
+    return bulging_curve(uniform, calibration.drop_kpa_per_ml)

@@ -65,7 +65,11 @@ def is_library_name(name: str) -> bool:
 
 @cache
 def _analytical(canonical: str) -> SegmentCurve:
-    return library_segment(canonical).curve(canonical)
+    if canonical.startswith(SI_PREFIX):
+        return library_segment(canonical).curve(canonical)
+    from labrig.model.segments.calibrated import calibrated_curve
+
+    return calibrated_curve(*library_geometry(canonical), canonical)
 
 
 def analytical_segment(name: str) -> SegmentCurve:

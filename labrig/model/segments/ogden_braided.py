@@ -21,9 +21,9 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from scipy.optimize import brentq, minimize_scalar
+from scipy.optimize import brentq
 
-from labrig.model.segments.braided import MM3_PER_ML, BraidedSegment
+from labrig.model.segments.braided import MM3_PER_ML, BraidedSegment, interior_maximum
 
 ALPHA_RANGE = (1.0, 2.0)
 # bracket of the axial stretch: the residual is -inf at 0 and positive far out
@@ -149,17 +149,9 @@ class OgdenBraidedSegment(BraidedSegment):
     @cached_property
     def peak_hoop_stretch(self) -> float | None:
         """Hoop stretch of the pressure peak, or None when contact comes first."""
-        lo, hi = self.hoop_stretch0, self.contact_hoop_stretch
-        found = minimize_scalar(
-            lambda lt: -self.hoop_state(lt)[1],
-            bounds=(lo, hi),
-            method="bounded",
-            options={"xatol": 1e-12 * hi},
+        return interior_maximum(
+            lambda lt: self.hoop_state(lt)[1], self.hoop_stretch0, self.contact_hoop_stretch
         )
-        lt = float(found.x)
-        interior = lt < hi - 1e-9 * (hi - lo)
-        higher = self.hoop_state(lt)[1] > self.hoop_state(hi)[1]
-        return lt if interior and higher else None
 
     @property
     def peak_stretch(self) -> float | None:

@@ -37,50 +37,27 @@ import pytest
 from labrig.model.actuator.descent import FlowError
 from labrig.model.actuator.equilibria import Actuator
 from labrig.model.actuator.path import quasi_static_path
-from labrig.model.segments.catalog import analytical_segment
+from labrig.model.segments.catalog import SI_PREFIX, analytical_segment
 
 # (segments, each one's branch on the stretch that folds, a pressure near the fold, the
 # half-width of the pressure window that holds the pair):
 # the failures of `labrig model scan --n 5`, and one of n = 6 met by
 # tests/benchmarks/bench_scan_plan.py's sample
-FOLD_PAIRS = [
+# (the SI's segments: the library those scans ran on)
+_FOLDS = [
+    (("B40-T20", "B40-T24", "B40-T26", "B42-T20", "B44-T20"), (2, 0, 1, 2, 2), 38.182135, 2e-5),
+    (("B40-T22", "B46-T28", "B48-T28", "B50-T20", "B50-T30"), (2, 2, 2, 0, 1), 40.455383, 2e-5),
+    (("B44-T28", "B48-T22", "B48-T26", "B50-T24", "B50-T26"), (2, 2, 2, 0, 1), 40.429914, 2e-5),
+    (("B44-T30", "B46-T20", "B46-T28", "B50-T20", "B50-T30"), (2, 2, 2, 0, 1), 40.455383, 2e-5),
+    (("B46-T20", "B46-T26", "B48-T24", "B48-T28", "B48-T30"), (2, 1, 0, 0, 0), 39.237506, 2e-3),
     (
-        ("SI-B40-T20", "SI-B40-T24", "SI-B40-T26", "SI-B42-T20", "SI-B44-T20"),
-        (2, 0, 1, 2, 2),
-        38.182135,
-        2e-5,
-    ),
-    (
-        ("SI-B40-T22", "SI-B46-T28", "SI-B48-T28", "SI-B50-T20", "SI-B50-T30"),
-        (2, 2, 2, 0, 1),
-        40.455383,
-        2e-5,
-    ),
-    (
-        ("SI-B44-T28", "SI-B48-T22", "SI-B48-T26", "SI-B50-T24", "SI-B50-T26"),
-        (2, 2, 2, 0, 1),
-        40.429914,
-        2e-5,
-    ),
-    (
-        ("SI-B44-T30", "SI-B46-T20", "SI-B46-T28", "SI-B50-T20", "SI-B50-T30"),
-        (2, 2, 2, 0, 1),
-        40.455383,
-        2e-5,
-    ),
-    (
-        ("SI-B46-T20", "SI-B46-T26", "SI-B48-T24", "SI-B48-T28", "SI-B48-T30"),
-        (2, 1, 0, 0, 0),
-        39.237506,
-        2e-3,
-    ),
-    (
-        ("SI-B40-T30", "SI-B42-T22", "SI-B46-T22", "SI-B48-T28", "SI-B50-T20", "SI-B50-T30"),
+        ("B40-T30", "B42-T22", "B46-T22", "B48-T28", "B50-T20", "B50-T30"),
         (0, 2, 2, 2, 0, 1),
         40.455383,
         2e-5,
     ),
 ]
+FOLD_PAIRS = [(tuple(SI_PREFIX + n for n in names), *rest) for names, *rest in _FOLDS]
 
 
 def _along(actuator, branches, p_kpa):

@@ -5,7 +5,7 @@ import pytest
 
 from labrig.errors import InputError
 from labrig.model.segments.braided import BraidedSegment
-from labrig.model.segments.calibrated import calibrated_segment
+from labrig.model.segments.calibrated import calibrated_curve
 from labrig.model.segments.catalog import (
     LIBRARY_NAMES,
     SI_NAMES,
@@ -26,7 +26,7 @@ def test_a_name_is_its_geometry_and_is_built_once():
     curve = analytical_segment("B46-T20")
     assert curve is analytical_segment("b46-t20")
     assert curve.name == "B46-T20"
-    np.testing.assert_array_equal(curve.p_kpa, calibrated_segment(46, 20).curve().p_kpa)
+    np.testing.assert_array_equal(curve.p_kpa, calibrated_curve(46, 20, "B46-T20").p_kpa)
     si = analytical_segment("si-b46-t20")
     assert si.name == "SI-B46-T20" and si is analytical_segment("SI-B46-T20")
     np.testing.assert_array_equal(si.p_kpa, BraidedSegment(46, 20).curve().p_kpa)
