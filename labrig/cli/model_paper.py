@@ -64,7 +64,7 @@ def paper(as_json: bool, si: bool) -> None:
     type=click.IntRange(min=1),
     default=120,
     show_default=True,
-    help="Objective evaluations of the simplex (about 2 s each).",
+    help="Objective evaluations of the simplex (about 5 s each).",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print the result as one JSON object.")
 def calibrate(max_evaluations: int, as_json: bool) -> None:

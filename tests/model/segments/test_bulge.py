@@ -10,7 +10,7 @@ from labrig.model.actuator.equilibria import Actuator
 from labrig.model.actuator.path import quasi_static_path
 from labrig.model.actuator.transitions import transitions
 from labrig.model.segments.bulge import PLATEAU_FALL, bulging_curve, maxwell_pressure
-from labrig.model.segments.library import analytical_segment
+from labrig.model.segments.catalog import analytical_segment
 
 NAMES = ["SI-B46-T20", "SI-B50-T22", "SI-B42-T24"]
 
