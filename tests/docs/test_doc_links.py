@@ -12,9 +12,9 @@ LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
 EXTERNAL = ("http://", "https://", "mailto:")
 # What a reader of the repository does not have: notes outside it, and issue numbers.
 OUTSIDE = re.compile(r"\.\./shared|shared/|DESIGN\.md|model-notes|hardware\.md|\bissue \d+")
-# The pages written before the docs were split by purpose; they still carry such
-# references, and lose them as their content moves into the new sections.
-UNSPLIT = {"docs/rig.md", "docs/model.md", "docs/actuator.md", "docs/scan.md", "docs/pump.md"}
+# The pages not yet split by purpose; they still carry such references, and lose them as
+# their content moves into the new sections.
+UNSPLIT = {"docs/model.md", "docs/scan.md"}
 
 
 def links(text: str) -> list[str]:

@@ -103,7 +103,7 @@ def test_the_pump_check_on_a_pump_left_by_other_software_says_what_it_can_do():
         assert check.ok, check.line()
         assert "(none form)" in check.found
         assert "no withdraw (infuse-only pump)" in check.found
-        # 100 % of 75 lbf over the 26.7 mm plunger: 595.8 kPa (docs/pump.md)
+        # 100 % of 75 lbf over the 26.7 mm plunger: 595.8 kPa (docs/reference/pump.md)
         assert "force limit 100 % (stalls above 596 kPa; a run sets 30 %)" in check.found
         assert "its memory is written at every setting change" in check.found
         sent = {re.sub(r"^\d{1,2}:?", "", line) for line in emulator.received}

@@ -220,7 +220,7 @@ def test_four_identical_segments_are_deterministic_and_finite():
     """Every peak and valley coincides four times over. The path still takes one
     deterministic way, with finite numbers, equal pressures and the supplied volume;
     only within table resolution of the degenerate points (hysteresis loops below
-    0.01 mL, see docs/actuator.md) may it pass marginally unstable states."""
+    0.01 mL, see docs/explanation/actuator-model.md) may it pass marginally unstable states."""
     segs = [random_cubic(np.random.default_rng(7), name) for name in "ABCD"]
     path = quasi_static_path(Actuator(segs), deflate=True)
     assert path.timeline == quasi_static_path(Actuator(segs), deflate=True).timeline
