@@ -18,7 +18,7 @@ What a frame's time is, per backend (``stamp``):
   exposure's end, free of the transfer and of the reader's delay;
 - SimCamera: the same semantics on the virtual clock (the frame's exposure time);
 - other backends (MSMF, DSHOW, AVFoundation, GStreamer): their ``POS_MSEC`` is 0, a
-  constant or the stream's own origin (hardware.md 4.4), so the frame is stamped with the
+  constant or the stream's own origin, so the frame is stamped with the
   shared clock read when the grab returns — late by the transfer, within a frame period;
 - a video file: the file's own position, ``CAP_PROP_POS_MSEC`` after the read.
 

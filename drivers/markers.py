@@ -3,7 +3,7 @@
 Thresholds and connected components only *find* each marker; its centre comes from
 intensity-weighted moments of the background-subtracted grey levels in a circular
 window around it, which uses the anti-aliased edge pixels a binary mask throws away
-(hardware.md 4.2: about 0.03 px against 0.1 px for a binary contour centroid).
+(about 0.03 px against 0.1 px for a binary contour centroid on an anti-aliased disc).
 
 Per frame it looks only inside a window around each marker's last position and searches
 the whole frame only when a marker is lost, so tracking costs well under a millisecond

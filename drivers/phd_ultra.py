@@ -7,7 +7,7 @@ converted, and the pump's error texts become typed exceptions
 (``phd_ultra_errors``). The framing rules themselves are pure functions in
 ``phd_ultra_protocol``; this module owns the port, the lock and the clocks.
 
-Safety rules, from the traps in hardware.md 1.2 and 1.6:
+Safety rules, because a pump that does not stop is the rig's worst failure:
 
 - No call hangs: each reply has a deadline (``timeout_s``), the port is read in short
   slices, a lost port raises ``PumpDisconnected`` at once.
@@ -27,7 +27,7 @@ Safety rules, from the traps in hardware.md 1.2 and 1.6:
 - Stalls send nothing by themselves: ``status()`` reports them and
   ``wait_until_stopped()`` polls for them.
 
-What ``connect()`` assumes of a pump left by other software (issue 16): it may be in
+What ``connect()`` assumes of a pump left by other software: it may be in
 ``poll on`` (prompts end with XON) or ``poll remote`` (no prompts), so ``poll off`` goes
 first and its reply may never come; the address form the firmware wants is unknown, so
 with ``address_form="auto"`` the forms are tried in turn and the answered one is kept;
@@ -96,7 +96,7 @@ DEFAULT_TIMEOUT_S = 2.0
 READ_SLICE_S = 0.02
 # NVRAM writes off, in the order of the evidence: chembot on a real PHD ULTRA, then the
 # Pico Plus / Legato drivers of the same command family, then the Pump 33 DDS manual's
-# `rsave` (hardware.md 1.3).
+# `rsave`.
 NVRAM_OFF_COMMANDS = ("nvram off", "nvram none", "rsave off")
 # How long a stop waits for the port before it writes beside the exchange in flight: an
 # answered exchange takes milliseconds, one waiting out its timeout takes seconds; a stop

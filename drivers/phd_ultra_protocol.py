@@ -3,8 +3,9 @@ reply is complete, what its prompt means, and how each reply reads as a value in
 mL/min or mm.
 
 Nothing here touches a port, so every rule is checked with message tables; the port,
-the lock and the timeouts live in ``phd_ultra.py``. The framing is the tolerant reading
-of hardware.md 1.1–1.2, because it varies between firmware versions:
+the lock and the timeouts live in ``phd_ultra.py``. The framing is read tolerantly,
+because it varies between firmware versions (docs/reference/pump.md lists what is
+assumed):
 
 - a reply is ``LF payload CR`` lines, then ``LF prompt`` (no CR after the prompt);
 - the prompt is ``[:<>*]`` or a target prompt ``T*``, ``T:`` or ``:T*``, with an
@@ -288,7 +289,7 @@ _STATUS = re.compile(r"^(\d+)\s+(\d+)\s+(\d+)\s+([iIwW][.A-Za-z]{4,5})$")
 def parse_status_line(text: str) -> StatusLine:
     """``'16666666667 1500 25000000000 I..TI.'`` -> StatusLine (fL/s, ms, fL, flags).
 
-    Flags (chembot's reading, hardware.md 1.2): direction (upper case while running),
+    Flags (as chembot reads them from real pumps): direction (upper case while running),
     limit switch, stall ``S``, trigger, direction port, and on newer firmware a sixth
     flag ``T`` for target reached.
     """

@@ -2,7 +2,7 @@
 
 ``PumpEmulator`` serves a ``PumpFirmware`` (``sim.pump_firmware``: command set,
 settings, plunger on the shared clock) on the master side of an ``os.openpty`` pair
-and frames its answers as the pump does (hardware.md 1.1-1.2): ``LF payload CR`` lines
+and frames its answers as the pump does: ``LF payload CR`` lines
 then ``LF prompt``, the prompt bare at address 0 and ``AA`` + prompt elsewhere, an
 unsolicited prompt when the target is reached, nothing when it stalls.
 

@@ -10,7 +10,7 @@ The load is whatever is attached: ``load_pressure_kpa(t)`` is called with
 non-decreasing clock times, never under this object's lock, so a plant may call
 ``net_volume_ml`` from it.
 
-Models of the real pumps the driver must meet (issue 16) are options: the poll mode
+Models of the real pumps the driver must meet are options: the poll mode
 it was left in (``poll on``: XON after each prompt; ``poll remote``: no prompts),
 strict addressing (one address form is answered, any other ignored, as by a pump that
 reads it as meant for another: the manual's form is none at address 0 and ``N:cmd``
@@ -41,8 +41,8 @@ log = logging.getLogger(__name__)
 
 FIRMWARE = "PHD ULTRA 3.0.5"
 SERIAL_NUMBER = "EMU00001"
-# The default syringe: the example of hardware.md 1.4 (`diameter 26.7`, `svolume 60 ml`),
-# a 60 mL plastic syringe.
+# The default syringe: the manual's example (`diameter 26.7`, `svolume 60 ml`), a 60 mL
+# plastic syringe.
 DEFAULT_DIAMETER_MM = 26.7
 DEFAULT_SYRINGE_ML = 60.0
 # PHD ULTRA catalogue: 75 lbf linear force at 100 % force (unverified).

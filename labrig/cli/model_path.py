@@ -28,9 +28,9 @@ def _significant(x: float) -> float:
 
 
 def path_document(names, sampled, found) -> dict:
-    """The JSON contract of DESIGN.md: segments, path arrays, transitions. Added:
-    each transition's ``direction`` ("inflate" or "deflate"). ``v_i_ml`` holds one list
-    per segment, parallel to ``v_ml``."""
+    """The JSON scripts read from ``labrig model path --json``: segments, path arrays,
+    transitions, each transition with its ``direction`` ("inflate" or "deflate").
+    ``v_i_ml`` holds one list per segment, parallel to ``v_ml``."""
     return {
         "segments": list(names),
         "path": {

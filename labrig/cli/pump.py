@@ -16,7 +16,8 @@ import click
 from labrig.errors import InputError
 
 BAUD_RATES = ("9600", "19200", "38400", "57600", "115200")
-POLL_S = 1.0  # how often --wait asks the pump (hardware.md 1.6: about once per second)
+# how often --wait asks the pump: a stall sends nothing by itself, so it is polled for
+POLL_S = 1.0
 
 
 @click.group()

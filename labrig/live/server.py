@@ -7,7 +7,7 @@ publishes; nothing a request does can reach the runner or the devices, and only 
 (and HEAD) are answered.
 
 Routes: ``/`` the page; ``/static/<file>`` its script and style (package data: the page
-works offline, with no CDN); ``/api/state`` the latest state (the DESIGN.md contract);
+works offline, with no CDN); ``/api/state`` the latest state (fixed fields, a contract);
 ``/api/series?pressure=N&length=M`` the points since those indices, with the detected
 transitions, the time left and why a run stopped; ``/api/info`` the run's fixed facts;
 ``/api/model`` the model's prediction (``{"ready": false}`` while it is computed).

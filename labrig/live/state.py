@@ -23,7 +23,7 @@ import numpy as np
 
 from labrig.live.series import RepetitionSeries
 
-# the fields of GET /api/state (DESIGN.md), in this order
+# the fields of GET /api/state, in this order: a contract scripts rely on
 STATE_FIELDS = (
     "t_s",
     "volume_ml",
@@ -214,7 +214,7 @@ class LiveState:
 
     # --- the server's side: reads only -------------------------------------------------
     def state(self) -> dict:
-        """GET /api/state: exactly the fields of DESIGN.md."""
+        """GET /api/state: exactly ``STATE_FIELDS``."""
         step, latest = self._step, dict(self._latest)
         return {
             "t_s": step.elapsed_s,

@@ -11,7 +11,7 @@ PAGES = sorted([REPO / "README.md", *(REPO / "docs").rglob("*.md")])
 LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
 EXTERNAL = ("http://", "https://", "mailto:")
 # What a reader of the repository does not have: notes outside it, and issue numbers.
-OUTSIDE = re.compile(r"\.\./shared|shared/|DESIGN\.md|model-notes|hardware\.md|\bissue \d+")
+OUTSIDE = re.compile(r"\.\./shared|shared/|DESIGN\.md|model-?notes|hardware\.md|\bissue \d+")
 # The pages not yet split by purpose; they still carry such references, and lose them as
 # their content moves into the new sections.
 UNSPLIT = {"docs/model.md", "docs/scan.md"}

@@ -278,7 +278,7 @@ def test_the_factories_are_what_differ(monkeypatch):
     assert len(made) == 1 and seen == [made[0].in_stream]
 
 
-# ---- what the USB-6009 really does (issue 16) ----------------------------------------
+# ---- what the USB-6009 really does ---------------------------------------------------
 
 
 class TimeRecorder:

@@ -451,7 +451,7 @@ def test_firmware_variants(clock, address, address_form, emulator_options):
         assert pump.version_details()[1].split()[-1] == str(address)
 
 
-# ---- what a pump left on a real bench does (issue 16) ---------------------------------
+# ---- what a pump left on a real bench does --------------------------------------------
 
 REAL_TIMEOUT_S = 0.5  # the forms not answered cost a few of these; a busy host must not
 

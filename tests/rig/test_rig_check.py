@@ -170,7 +170,7 @@ def test_a_bench_rig_with_a_video_and_a_pump_on_a_port(tmp_path):
 @pytest.mark.parametrize("seed", [0, 199])  # 199: a mean of 5.001 V
 def test_the_pressure_check_shows_the_range_daqmx_uses(seed):
     # The recommended wiring asks 0-5 V in RSE; a USB-6009 digitises +-10 V at 13 bits,
-    # so the 5.0 V supply on ai1 is far from the top of the range (issue 16).
+    # so the 5.0 V supply on ai1 is far from the top of the range.
     from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
     from labrig.time.virtual import VirtualClock
 

@@ -1,4 +1,4 @@
-"""Video of a simulated run (issue 14): one frame per tracked length sample with its
+"""Video of a simulated run: one frame per tracked length sample with its
 time in the run file, a killed run's video still opens, the frame strips show the
 transition frames, `labrig compare --json`, and a failed scale calibration faults."""
 

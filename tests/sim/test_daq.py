@@ -263,7 +263,7 @@ def test_read_starts_a_task_that_was_not_started():
     assert read(reader, 1, 3).shape == (1, 3)
 
 
-# ---- what the device really does (issue 16) -------------------------------------------
+# ---- what the device really does ------------------------------------------------------
 
 
 def test_the_properties_the_driver_reads_exist_in_nidaqmx():

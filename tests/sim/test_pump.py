@@ -273,7 +273,7 @@ def test_faults_at_the_serial_level(port, emulator):
         port.read(1)
 
 
-# ---- models of real pumps (issue 16) -------------------------------------------------
+# ---- models of real pumps ------------------------------------------------------------
 
 
 def test_poll_modes_frame_the_replies_and_the_target_event():

@@ -15,7 +15,7 @@ from labrig.model.actuator.transitions import fold_slope_deficit, transitions
 from labrig.model.segments.curve import SegmentCurve
 from labrig.model.segments.measured import HEADER
 
-# the USB-6009's 14-bit step through the MPX5100 (hardware.md): 20 V / 2^14 over
+# the USB-6009's 14-bit step (differential, ±10 V) through the MPX5100: 20 V / 2^14 over
 # 45 mV/kPa (the 0.009 x 5 V sensitivity)
 ADC_STEP_KPA = 20.0 / 2**14 / 0.045
 

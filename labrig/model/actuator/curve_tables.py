@@ -48,7 +48,7 @@ BRANCH_LAST = 6  # (n, B) last sample index of each monotone branch
 BRANCH_RISING = 7  # (n, B)
 # (n, W-1) the exact integral of p over each piece, and (n, W) their running sum from
 # the first sample: energy differences are sums of small numbers rather than
-# differences of large ones (model-notes, trap 3)
+# differences of large ones (~10^3 mJ)
 PIECE_ENERGY = 8
 CUMULATIVE_ENERGY = 9
 LENGTH_COEFFS = 10  # (n, 4, W-1) the length's cubic pieces
@@ -202,10 +202,10 @@ def energy(tables, i, v):
 
 @njit(**LEAF)
 def energy_between(tables, i, v_from, v_to):
-    """E(v_to) - E(v_from) of segment i, mJ, summed from small terms (model-notes, trap
-    3): the pieces' integrals between the two volumes, never the difference of two
-    cumulative energies (~10^3 mJ), which would hide the differences below 1e-9 mJ that
-    decide a minimum near a peak."""
+    """E(v_to) - E(v_from) of segment i, mJ, summed from small terms: the pieces'
+    integrals between the two volumes, never the difference of two cumulative energies
+    (~10^3 mJ), which would hide the differences below 1e-9 mJ that decide a minimum
+    near a peak."""
     sign = 1.0
     if v_to < v_from:
         v_from, v_to, sign = v_to, v_from, -1.0

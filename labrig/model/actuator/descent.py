@@ -8,7 +8,7 @@ gains volume at a rate proportional to the pressure difference to the others:
     dw_i/dt = -(p_i(w_i) - mean_j p_j(w_j)),    sum_i w_i = v fixed,
 
 which is the steepest descent of the total energy on the plane sum w = v. Where it ends
-is the state after the snap (model-notes, trap 9): not the lowest-energy equilibrium at
+is the state after the snap: not the lowest-energy equilibrium at
 that volume, and for n >= 3 not necessarily the one a minimiser would find.
 
 For two segments the flow is one-dimensional and monotone, so it ends at the first zero

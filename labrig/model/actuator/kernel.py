@@ -64,7 +64,7 @@ class CurveKernel:
         return curve_tables.energy(self.tables, 0, v)
 
     def energy_between(self, v_from: float, v_to: float) -> float:
-        """E(v_to) - E(v_from), summed piece by piece from small terms (trap 3)."""
+        """E(v_to) - E(v_from), summed piece by piece from small terms (see ``curve_tables``)."""
         return curve_tables.energy_between(self.tables, 0, v_from, v_to)
 
     def length(self, v: float) -> float:

@@ -60,7 +60,8 @@ INFLATE = 1
 DEFLATE = -1
 # The fold screen computes a state exactly where the screened sum 1/k is within this
 # fraction of its terms' magnitudes from 0. At 0.05, 35 of 400 random library actuators
-# lost a small snap next to coincident peaks; at 0.2 and up, 2 of 400 (docs/explanation/actuator-model.md).
+# lost a small snap next to coincident peaks; at 0.2 and up, 2 of 400
+# (docs/explanation/actuator-model.md).
 SCREEN_MARGIN = 0.2
 
 

@@ -5,9 +5,10 @@ A transition is every snap at constant volume (``stable`` False) and every stabl
 of branch that changes the number of segments right of their peak (a peak crossing, the
 paper's stable (0, 1)). A segment crossing its valley smoothly is not a transition
 (nothing jumps and alpha is unchanged), while a snap that moves no peak flag (a segment
-jumping from its softening onto its stiffening branch, model-notes trap 8) is one.
+jumping from its softening onto its stiffening branch) is one.
 Stability comes from the equilibrium structure (a fold or a lost coincident state),
-never from the sign of dE (trap 7).
+never from the sign of dE: a stable crossing's dE is positive and grows with the volume
+it is measured over.
 
 Measured curves resolve pressure to their table's step or noise and volume to its row
 spacing (``SegmentCurve.measured``). A snap that lands on the branches it left, with a

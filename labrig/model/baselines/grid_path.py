@@ -19,7 +19,7 @@ direction in which the total volume grows, and at the end of the stretch:
 
 Everything is known to the grid spacing only: a fold's volume to second order in it (v is
 stationary there), a peak crossing's to its square root (v ~ sqrt(p_peak - p) near a
-peak), and a dip shallower than the spacing is not seen at all (model-notes, trap 4).
+peak), and a dip shallower than the spacing is not seen at all.
 """
 
 from __future__ import annotations

@@ -3,23 +3,23 @@
 Small volume increments; at each, a local Nelder-Mead minimisation of the reduced energy
 E~(v_1..v_{n-1}) (Eq. 4, v_n from Eq. 2) starting from the previous state, as the paper
 did in Matlab. It shares only the segment curves with ``labrig.model.actuator.path``: no
-branches, no folds, no flow. Two of the model-notes' traps are avoided as the notes say:
+branches, no folds, no flow. Two numerical traps of that algorithm are avoided:
 
-- the initial simplex is a tenth of the volume increment (trap 2): the default 5 %
+- the initial simplex is a tenth of the volume increment: the default 5 %
   simplex hops over a shrinking barrier and predicts snaps early, and even a simplex
   the size of the increment hops, at coincident peaks (B46-T20 + B46-T22), from the
-  stable branch the state is on to a disconnected one (trap 1);
+  stable branch the state is on to a disconnected one;
 - the energy minimised is the difference from the previous state, integrated piece by
-  piece from small terms (trap 3): absolute energies (~10^3 mJ) would hide the
+  piece from small terms: absolute energies (~10^3 mJ) would hide the
   differences below 1e-9 mJ that decide a minimum near a peak.
 
 The minimiser is scipy's Nelder-Mead (``scipy.optimize.minimize(method="Nelder-Mead")``,
 non-adaptive, no bounds) step for step, compiled with its objective
-(``minimise_energy_change``): scipy's loop runs in Python around a compiled objective,
-and its overhead, not the energy, was 95 % of the reference's time (22 s of CPU in the
-test suite for 23,702 minimisations). The same operations in the same order give the
-same states as scipy's, bit for bit, wherever scipy's own order of vertices is defined
-(``_order_vertices``; tests/model/baselines/test_nelder_mead.py holds them to it).
+(``minimise_energy_change``): scipy's own loop runs in Python around the objective, and
+that overhead, not the energy, would be nearly all of the reference's time. The same
+operations in the same order give the same states as scipy's, bit for bit, wherever
+scipy's own order of vertices is defined (``_order_vertices``;
+tests/model/baselines/test_nelder_mead.py holds them to it).
 
 A snap is detected, as in the paper, as a jump of the state between two increments
 larger than ``jump_ml``; a transition as a change of the number of segments right of
@@ -38,7 +38,7 @@ from labrig.model.actuator.equilibria import Actuator
 from labrig.model.actuator.jit import INTERNAL_LEAF, njit
 
 # scipy's tolerances for the reference: far below one increment, and fatol far below the
-# energy differences that decide a minimum near a peak (model-notes trap 3)
+# energy differences (below 1e-9 mJ) that decide a minimum near a peak
 XATOL_ML = 1e-8
 FATOL_MJ = 1e-12
 MAXITER = 20_000

@@ -191,7 +191,7 @@ def test_snaps_of_three_and_four_segments_land_where_a_tight_integration_of_the_
 
 
 def test_a_snap_without_a_peak_crossing_is_a_transition():
-    """Model-notes trap 8: B jumps from its softening onto its stiffening branch while A
+    """A snap need not cross a peak: B jumps from its softening onto its stiffening branch while A
     stays right of its peak; no peak flag changes, and it is still an unstable transition."""
     actuator = Actuator([cubic_segment("A", 6.6, 13.3, 34.0), cubic_segment("B", 3.1, 7.0, 39.0)])
     found = transitions(quasi_static_path(actuator))

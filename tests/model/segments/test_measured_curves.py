@@ -1,4 +1,4 @@
-"""Measured curves from anywhere (issue 12): tables of known curves written the way other
+"""Measured curves from anywhere: tables of known curves written the way other
 tools and rigs write them (any spacing, uniform or not, rounded, quantised, noisy) must
 give the actuators of the clean curves: the same snaps at nearly the same volumes, no
 spurious snap, never an exception. The reference is always the clean curve's own path,
