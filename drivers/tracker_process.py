@@ -38,9 +38,8 @@ from labrig.errors import DeviceError
 # (host seconds, a busy machine included) means the child hung.
 REPLY_TIMEOUT_S = 60.0
 # How much lower the child runs than the run (``os.nice``). Not much: beside two
-# CPU-bound processes, a child at niceness 10 got so little of the machine that the
-# run waited for it (the combined actuator: 69 s, against 24-29 s at 0-6 and 49 s for
-# tracking in the run's own process; 2 cores, 2026-12-03).
+# CPU-bound processes, a child at niceness 10 gets so little of the machine that the
+# run waits for it, longer than with the tracking in the run's own process.
 TRACKER_NICENESS = 4
 _CHILD = "from labrig.drivers.tracker_process import _serve; _serve()"
 

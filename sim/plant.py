@@ -220,8 +220,8 @@ class Plant:
         if dt * max(max(0.0, -k) * ci for k, ci in zip(slopes_old, c, strict=True)) > 0.5:
             return None
         # Newton starts from the last step's flows carried on (a smooth flow changes
-        # little from one step to the next), their total made the pump's: two
-        # evaluations a step instead of three
+        # little from one step to the next), their total made the pump's: fewer
+        # evaluations a step than starting from the pump's volume split by conductance
         flows = self._flows_ml_s
         excess = (d_supplied - dt * sum(flows)) / total_c
         w = [wi + dt * fi + excess * ci for wi, fi, ci in zip(old, flows, c, strict=True)]

@@ -38,7 +38,7 @@ LONG_FIRST = (
     "tests/rig/test_determinism.py::test_same_seed_same_data_beside_two_cpu_burners",
     "tests/rig/test_demo_run.py::",  # the demo's group: ~30 with the one above
     "tests/live/test_watch.py::",  # 19
-    "tests/live/test_api_state.py::",  # 23 before, 15 now
+    "tests/live/test_api_state.py::",  # 15
     "tests/live/test_live_page.py::",  # 16
     "tests/analysis/test_compare.py::",  # the simulated runs' group: ~25
     "tests/model/baselines/test_nelder_mead.py::test_the_papers_named_combinations",  # 12

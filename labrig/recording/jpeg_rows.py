@@ -18,7 +18,7 @@ A simulated camera's frame is mostly flat fill plus noise read from a fixed nois
 at an offset that is a multiple of the MCU's size (``labrig.sim.camera``): its rows
 repeat across frames, except those the markers cross. At 640x360 grey that makes a
 frame ~0.2 ms of the encoder's CPU (keys, drawing, encoding and muxing) instead of
-0.45-0.5 ms to draw and encode it whole (2026-12-03, 2-core AMD EPYC VM).
+~0.5 ms to draw and encode it whole.
 """
 
 from __future__ import annotations

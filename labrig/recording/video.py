@@ -13,8 +13,8 @@ encoding runs on another core instead of taking the run's interpreter lock. Fram
 can describe themselves (``recipe()``: a simulated frame, a few numbers) are sent
 as those descriptions, a batch at a time, and drawn in the encoder process: only the
 rows of MCUs that were not seen before are drawn and encoded, the others copied
-(``labrig.recording.jpeg_rows``; 0.15-0.2 ms of the encoder's CPU a frame at 640x360 grey against
-0.45-0.5 ms to draw and encode each frame whole, 2026-12-03, 2-core AMD EPYC VM). Any
+(``labrig.recording.jpeg_rows``: a third of the encoder's CPU of drawing and encoding
+each frame whole). Any
 other frame (a real camera's) is sent as its pixels and encoded whole. When the encoder
 falls behind by the pipe's buffer the write waits: on the simulated rig's virtual clock
 the camera loop then holds time still and costs only wall time; the encoder process
@@ -42,9 +42,9 @@ import numpy as np
 
 FOURCC = {".avi": "MJPG", ".mkv": "MJPG", ".mp4": "mp4v"}
 _CONTAINERS = {".avi": "avi", ".mkv": "matroska", ".mp4": "mp4"}
-# Motion-JPEG quality (OpenCV's scale, 0-100): as close to the frame as FFmpeg's MJPEG
-# encoder came before (1.56 grey levels mean error on the simulated camera's noisy
-# frames, against 1.57), 8.5 kB a 640x360 grey frame in 0.33 ms (q90: 24 kB, 0.42 ms)
+# Motion-JPEG quality (OpenCV's scale, 0-100): as close to the frame as FFmpeg's own
+# MJPEG encoder at its default (1.56 grey levels mean error on the simulated camera's
+# noisy frames, against 1.57), 8.5 kB a 640x360 grey frame (q90: 24 kB)
 JPEG_QUALITY = 75
 # MPEG-4's bit rate: a bit a pixel a frame (7 Mbit/s at 640x360 and 30 fps), at least this
 MPEG4_MIN_BIT_RATE = 2_000_000

@@ -81,8 +81,7 @@ def _done_chunks(path):
 @pytest.mark.slow
 def test_ctrl_c_keeps_the_finished_chunks_and_resume_completes(tmp_path, capsys):
     # 14 segments, 1,001 quadruples in 63 chunks of 16: long enough to be interrupted
-    # after two chunks (it was 3,060 quadruples: 36 s of the test alone, 62-70 s in a
-    # fresh-clone suite, for the same check)
+    # after two chunks, and no longer than that needs
     library = csv_library(tmp_path / "lib", SI_NAMES[::2][:14])
     out = tmp_path / "quadruples.h5"
     argv = ["model", "scan", "--n", "4", "--library", str(library), "--out", str(out)]

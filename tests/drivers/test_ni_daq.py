@@ -299,7 +299,7 @@ class TimeRecorder:
 
 def test_zero_under_the_recommended_wiring_judges_the_range_daqmx_uses():
     # RSE 0-5 V with the sensor's 5.0 V supply on ai1: DAQmx uses ±10 V (the only RSE
-    # range), so 5.0 V is far from saturation. Judged against 0-5 V, it was flagged.
+    # range), so 5.0 V is far from saturation; judged against 0-5 V it would be flagged.
     rig = Rig(
         ramp_after(0, 0),
         min_v=0.0,

@@ -75,8 +75,8 @@ def run_with_daq_failure(tmp_path, failure, config=None):
     ids=["vout-wire", "supply-wire", "supply-wire-measured-nan", "frozen"],
 )
 def test_a_dead_sensor_stops_the_pump(tmp_path, failure, config, reason):
-    """Before: a cut wire read -4.4 kPa or NaN, was at most flagged, and the pump went
-    on to the step's target."""
+    """A cut wire reads -4.4 kPa or NaN, never high: a pressure ceiling alone would let
+    the pump go on to the step's target."""
     outcome, fault_s = run_with_daq_failure(tmp_path, failure, config)
     assert outcome.result.status == "faulted"
     assert reason in outcome.result.reason
@@ -124,8 +124,8 @@ def test_a_daq_whose_close_raises_still_leaves_a_finalised_file(tmp_path):
 
 
 def test_no_pressure_sample_no_pump_start(tmp_path):
-    """A DAQ that delivers nothing from the start: the pump never moves (before, empty
-    blocks counted as readings and the first infuse started)."""
+    """A DAQ that delivers nothing from the start: the pump never moves (an empty block
+    is not a reading, so the first infuse never gets its pressure sample)."""
 
     def stall_acquisition(rig):
         rig.clock.wait_for(lambda: len(rig.simulation.daq_tasks) >= 2, timeout_s=60.0)
@@ -156,8 +156,8 @@ def test_a_silent_pump_is_stopped_at_once_in_rig_time(tmp_path):
 
 @pytest.mark.parametrize("death", ["unplugged", "frames-stop", "clock-jump"])
 def test_the_frames_before_a_camera_fault_are_kept(tmp_path, death):
-    """The batch still being tracked when the camera died is recorded (before, the last
-    1-2 s of frames were dropped); the pump stops within a second."""
+    """The batch still being tracked when the camera died is recorded (the last 1-2 s of
+    frames, easily lost on the way out); the pump stops within a second."""
     seen = []
     act = {
         "unplugged": lambda rig: rig.simulation.camera.release(),

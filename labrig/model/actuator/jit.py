@@ -22,20 +22,16 @@ and all it calls. numba compiles each function it is asked for into machine code
 together with every function it calls (LLVM links the callees' code into the caller's,
 then optimises and compiles the whole again), so a cold compile costs the size of each
 compiled function's call tree, summed over the functions, and a second signature of a
-function compiles its tree a second time. Measured (``python
-tests/benchmarks/bench_compile.py``: an empty cache, what the suite and a scan compile, per
-function; 2-core machine shared with other work, load average 1.6-4.8, so upper bounds):
-89.6 s of CPU before, 84 s of them the compiled path; now 57 s, 55.5 s the compiled
-path. What was cut: literal specialisations (constants passed between compiled
-functions, ``labrig.model.actuator.dispatcher``: 84 -> 68 s), functions called from one
-place copied into their caller (``INLINE``) and no Python wrappers for those only
-compiled code calls (``INTERNAL``): 68 -> 55.5 s. Not kept (no gain): no loop
-vectorizing, and copying more into ``trace_transitions`` (``_follow``, or all of it:
-59-65 s, LLVM's time grows faster than the size of one function). The compiled code is
-as fast as before (an n = 4 scan: 25-28 s of CPU against 29-34 s, the same file bit for
-bit). What is left is LLVM compiling the whole tree at each of a few levels
-(``trace_transitions``, ``_follow``, ``_cross``, ``_snap_from_fold``, ``find_fold``; a
-third of the time in the first two).
+function compiles its tree a second time. So every tree is kept small: no literal
+specialisations (constants passed between compiled functions,
+``labrig.model.actuator.dispatcher``), functions called from one place copied into their
+caller (``INLINE``), and no Python wrappers for those only compiled code calls
+(``INTERNAL``). Copying more into ``trace_transitions`` does not pay: LLVM's time grows
+faster than the size of one function. What is left is LLVM compiling the whole tree at
+each of a few levels (``trace_transitions``, ``_follow``, ``_cross``, ``_snap_from_fold``,
+``find_fold``; a third of the time in the first two). ``python
+tests/benchmarks/bench_compile.py`` measures it on an empty cache (docs/performance.md,
+"Compiling").
 """
 
 from __future__ import annotations
