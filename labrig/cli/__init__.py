@@ -87,7 +87,8 @@ def _one_line(exc: BaseException) -> str:
 # 20 times faster compiled (labrig.model.actuator.jit). Every other command solves one
 # actuator or none (a run's dry-run prediction and analysis, model path/curve, compare,
 # plot, library add): a few hundred calls, faster as plain Python than loading the
-# machine code (0.2 s, plus 0.3 s to import numba) or, on a fresh install, compiling it.
+# machine code (0.2 s, plus 0.3 s to import numba) or, on a fresh install, compiling
+# it (~15 s, which the first `labrig run` used to pay).
 _MANY_ACTUATORS = (("model", "scan"), ("bench",))
 
 
