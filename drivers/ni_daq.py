@@ -134,6 +134,7 @@ class NiDaqPressure:
             raise InputError("pressure buffer_s and read_timeout_s must be > 0 s")
         self.clock = clock
         self.channels = [channel] if supply_channel is None else [channel, supply_channel]
+        self.supply_channel = supply_channel
         self.terminal = terminal
         self.min_v = float(min_v)
         self.max_v = float(max_v)
@@ -181,9 +182,13 @@ class NiDaqPressure:
                 data = self._read_samples(n, timeout_s)
             finally:
                 self.stop()
+        self._take_zero(data)
+        return self.offset_kpa
+
+    def _take_zero(self, data: np.ndarray) -> None:
+        """Set the offsets from ``data`` (channels x n volts) taken at atmosphere."""
         p_raw_kpa, adc_flags = self._to_raw_kpa(data)
         self.offset_kpa = mpx5100.zero_offset(p_raw_kpa, adc_flags).offset_kpa
-        return self.offset_kpa
 
     def start(self, rate_hz: float | None = None) -> None:
         """Start continuous acquisition at ``rate_hz`` (default: the configured rate)."""
@@ -376,9 +381,15 @@ class NiDaqPressure:
     def _to_raw_kpa(self, data: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Un-zeroed pressure from the volts, and where any channel was beyond the ADC's
         range as DAQmx set it up (not the narrower range asked for)."""
-        v_supply = data[1] if len(self.channels) == 2 else self.supply_v
+        sensor_rows = 2 if self.supply_channel is not None else 1
+        v_supply = data[1] if sensor_rows == 2 else self.supply_v
         adc_flags = np.zeros(data.shape[1], dtype=bool)
-        for row, (low_v, high_v), bits in zip(data, self.adc_ranges_v, self.adc_bits, strict=True):
+        for row, (low_v, high_v), bits in zip(
+            data[:sensor_rows],
+            self.adc_ranges_v[:sensor_rows],
+            self.adc_bits[:sensor_rows],
+            strict=True,
+        ):
             adc_flags |= mpx5100.beyond_adc_range(row, low_v, high_v, bits)
         return mpx5100.pressure_kpa(data[0], v_supply), adc_flags
 

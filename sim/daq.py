@@ -305,6 +305,8 @@ class SimDaqTask:
     for ratiometric conversion) to ``supply_channel``; any other input reads 0 V plus
     noise. ``noise_kpa`` is the electrical noise at the input, expressed in kPa of the
     sensor's output; ``offset_error_kpa`` is the sensor's zero error that zeroing removes.
+    ``other_signals`` wires more instruments (a load cell's amplifier) to other inputs:
+    channel name -> the volts at an array of sample times.
     """
 
     def __init__(
@@ -321,6 +323,7 @@ class SimDaqTask:
         supply_channel: str | None = "Dev1/ai1",
         new_task_name: str = "",
         clock_error_ppm: float = 0.0,
+        other_signals: dict[str, Callable[[np.ndarray], np.ndarray]] | None = None,
     ) -> None:
         self.clock = clock
         self.pressure_kpa_at = pressure_kpa_at
@@ -331,6 +334,10 @@ class SimDaqTask:
         self.output_channel = output_channel.strip("/").lower()
         self.supply_channel = supply_channel.strip("/").lower() if supply_channel else None
         self.clock_error_ppm = float(clock_error_ppm)
+        # more instruments on other inputs: channel -> volts at the sample times
+        self.other_signals = {
+            name.strip("/").lower(): signal for name, signal in (other_signals or {}).items()
+        }
         self._name = new_task_name or "_unnamedTask<0>"
         self._rng = np.random.default_rng(seed)
         self.ai_channels = SimAIChannelCollection(self)
@@ -560,6 +567,9 @@ class SimDaqTask:
             elif name == self.supply_channel:
                 v = np.full(n, self.supply_v)
                 cut = failed if self._failure == "supply-cut" else False
+            elif name in self.other_signals:
+                v = np.asarray(self.other_signals[name](t_s), dtype=float)
+                cut = False
             else:
                 v = np.zeros(n)
                 cut = False

@@ -38,7 +38,7 @@ from scipy.interpolate import PchipInterpolator
 from labrig.model.segments.curve import SegmentCurve
 
 
-class _ScalarCurve:
+class ScalarCurve:
     """p(v), dp/dv and l(v) of one segment for one volume at a time, in plain floats.
 
     The same PCHIP interpolant as SegmentCurve, evaluated with bisect and Horner's rule:
@@ -78,6 +78,15 @@ class _ScalarCurve:
         h = v - self.x[i]
         return ((a * h + b) * h + c) * h + d
 
+    def length_slope(self, v: float) -> float:
+        """dl/dv (mm/mL): zero past the table's end, where the length is held."""
+        if v > self.v_end:
+            return 0.0
+        i = self._interval(v)
+        a, b, c, _ = self.l_coef[i]
+        h = v - self.x[i]
+        return (3 * a * h + 2 * b) * h + c
+
 
 class Plant:
     """The specimen's state as a function of the pump's volume history."""
@@ -108,7 +117,7 @@ class Plant:
         self.max_step_volume_ml = float(max_step_volume_ml)
         self.history_s = float(history_s)
         self._lock = threading.RLock()
-        self._curves = [_ScalarCurve(curve) for curve in self.segments]
+        self._curves = [ScalarCurve(curve) for curve in self.segments]
         n = len(self.segments)
         # Tiny seeded differences between the connections break the symmetry of
         # identical segments the way a real rig does, deterministically for a seed.
@@ -151,7 +160,7 @@ class Plant:
 
     def _evaluate(self, w: list[float]) -> list[tuple[float, float]]:
         """(p, dp/dv) of each segment at volumes ``w``."""
-        return list(map(_ScalarCurve.pressure_and_slope, self._curves, w))
+        return list(map(ScalarCurve.pressure_and_slope, self._curves, w))
 
     def _inlet_kpa(self, flow_ml_s: float, pressures: Sequence[float]) -> float:
         """The manifold (sensor) pressure (Q + sum c_i p_i) / C for segment

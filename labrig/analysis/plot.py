@@ -26,19 +26,22 @@ def _at(grid: np.ndarray, curve: np.ndarray, v_ml: float) -> float:
     return float(np.interp(v_ml, grid, curve))
 
 
-def plot_run(result: AnalysisResult, path: Path, dpi: int = 130) -> None:
-    """Write the figure to ``path`` (PNG, or any format matplotlib knows by suffix)."""
+def plot_run(result: AnalysisResult, path: Path, dpi: int = 130, force=None) -> None:
+    """Write the figure to ``path`` (PNG, or any format matplotlib knows by suffix);
+    ``force`` (``labrig.analysis.experiments.ForceResult``) adds the blocked actuator's
+    force against the model's below."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     with_length = result.with_length
-    rows = 2 if with_length else 1
-    fig, axes = plt.subplots(
-        rows, 1, sharex=True, figsize=(7.5, 7.5 if with_length else 4.5), squeeze=False
-    )
+    rows = 1 + with_length + (force is not None)
+    fig, axes = plt.subplots(rows, 1, sharex=True, figsize=(7.5, 1.5 + 3 * rows), squeeze=False)
     axes = axes[:, 0]
+    if force is not None:
+        _force_panel(axes[-1], force)
+        axes = axes[:-1]
     grid = result.grid_ml
     quantities = [("p", "pressure p (kPa)")] + ([("l", "length l (mm)")] if with_length else [])
     for ax, (quantity, label) in zip(axes, quantities, strict=True):
@@ -46,7 +49,7 @@ def plot_run(result: AnalysisResult, path: Path, dpi: int = 130) -> None:
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
         ax.margins(x=0)
-    axes[-1].set_xlabel("supplied volume v (mL)")
+    fig.axes[-1].set_xlabel("supplied volume v (mL)")
     axes[0].set_xlim(0, float(grid[-1]) if len(grid) else 1.0)
     axes[0].legend(loc="lower right", fontsize=8, framealpha=0.9)
     averaged = ", ".join(str(i) for i in result.averaged) or "none"
@@ -54,6 +57,34 @@ def plot_run(result: AnalysisResult, path: Path, dpi: int = 130) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=dpi)
     plt.close(fig)
+
+
+def _force_panel(ax, force) -> None:
+    """The load cell's force against the supplied volume, the model's dashed, each
+    model snap marked with its predicted and measured jump."""
+    ax.plot(force.v_ml, force.force_n, color="tab:red", lw=0.8, label="measured")
+    ax.plot(
+        force.model_v_ml,
+        force.model_force_n,
+        "--",
+        color=COLOURS["model"],
+        lw=1.2,
+        label=f"model, blocked (rms {force.rms_n:.2f} N)",
+    )
+    for t in force.transitions:
+        seen = "-" if t.force_n is None else f"{t.force_n:+.2f}"
+        ax.annotate(
+            f"jump {t.force_model_n:+.2f} N (seen {seen})",
+            (t.v_ml, 0),
+            xycoords=("data", "axes fraction"),
+            xytext=(3, 6),
+            textcoords="offset points",
+            fontsize=8,
+        )
+        ax.axvline(t.v_ml, color="grey", lw=0.6, ls=":")
+    ax.set_ylabel("force F (N)")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper left", fontsize=8, framealpha=0.9)
 
 
 def _panel(ax, result: AnalysisResult, quantity: str, grid: np.ndarray) -> None:

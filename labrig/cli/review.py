@@ -94,10 +94,15 @@ def plot(file: Path, out: Path) -> None:
 
     if not out.parent.is_dir():
         raise InputError(f"-o {out}: the folder {out.parent} does not exist")
+    from labrig.analysis.experiments import force_for_run
+
     record, result, stored = load(file)
     _warn_open(record)
-    plot_run(result, out)
+    force = force_for_run(file)
+    plot_run(result, out, force=force)
     curves = "p-v and l-v" if result.with_length else "p-v"
+    if force is not None:
+        curves += " and force-v"
     click.echo(f"{out}: {curves} of {file} ({len(result.repetitions)} repetitions)")
     _computed_note(stored)
 
@@ -175,7 +180,9 @@ def compare_command(
     if as_json:
         import json
 
-        click.echo(json.dumps(report.comparison_json(result)))
+        from labrig.analysis.experiments import experiment_fields
+
+        click.echo(json.dumps(experiment_fields(file, report.comparison_json(result))))
         return
     console.print(report.transitions_table(result))
     for renderable in report.comparison_tables(result):

@@ -15,6 +15,12 @@ Steps are single-key mappings::
 ``volume_ml`` of ``infuse``/``withdraw`` is the volume that step moves. A repetition is
 one pass through a ``repeat`` block (or one run of consecutive top-level actuation
 steps); the analysis averages the last repetitions.
+
+The step experiments (a fast volume step, the actuation time, the blocked force) add a
+technician ``prompt`` (Enter to go on; ``connect`` says whether the specimen is then on
+the pump or on a small reservoir) and a ``reservoir`` step that pushes a small volume
+in quickly; the specimen's ``fluid`` (water or air), an optional ``air_reservoir_ml``
+and a ``length: blocked`` (a load cell holds the actuator's ends) describe the set-up.
 """
 
 from __future__ import annotations
@@ -23,14 +29,14 @@ import json
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, Discriminator, Field, Tag, model_validator
 
 from labrig.config.yaml_schema import Strict, parse_yaml_model
 from labrig.errors import InputError
 
-STEP_KINDS = ("zero_pressure", "infuse", "withdraw", "hold", "repeat")
+STEP_KINDS = ("zero_pressure", "infuse", "withdraw", "hold", "prompt", "reservoir", "repeat")
 
 
 class Specimen(Strict):
@@ -41,6 +47,30 @@ class Specimen(Strict):
     fittings_length_mm: float = Field(
         0.0, ge=0, description="Length added by couplings between the markers, in mm"
     )
+    fluid: Literal["water", "air"] = Field(
+        "water", description="The working fluid in the specimen and the lines"
+    )
+    air_reservoir_ml: float = Field(
+        0.0,
+        ge=0,
+        le=500,
+        description="A rigid air volume on the specimen's inlet (mL); stores energy that "
+        "speeds a snap up (air only)",
+    )
+    length: Literal["free", "blocked"] = Field(
+        "free",
+        description="free: the actuator elongates; blocked: its ends are held at their "
+        "unpressurised distance and a load cell reads the reaction force",
+    )
+
+    @model_validator(mode="after")
+    def _reservoir_holds_air(self) -> Specimen:
+        if self.air_reservoir_ml > 0 and self.fluid != "air":
+            raise ValueError(
+                f"air_reservoir_ml: {self.air_reservoir_ml:g} needs fluid: air "
+                f"(the specimen's fluid is {self.fluid})"
+            )
+        return self
 
 
 class Limits(Strict):
@@ -91,6 +121,24 @@ class HoldParams(Strict):
     seconds: float = Field(ge=0, description="Time to hold at constant volume")
 
 
+class PromptParams(Strict):
+    message: str = Field(min_length=1, description="What the technician does, then Enter")
+    connect: Literal["pump", "reservoir"] | None = Field(
+        None,
+        description="What the specimen is connected to once the technician is done "
+        "(the simulated rig switches its plumbing accordingly); omit for no change",
+    )
+
+
+class ReservoirParams(Strict):
+    volume_ml: float = Field(
+        gt=0, le=5, description="Volume pushed in from the small reservoir, in mL"
+    )
+    duration_s: float = Field(
+        0.1, gt=0, le=10, description="How long the push takes (a quick push: 0.1 s)"
+    )
+
+
 class ZeroPressureStep(Strict):
     zero_pressure: ZeroPressureParams
 
@@ -107,6 +155,14 @@ class HoldStep(Strict):
     hold: HoldParams
 
 
+class PromptStep(Strict):
+    prompt: PromptParams
+
+
+class ReservoirStep(Strict):
+    reservoir: ReservoirParams
+
+
 def _step_kind(value: Any) -> str | None:
     if isinstance(value, dict) and len(value) == 1:
         key = next(iter(value))
@@ -121,6 +177,8 @@ Step = Annotated[
     | Annotated[InfuseStep, Tag("infuse")]
     | Annotated[WithdrawStep, Tag("withdraw")]
     | Annotated[HoldStep, Tag("hold")]
+    | Annotated[PromptStep, Tag("prompt")]
+    | Annotated[ReservoirStep, Tag("reservoir")]
     | Annotated["RepeatStep", Tag("repeat")],
     Discriminator(
         _step_kind,
@@ -163,6 +221,26 @@ class Protocol(Strict):
     analysis: Analysis = Field(Analysis(), description="What the analysis after the run does")
 
     @model_validator(mode="after")
+    def _flows_from_what_is_connected(self) -> Protocol:
+        """Pump steps need the pump connected, reservoir steps the reservoir: a step
+        from the other source would move nothing, or fluid the run does not count."""
+        connected = "pump"
+        for where, step in iter_steps(self.steps):
+            if isinstance(step, PromptStep) and step.prompt.connect is not None:
+                connected = step.prompt.connect
+            elif isinstance(step, InfuseStep | WithdrawStep) and connected != "pump":
+                raise ValueError(
+                    f"{where}: the pump is disconnected here (a prompt connected the "
+                    "reservoir); add a prompt with connect: pump before this step"
+                )
+            elif isinstance(step, ReservoirStep) and connected != "reservoir":
+                raise ValueError(
+                    f"{where}: a reservoir step needs the reservoir connected: add a "
+                    "prompt with connect: reservoir before it"
+                )
+        return self
+
+    @model_validator(mode="after")
     def _volumes_within_limits(self) -> Protocol:
         """At no step does the volume in the specimen exceed `limits.max_volume_ml` or
         fall below zero (more withdrawn than infused)."""
@@ -186,6 +264,8 @@ class Protocol(Strict):
                 volume_ml += step.infuse.volume_ml
             elif isinstance(step, WithdrawStep):
                 volume_ml -= step.withdraw.volume_ml
+            elif isinstance(step, ReservoirStep):
+                volume_ml += step.reservoir.volume_ml
             else:
                 continue
             yield location, volume_ml
@@ -233,11 +313,13 @@ class Plan:
     withdrawn_ml: float
     max_volume_ml: float
     repetitions: int
+    # technician prompts take as long as the technician does: not in duration_s
+    prompts: int = 0
 
 
 def plan(protocol: Protocol) -> Plan:
     duration_s = infused_ml = withdrawn_ml = volume_ml = max_volume_ml = 0.0
-    repetitions = 0
+    repetitions = prompts = 0
     for _, step, repetition in iter_plan(protocol.steps):
         repetitions = max(repetitions, repetition)
         if isinstance(step, ZeroPressureStep):
@@ -252,8 +334,13 @@ def plan(protocol: Protocol) -> Plan:
             duration_s += 60.0 * step.withdraw.volume_ml / step.withdraw.rate_ml_min
             withdrawn_ml += step.withdraw.volume_ml
             volume_ml -= step.withdraw.volume_ml
+        elif isinstance(step, ReservoirStep):
+            duration_s += step.reservoir.duration_s
+            volume_ml += step.reservoir.volume_ml
+        elif isinstance(step, PromptStep):
+            prompts += 1
         max_volume_ml = max(max_volume_ml, volume_ml)
-    return Plan(duration_s, infused_ml, withdrawn_ml, max_volume_ml, repetitions)
+    return Plan(duration_s, infused_ml, withdrawn_ml, max_volume_ml, repetitions, prompts)
 
 
 @dataclass(frozen=True)

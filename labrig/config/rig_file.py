@@ -76,6 +76,15 @@ class PressureConfig(Strict):
     supply_v: float = Field(5.0, gt=0, description="Assumed supply when none is measured")
 
 
+class LoadCellConfig(Strict):
+    """A load cell's bridge amplifier on another input of the pressure's USB-6009."""
+
+    channel: str = Field("Dev1/ai2", description="The amplifier's output")
+    n_per_v: float = Field(10.0, gt=0, description="Calibration: newtons per volt")
+    offset_v: float = Field(0.0, description="Calibration: the output at no load (V)")
+    capacity_n: float = Field(100.0, gt=0, description="The cell's rated force")
+
+
 class CameraConfig(Strict):
     source: int | str = Field(0, description="Camera index, /dev/video* path or video file")
     mm_per_px: float | None = Field(
@@ -157,6 +166,14 @@ class SimConfig(Strict):
         description="Host seconds the simulated pump's replies are awaited (virtual time "
         "stands still meanwhile)",
     )
+    # the plumbing of the step experiments' plant (labrig.sim.dynamic_plant); the bore
+    # is fitted so that the paper's water step (Movie S7) takes 1.4 s
+    coupling_bore_mm: float = Field(
+        2.45, gt=0, description="Bore of each segment's coupling (sets the snap time)"
+    )
+    coupling_length_mm: float = Field(20.0, gt=0, description="Length of each coupling")
+    dead_volume_ml: float = Field(2.0, gt=0, description="Fluid in the lines and the tee")
+    answer_s: float = Field(2.0, ge=0, description="How long the technician takes a prompt")
 
 
 class RigConfig(Strict):
@@ -167,6 +184,9 @@ class RigConfig(Strict):
         PressureConfig(), description="The DAQ channels of the MPX5100 pressure sensor"
     )
     camera: CameraConfig | None = Field(None, description="The camera; none: no length")
+    force: LoadCellConfig | None = Field(
+        None, description="The load cell of a blocked-force test; none: no force"
+    )
     sim: SimConfig | None = Field(None, description="Present only on the simulated rig")
     signal_timeout_s: float = Field(
         0.5,

@@ -29,11 +29,24 @@ LOG_FIELDS: dict[str, dict[str, tuple[str, str]]] = {
         "y2": ("f8", "px"),
         "ok": ("?", ""),
     },
+    "force": {
+        "time": ("f8", "s"),
+        "value": ("f8", "N"),
+    },
 }
 LOG_DESCRIPTION = {
     "pressure": "specimen pressure (gauge, zeroed)",
     "pump": "net volume supplied by the pump (infused - withdrawn)",
     "length": "specimen length between the two markers",
+    "force": "reaction force of the blocked actuator on the load cell (compression positive)",
+}
+# What the technician and the reservoir did, in order (entry/events): a prompt, the
+# connection it made, a reservoir push and its volume.
+EVENT_FIELDS = {
+    "time": ("f8", "s"),
+    "kind": (f"S{STATUS_SIZE}", ""),
+    "volume": ("f8", "mL"),
+    "message": (f"S{REASON_SIZE}", ""),
 }
 # The run's video (labrig.recording.video): frame i of the file was taken at time[i].
 VIDEO_FIELDS = {"time": ("f8", "s"), "repetition": ("i4", "")}

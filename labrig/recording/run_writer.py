@@ -31,6 +31,7 @@ import numpy as np
 import labrig
 from labrig.recording.run_layout import (
     CHUNK,
+    EVENT_FIELDS,
     LOG_DESCRIPTION,
     LOG_FIELDS,
     REASON_SIZE,
@@ -99,6 +100,9 @@ class RunWriter:
         rig_config_text: str,
         repetitions: int,
         with_length: bool,
+        with_force: bool = False,
+        with_events: bool = False,
+        simulated_segments: int = 0,
         video_file: str | None = None,
         flush_interval_s: float = 0.5,
         tap: Callable[[int, str, dict[str, np.ndarray]], None] | None = None,
@@ -111,6 +115,9 @@ class RunWriter:
             raise ValueError("a run has at least one repetition")
         self.repetitions = repetitions
         self.with_length = with_length
+        self.with_force = with_force
+        self.with_events = with_events
+        self.simulated_segments = simulated_segments
         self.video_file = video_file
         self.flush_interval_s = flush_interval_s
         self._lock = threading.Lock()
@@ -163,9 +170,24 @@ class RunWriter:
             rep = reps.create_group(repetition_name(index))
             rep.attrs["NX_class"] = "NXcollection"
             for log in LOG_FIELDS:
-                if log == "length" and not self.with_length:
+                if (log == "length" and not self.with_length) or (
+                    log == "force" and not self.with_force
+                ):
                     continue
                 self._create_log(rep, log)
+        if self.with_events:
+            events = self._create_log(entry, "events", EVENT_FIELDS)
+            events.attrs["description"] = "technician prompts and reservoir steps, in order"
+        if self.simulated_segments:
+            fields = {"time": ("f8", "s")}
+            fields |= {f"v{i + 1}": ("f8", "mL") for i in range(self.simulated_segments)}
+            simulation = entry.create_group("simulation")
+            simulation.attrs["NX_class"] = "NXcollection"
+            volumes = self._create_log(simulation, "segment_volumes", fields)
+            volumes.attrs["description"] = (
+                "the simulated specimen's volume in each segment (the simulation's truth; "
+                "a real rig cannot measure it)"
+            )
         if self.video_file is not None:
             video = self._create_log(entry, "video", VIDEO_FIELDS)
             video.attrs.update(
@@ -262,6 +284,31 @@ class RunWriter:
             "length",
             {"time": t_s, "value": length_mm, "x1": x1, "y1": y1, "x2": x2, "y2": y2, "ok": ok},
         )
+
+    def append_force(self, repetition: int, t_s, force_n) -> None:
+        if not self.with_force:
+            raise ValueError("this run was created without a force (load cell) log")
+        self._append(repetition, "force", {"time": t_s, "value": force_n})
+
+    def append_event(self, t_s: float, kind: str, volume_ml: float, message: str = "") -> None:
+        """A technician prompt or a reservoir step (entry/events)."""
+        if not self.with_events:
+            raise ValueError("this run was created without an events log")
+        self._append_to(
+            "entry/events",
+            {
+                "time": np.array([t_s]),
+                "kind": np.array([kind.encode()[:STATUS_SIZE]], dtype=f"S{STATUS_SIZE}"),
+                "volume": np.array([volume_ml]),
+                "message": np.array([message.encode()[:REASON_SIZE]], dtype=f"S{REASON_SIZE}"),
+            },
+        )
+
+    def append_segment_volumes(self, t_s, volumes_ml: np.ndarray) -> None:
+        """The simulated plant's segment volumes (rows: times)."""
+        columns = {"time": t_s}
+        columns |= {f"v{i + 1}": volumes_ml[:, i] for i in range(self.simulated_segments)}
+        self._append_to("entry/simulation/segment_volumes", columns)
 
     def append_video_frame(self, repetition: int, t_s) -> None:
         """The time of the next frame(s) written to the run's video."""

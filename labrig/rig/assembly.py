@@ -12,7 +12,7 @@ from contextlib import ExitStack
 from labrig.config.protocol import Protocol
 from labrig.config.rig_file import RigConfig, rig_config_text
 from labrig.errors import InputError
-from labrig.rig.connect import pressure_driver, set_up_pump
+from labrig.rig.connect import needs_technician, pressure_driver, set_up_pump
 from labrig.rig.simulated import build_simulated_rig
 from labrig.run.runner import Rig
 from labrig.time.clock import RealClock
@@ -60,4 +60,9 @@ def _build_real_rig(protocol: Protocol, config: RigConfig) -> Rig:
             )
             stack.callback(length.close_tracker)
         closer = stack.pop_all()
-    return Rig(clock, pump, pressure, length, rig_config_text(config), closer.close)
+    rig = Rig(clock, pump, pressure, length, rig_config_text(config), closer.close)
+    if needs_technician(protocol):
+        from labrig.run.technician import ConsoleTechnician
+
+        rig.technician = ConsoleTechnician()
+    return rig

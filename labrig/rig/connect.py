@@ -1,11 +1,12 @@
 """What both rigs do the same way once a pump or a DAQ is reachable: a pump set up for
-the protocol, and the pressure driver built from the rig file's pressure section."""
+the protocol, the pressure driver built from the rig file's pressure section (with the
+load cell when the length is blocked), and whether the protocol needs a technician."""
 
 from __future__ import annotations
 
 from labrig.config.protocol import Protocol, plan
 from labrig.config.rig_file import PumpConfig, RigConfig
-from labrig.errors import DeviceError
+from labrig.errors import DeviceError, InputError
 
 
 def set_up_pump(pump, config: PumpConfig, protocol: Protocol) -> None:
@@ -21,8 +22,25 @@ def set_up_pump(pump, config: PumpConfig, protocol: Protocol) -> None:
 
 
 def pressure_driver(driver_class, clock, config: RigConfig, protocol: Protocol, factories):
-    kwargs = {} if factories is None else factories
+    """The pressure driver; with the length blocked, the one that also reads the load
+    cell on another input of the same DAQ (the rig file's force section)."""
+    kwargs = {} if factories is None else dict(factories)
     p = config.pressure
+    if protocol.specimen.length == "blocked":
+        from labrig.drivers.ni_daq_force import NiDaqPressureForce
+
+        if config.force is None:
+            raise InputError(
+                "the protocol blocks the actuator's length (specimen.length: blocked) but "
+                "the rig file has no force: section (the load cell's channel and calibration)"
+            )
+        driver_class = NiDaqPressureForce
+        kwargs |= dict(
+            force_channel=config.force.channel,
+            n_per_v=config.force.n_per_v,
+            offset_v=config.force.offset_v,
+            capacity_n=config.force.capacity_n,
+        )
     return driver_class(
         clock,
         p.channel,
@@ -34,3 +52,11 @@ def pressure_driver(driver_class, clock, config: RigConfig, protocol: Protocol, 
         rate_hz=protocol.acquisition.pressure_rate_hz,
         **kwargs,
     )
+
+
+def needs_technician(protocol: Protocol) -> bool:
+    """A protocol with prompts or reservoir steps: someone (or the simulated rig's
+    technician) takes them."""
+    from labrig.config.protocol import PromptStep, ReservoirStep, iter_steps
+
+    return any(isinstance(s, PromptStep | ReservoirStep) for _, s in iter_steps(protocol.steps))

@@ -9,8 +9,8 @@ from contextlib import ExitStack
 from dataclasses import dataclass
 
 from labrig.config.protocol import Protocol
-from labrig.config.rig_file import CameraConfig, RigConfig, rig_config_text
-from labrig.rig.connect import pressure_driver, set_up_pump
+from labrig.config.rig_file import CameraConfig, LoadCellConfig, RigConfig, rig_config_text
+from labrig.rig.connect import needs_technician, pressure_driver, set_up_pump
 from labrig.run.runner import Rig
 
 # The simulated camera's sensor (px) when the rig file has no camera section: a small
@@ -44,14 +44,17 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
         load_pressure_kpa=lambda t: float(plant_box[0].pressure_kpa_at(t)),
         seed=sim.seed,
     )
-    plant = Plant(
-        segments,
-        emulator.net_volume_ml,
-        t0_s=clock.now(),
-        resistance_kpa_s_per_ml=sim.resistance_kpa_s_per_ml,
-        fittings_length_mm=protocol.specimen.fittings_length_mm,
-        seed=sim.seed,
-    )
+    if needs_dynamic_plant(protocol):
+        plant = _dynamic_plant(segments, emulator.net_volume_ml, clock, protocol, config)
+    else:
+        plant = Plant(
+            segments,
+            emulator.net_volume_ml,
+            t0_s=clock.now(),
+            resistance_kpa_s_per_ml=sim.resistance_kpa_s_per_ml,
+            fittings_length_mm=protocol.specimen.fittings_length_mm,
+            seed=sim.seed,
+        )
     plant_box.append(plant)
     with ExitStack() as stack:
         emulator.start()
@@ -67,6 +70,20 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
         p = config.pressure
         daq_tasks: list[SimDaqTask] = []
 
+        if protocol.specimen.length == "blocked" and config.force is None:
+            # the simulated rig has the load cell a blocked protocol needs
+            config = config.model_copy(update={"force": LoadCellConfig()})
+        other_signals = {}
+        if protocol.specimen.length == "blocked":
+            from labrig.sim.load_cell import LoadCellSignal
+
+            other_signals[config.force.channel] = LoadCellSignal(
+                plant.force_n_at,
+                n_per_v=config.force.n_per_v,
+                offset_v=config.force.offset_v,
+                seed=sim.seed + 1000,
+            )
+
         def new_task() -> SimDaqTask:
             task = SimDaqTask(
                 clock,
@@ -77,6 +94,7 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
                 seed=sim.seed + len(daq_tasks),
                 output_channel=p.channel,
                 supply_channel=p.supply_channel,
+                other_signals=other_signals,
             )
             daq_tasks.append(task)
             return task
@@ -116,7 +134,41 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
             stack.callback(length.close_tracker)
         closer = stack.pop_all()
     simulation = SimulatedParts(plant, emulator, camera, daq_tasks)
-    return Rig(clock, pump, pressure, length, rig_config_text(config), closer.close, simulation)
+    rig = Rig(clock, pump, pressure, length, rig_config_text(config), closer.close, simulation)
+    if needs_technician(protocol):
+        from labrig.sim.technician import SimTechnician
+
+        rig.technician = SimTechnician(clock, plant, sim.answer_s)
+    return rig
+
+
+def needs_dynamic_plant(protocol: Protocol) -> bool:
+    """The step experiments' plant: for a technician's steps, air or a blocked length;
+    the quasi-static plant otherwise (the same path, far cheaper)."""
+    specimen = protocol.specimen
+    return needs_technician(protocol) or specimen.fluid != "water" or specimen.length != "free"
+
+
+def _dynamic_plant(segments, volume_ml_at, clock, protocol: Protocol, config: RigConfig):
+    from labrig.sim.dynamic_plant import FLUIDS, DynamicPlant, Plumbing
+
+    sim, specimen = config.sim, protocol.specimen
+    plumbing = Plumbing(
+        fluid=FLUIDS[specimen.fluid],
+        bore_mm=sim.coupling_bore_mm,
+        coupling_length_mm=sim.coupling_length_mm,
+        dead_volume_ml=sim.dead_volume_ml,
+        air_reservoir_ml=specimen.air_reservoir_ml,
+        syringe_ml=config.pump.syringe.volume_ml,
+    )
+    return DynamicPlant(
+        segments,
+        volume_ml_at,
+        plumbing=plumbing,
+        t0_s=clock.now(),
+        fittings_length_mm=specimen.fittings_length_mm,
+        blocked=specimen.length == "blocked",
+    )
 
 
 @dataclass(frozen=True)

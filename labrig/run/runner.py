@@ -46,6 +46,8 @@ from labrig.config.protocol import (
     HoldStep,
     InfuseStep,
     LoadedProtocol,
+    PromptStep,
+    ReservoirStep,
     WithdrawStep,
     ZeroPressureStep,
     iter_plan,
@@ -89,6 +91,8 @@ class Rig:
     # The simulated specimen and emulators behind the drivers, when simulated: the
     # truth that tests and benchmarks compare the recorded data with.
     simulation: object | None = None
+    # who answers the protocol's prompts and pushes the reservoir (labrig.run.technician)
+    technician: object | None = None
 
 
 @dataclass(frozen=True)
@@ -216,6 +220,9 @@ class Runner:
             rig_config_text=self.rig.config_text,
             repetitions=max(1, self.plan.repetitions),
             with_length=self.rig.length is not None,
+            with_force=getattr(self.rig.pressure, "measures_force", False),
+            with_events=self.rig.technician is not None,
+            simulated_segments=self._simulated_segments(),
             tap=self.data_tap,
             video_file=self._video_path().name if self._video_path() else None,
         )
@@ -275,8 +282,37 @@ class Runner:
             elif isinstance(step, HoldStep):
                 self._step_label = f"hold {step.hold.seconds:g} s"
                 self._hold(step.hold.seconds)
+            elif isinstance(step, PromptStep):
+                self._step_label = "waiting for the technician"
+                self._technician_step("prompt", 0.0, step.prompt.message)
+                self.rig.technician.prompt(step.prompt.message, step.prompt.connect)
+                if step.prompt.connect is not None:
+                    self._technician_step("connect", 0.0, step.prompt.connect)
+            elif isinstance(step, ReservoirStep):
+                volume_ml = step.reservoir.volume_ml
+                self._step_label = f"reservoir {volume_ml:g} mL"
+                self._technician_step("reservoir", volume_ml, "")
+                self.rig.technician.reservoir(volume_ml, step.reservoir.duration_s)
         if not self.monitor.tripped:
             self._leave_repetition("complete")
+
+    def _technician_step(self, kind: str, volume_ml: float, message: str) -> None:
+        if self.rig.technician is None:
+            raise LabrigError(f"this rig has nobody to take a {kind} step")
+        self.writer.append_event(self.clock.now(), kind, volume_ml, message)
+
+    def _simulated_segments(self) -> int:
+        """How many segment volumes the simulated plant can tell (0: none to record)."""
+        plant = getattr(self.rig.simulation, "plant", None)
+        return plant.n if hasattr(plant, "segment_volumes_ml_at") else 0
+
+    def _record_simulation(self, t_end_s: float) -> None:
+        """The simulated segments' volumes over the run, at 100 Hz (the truth a real rig
+        cannot measure: how much fluid flowed between the segments)."""
+        plant = self.rig.simulation.plant
+        t_s = np.arange(self._t_start, t_end_s, 0.01)
+        if len(t_s):
+            self.writer.append_segment_volumes(t_s, plant.segment_volumes_ml_at(t_s))
 
     def _check_start(self, block: PressureBlock | None) -> None:
         status = self.rig.pump.status()
@@ -548,6 +584,9 @@ class Runner:
             self.writer.append_pressure(
                 self._current_repetition(), block.t_s, block.pressure_kpa, block.out_of_range
             )
+            force_n = getattr(block, "force_n", None)
+            if force_n is not None:
+                self.writer.append_force(self._current_repetition(), block.t_s, force_n)
             self.watch.arrived("pressure", float(block.t_s[-1]))
         latest = self.latest
         with latest.lock:
@@ -715,6 +754,8 @@ class Runner:
             try:
                 if self._repetition_started:
                     self._leave_repetition(status, reason)
+                if self.writer.simulated_segments:
+                    self._record_simulation(self.clock.now())
                 self.writer.finalise(status, reason)
             finally:
                 self.rig.close()
