@@ -67,10 +67,17 @@ class BlockedPath:
 class BlockedActuator:
     """Segments in series between fixed grips, at their unpressurised total length."""
 
-    def __init__(self, segments: Sequence[SegmentCurve], fittings_length_mm: float = 0.0):
+    def __init__(
+        self,
+        segments: Sequence[SegmentCurve],
+        fittings_length_mm: float = 0.0,
+        stiffness_n_per_mm: Sequence[float] | None = None,
+    ):
         self.segments = tuple(segments)
         self.fittings_length_mm = float(fittings_length_mm)
-        self.compliance_mm_per_n = sum(1.0 / axial_stiffness_n_per_mm(s) for s in segments)
+        if stiffness_n_per_mm is None:
+            stiffness_n_per_mm = [axial_stiffness_n_per_mm(s) for s in segments]
+        self.compliance_mm_per_n = sum(1.0 / k for k in stiffness_n_per_mm)
         self.l_blocked_mm = self.free_length_mm(np.zeros(len(segments)))
 
     def free_length_mm(self, v_i) -> float:

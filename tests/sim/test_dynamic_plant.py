@@ -1,0 +1,95 @@
+"""The step experiments' plant against analytic limits: an RC decay, the isothermal gas
+law, the model's quasi-static path when slow, and the model's blocked force."""
+
+import numpy as np
+import pytest
+
+from labrig.model.actuator.prediction import predicted_inflation
+from labrig.model.blocked import BlockedActuator
+from labrig.model.segments.catalog import load_segment
+from labrig.model.segments.curve import SegmentCurve
+from labrig.sim.dynamic_plant import AIR, ATMOSPHERE_KPA, WATER, Coupling, DynamicPlant, Plumbing
+
+
+def linear_segment(k_kpa_per_ml: float) -> SegmentCurve:
+    v = np.linspace(0.0, 50.0, 11)
+    return SegmentCurve("linear", v, k_kpa_per_ml * v, np.full_like(v, 30.0), V0_ml=5.0)
+
+
+def test_a_quick_push_decays_into_a_linear_segment_as_an_rc_circuit():
+    # manifold compliance C_m (the line's), segment compliance C_s = 1/k, resistance R:
+    # after a quick push of V the manifold falls from V/C_m to V/(C_m + C_s) with
+    # tau = R C_m C_s / (C_m + C_s) = 0.05 s
+    c_m, k, r, volume = 0.1, 10.0, 1.0, 1.0
+    plumbing = Plumbing(fluid=WATER, dead_volume_ml=1e-6, line_compliance_ml_per_kpa=c_m)
+    plant = DynamicPlant(
+        [linear_segment(k)],
+        lambda t: 0.0,
+        plumbing=plumbing,
+        coupling=Coupling(r, 0.0, 1e-7),
+        wall_damping=False,
+    )
+    plant.connect("reservoir", 1.0)
+    plant.push_reservoir(volume, 1e-4, 1.0)
+    c_s = 1 / k
+    tau = r * c_m * c_s / (c_m + c_s)
+    t = 1.0 + 1e-4 + np.array([0.5, 1.0, 2.0, 4.0]) * tau
+    final = volume / (c_m + c_s)
+    expected = final + (volume / c_m - final) * np.exp(-(t - 1.0 - 1e-4) / tau)
+    np.testing.assert_allclose(plant.pressure_kpa_at(t), expected, rtol=5e-3)
+    plant.advance_to(1.0 + 40 * tau)
+    assert plant.volumes_ml[0] == pytest.approx(volume * c_s / (c_m + c_s), rel=1e-3)
+
+
+def test_air_obeys_the_isothermal_gas_law_at_rest():
+    segments = [load_segment("B44-T30"), load_segment("B48-T26")]
+    plumbing = Plumbing(
+        fluid=AIR,
+        dead_volume_ml=2.0,
+        syringe_ml=50.0,
+        air_reservoir_ml=10.0,
+        line_compliance_ml_per_kpa=0.002,
+    )
+    displaced = 30.0
+    plant = DynamicPlant(segments, lambda t: min(max(t, 0.0), displaced), plumbing=plumbing)
+    plant.advance_to(displaced + 10.0)
+    p = float(plant.pressure_kpa_at(displaced + 10.0))
+    v0 = sum(s.V0_ml for s in segments)
+    gas_before = 50.0 + 2.0 + 10.0 + v0
+    # the line's wall compliance holds a little more at pressure
+    gas_after = gas_before - displaced + plant.volumes_ml.sum() + 0.002 * p
+    assert (ATMOSPHERE_KPA + p) * gas_after == pytest.approx(ATMOSPHERE_KPA * gas_before, rel=5e-4)
+    # the membranes hold the gas's pressure
+    for segment, w in zip(segments, plant.volumes_ml, strict=True):
+        assert float(segment.pressure_kpa(w)) == pytest.approx(p, abs=0.02)
+
+
+def test_a_slow_water_inflation_follows_the_models_quasi_static_path():
+    # at 5 mL/min the flow's pressure drop (coupling and wall) is a few hundredths of a kPa
+    segments = [load_segment("B48-T30"), load_segment("B50-T20")]
+    rate_ml_s = 5 / 60
+    plant = DynamicPlant(segments, lambda t: max(t, 0.0) * rate_ml_s, fittings_length_mm=10)
+    t = np.arange(1.0, 18.0 / rate_ml_s, 0.5)
+    v_model, p_model, l_model = predicted_inflation(segments, 18.0, 0.05)
+    p = plant.pressure_kpa_at(t)
+    length = plant.length_mm_at(t)
+    # the volume in the segments: the pump's, less what the line's wall compliance holds
+    v = plant.segment_volumes_ml_at(t).sum(axis=1)
+    assert np.sqrt(np.mean((p - np.interp(v, v_model, p_model)) ** 2)) < 0.06
+    # the plant's length is the marker distance: the segments' and the 10 mm fittings
+    assert np.max(np.abs(length - 10 - np.interp(v, v_model, l_model))) < 0.05
+
+
+def test_the_blocked_plant_pushes_with_the_models_force():
+    segments = [load_segment("B48-T30"), load_segment("B50-T20")]
+    rate_ml_s = 5 / 60
+    plant = DynamicPlant(
+        segments, lambda t: max(t, 0.0) * rate_ml_s, fittings_length_mm=10, blocked=True
+    )
+    t = np.arange(1.0, 15.0 / rate_ml_s, 0.5)
+    model = BlockedActuator(segments, 10).path(15.0, 0.05)
+    force = plant.force_n_at(t)
+    expected = np.interp(t * rate_ml_s, model.v_ml, model.force_n)
+    # the plant lags the pump by its flow time: a few hundredths of a newton at 5 mL/min
+    np.testing.assert_allclose(force, expected, rtol=0.02, atol=0.02)
+    assert np.all(plant.length_mm_at(t) == plant.length_mm_at(0.0))
