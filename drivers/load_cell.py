@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from labrig.drivers.zeroing import zero_mean
 from labrig.errors import DeviceError
 
 
@@ -32,15 +33,9 @@ def zero_offset_n(f_raw_n: np.ndarray, flagged: np.ndarray, capacity_n: float) -
     of the cell's capacity: then the actuator is already loaded, or the channel or the
     calibration is wrong, and every later force would be shifted by it.
     """
-    f = np.asarray(f_raw_n, dtype=float)
-    if f.size == 0:
-        raise DeviceError("zeroing got no samples from the load cell")
-    if np.any(flagged):
-        raise DeviceError(
-            f"load cell zero: {int(np.count_nonzero(flagged))} of {f.size} samples were "
-            "beyond the DAQ's input range; check the amplifier's wiring and supply"
-        )
-    offset = float(np.mean(f))
+    offset = zero_mean(
+        f_raw_n, flagged, what="load cell", wiring="the amplifier's wiring and supply"
+    )
     if abs(offset) > 0.1 * capacity_n:
         raise DeviceError(
             f"load cell zero: it reads {offset:.2f} N unloaded, more than a tenth of its "

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from labrig.drivers.zeroing import zero_mean
 from labrig.errors import DeviceError
 
 SENSITIVITY_PER_KPA = 0.009  # Vout/Vs per kPa
@@ -81,14 +82,7 @@ def zero_offset(p_raw_kpa: np.ndarray, flagged: np.ndarray) -> ZeroOffset:
     and a zero taken there would shift every later reading.
     """
     p = np.asarray(p_raw_kpa, dtype=float)
-    if p.size == 0:
-        raise DeviceError("zeroing got no samples from the pressure sensor")
-    if np.any(flagged):
-        raise DeviceError(
-            f"zeroing: {int(np.count_nonzero(flagged))} of {p.size} samples were beyond the "
-            "DAQ's input range; check the sensor's wiring and supply"
-        )
-    offset = float(np.mean(p))
+    offset = zero_mean(p, flagged, what="pressure sensor", wiring="the sensor's wiring and supply")
     if abs(offset) > ACCURACY_KPA:
         raise DeviceError(
             f"zeroing: the sensor reads {offset:.2f} kPa at what should be atmospheric "

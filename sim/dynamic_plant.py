@@ -205,10 +205,6 @@ class DynamicPlant:
         return len(self.segments)
 
     @property
-    def t_s(self) -> float:
-        return self._t
-
-    @property
     def connected(self) -> str:
         return self._connected
 

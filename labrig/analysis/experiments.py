@@ -61,6 +61,7 @@ class ForceResult:
     force_n: np.ndarray
     model_v_ml: np.ndarray
     model_force_n: np.ndarray
+    model_p_kpa: np.ndarray
     rms_n: float
     transitions: tuple[ForceTransition, ...]
 
@@ -157,7 +158,7 @@ def blocked_force(path: str | Path, segments, fittings_length_mm: float) -> Forc
         ForceTransition(v_snap, _measured_jump(t_f[inside], v_f, f, v_snap), after - before)
         for v_snap, before, after in model.snaps()
     )
-    return ForceResult(v_f, f, model.v_ml, model.force_n, rms, transitions)
+    return ForceResult(v_f, f, model.v_ml, model.force_n, model.p_kpa, rms, transitions)
 
 
 def _measured_jump(t_s, v_ml, f_n, v_snap_ml: float) -> float | None:

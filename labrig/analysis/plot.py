@@ -42,6 +42,15 @@ def plot_run(result: AnalysisResult, path: Path, dpi: int = 130, force=None) -> 
     if force is not None:
         _force_panel(axes[-1], force)
         axes = axes[:-1]
+        # the blocked actuator's own pressure (the free model's is drawn dashed)
+        axes[0].plot(
+            force.model_v_ml,
+            force.model_p_kpa,
+            ":",
+            color=COLOURS["model"],
+            lw=1.4,
+            label="model, blocked",
+        )
     grid = result.grid_ml
     quantities = [("p", "pressure p (kPa)")] + ([("l", "length l (mm)")] if with_length else [])
     for ax, (quantity, label) in zip(axes, quantities, strict=True):
