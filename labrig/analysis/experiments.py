@@ -41,8 +41,10 @@ class StepResult:
 
     @property
     def actuation_time_s(self) -> float:
-        """The pressure's 10-90 % time: sampled at 1 kHz, it resolves 0.1 s steps that a
-        30-60 fps camera sees in a handful of frames."""
+        """The 10-90 % time of the length's change (the actuator's motion) when a camera
+        saw one, else of the pressure's (1 kHz)."""
+        if self.length is not None and np.isfinite(self.length.actuation_time_s):
+            return self.length.actuation_time_s
         return self.pressure.actuation_time_s
 
 
@@ -109,7 +111,9 @@ def reservoir_steps(path: str | Path) -> list[StepResult]:
         p = step_response(*pressure, float(t), t_end, noise=PRESSURE_NOISE_KPA)
         l_resp = None
         if length is not None:
-            l_resp = step_response(*length, float(t), t_end, noise=LENGTH_NOISE_MM)
+            # the camera's last frames may end before the pressure's last samples
+            l_end = min(t_end, float(length[0][-1]))
+            l_resp = step_response(*length, float(t), l_end, noise=LENGTH_NOISE_MM)
         results.append(
             StepResult(float(t), float(volume), p, l_resp, _internal_flow(flows, t, t_end))
         )
@@ -155,25 +159,29 @@ def blocked_force(path: str | Path, segments, fittings_length_mm: float) -> Forc
     f_model = np.interp(v_f, unique_v, model.force_n[first])
     rms = float(np.sqrt(np.mean((f - f_model) ** 2)))
     transitions = tuple(
-        ForceTransition(v_snap, _measured_jump(t_f[inside], v_f, f, v_snap), after - before)
-        for v_snap, before, after in model.snaps()
+        ForceTransition(
+            float(model.v_ml[i]),
+            _measured_jump(t_f[inside], v_f, f, model, int(i)),
+            float(model.force_n[i + 1] - model.force_n[i]),
+        )
+        for i in np.flatnonzero(np.diff(model.v_ml) == 0)
     )
     return ForceResult(v_f, f, model.v_ml, model.force_n, model.p_kpa, rms, transitions)
 
 
-def _measured_jump(t_s, v_ml, f_n, v_snap_ml: float) -> float | None:
-    """The force jump of a snap the model puts at ``v_snap_ml``.
+def _measured_jump(t_s, v_ml, f_n, model, i_snap: int) -> float | None:
+    """The force jump of the model's snap at row ``i_snap`` of its path, as measured.
 
-    The measured snap is found as the fastest change of the (25-sample averaged) force
-    from a little before the model's volume to SNAP_SEARCH_ML after it (a snap crossed
-    at a finite rate starts late and takes time, while the pump goes on); its span is
-    where the rate stays above a fifth of that peak. Lines fitted to the force against
-    volume over FORCE_WINDOW_ML on either side of the span, both evaluated at the
-    model's volume, give the jump between the two branches there: without the slope the
-    inflation adds while the snap happens, and without the overshoot of a fold crossed
-    at a finite rate (the state lingers near the vanished equilibrium while the pump
-    goes on, about 0.9 mL at 10 mL/min for this pair).
+    A snap crossed at a finite rate starts late and takes time while the pump goes on,
+    so the measured force is not read at the model's volume itself. The measured snap is
+    found as the fastest change of the (25-sample averaged) force from a little before
+    the model's volume to SNAP_SEARCH_ML after it; its span is where the rate stays above
+    a fifth of that peak. Before the span (and before the model's volume) and after it,
+    over FORCE_WINDOW_ML, the median offset of the measured force from the model's
+    branch there carries each measured branch to the model's volume: the jump measured
+    is the model's plus the difference of the two offsets.
     """
+    v_snap_ml = float(model.v_ml[i_snap])
     if len(f_n) < 50:
         return None
     smooth = np.convolve(f_n, np.ones(25) / 25, mode="same")
@@ -189,13 +197,16 @@ def _measured_jump(t_s, v_ml, f_n, v_snap_ml: float) -> float | None:
         start -= 1
     while end < len(rate) - 1 and abs(rate[end + 1]) > threshold:
         end += 1
-    before = (v_ml > v_ml[start] - FORCE_WINDOW_ML) & (v_ml < v_ml[start])
+    last_before = min(v_ml[start], v_snap_ml)
+    before = (v_ml > last_before - FORCE_WINDOW_ML) & (v_ml < last_before)
     after = (v_ml > v_ml[end]) & (v_ml < v_ml[end] + FORCE_WINDOW_ML)
     if before.sum() < 10 or after.sum() < 10:
         return None
-    line_before = np.polyfit(v_ml[before], f_n[before], 1)
-    line_after = np.polyfit(v_ml[after], f_n[after], 1)
-    return float(np.polyval(line_after, v_snap_ml) - np.polyval(line_before, v_snap_ml))
+    pre_v, pre_f = model.v_ml[: i_snap + 1], model.force_n[: i_snap + 1]
+    post_v, post_f = model.v_ml[i_snap + 1 :], model.force_n[i_snap + 1 :]
+    offset_before = np.median(f_n[before] - np.interp(v_ml[before], pre_v, pre_f))
+    offset_after = np.median(f_n[after] - np.interp(v_ml[after], post_v, post_f))
+    return float(model.force_n[i_snap + 1] - model.force_n[i_snap] + offset_after - offset_before)
 
 
 def force_for_run(path: str | Path) -> ForceResult | None:

@@ -10,7 +10,7 @@ from labrig.model.segments.catalog import load_segment
 
 
 def test_one_segment_pushes_with_its_stiffness_times_its_free_elongation():
-    segment = load_segment("B46-T20")
+    segment = load_segment("SI-B46-T20")
     path = BlockedActuator([segment]).path(20.0, 0.5)
     k = axial_stiffness_n_per_mm(segment)
     # E A / l0 of the paper's latex tube: 1.47 MPa x 31.5 mm^2 over the segment
@@ -21,10 +21,10 @@ def test_one_segment_pushes_with_its_stiffness_times_its_free_elongation():
 
 
 def test_soft_grips_leave_the_free_path_and_its_snap():
-    segments = [load_segment("B48-T30"), load_segment("B50-T20")]
+    segments = [load_segment("SI-B48-T30"), load_segment("SI-B50-T20")]
     soft = BlockedActuator(segments, 10.0, stiffness_n_per_mm=[1e-7, 1e-7]).path(26.0, 0.05)
     v, p, _ = predicted_inflation(segments, 26.0, 0.05)
-    # the free model snaps at 22.47 mL (labrig model path B48-T30 B50-T20)
+    # the free model snaps at 22.47 mL (labrig model path SI-B48-T30 SI-B50-T20)
     (v_snap, _, _), *_ = soft.snaps()
     assert v_snap == pytest.approx(22.47, abs=0.06)
     before = (soft.v_ml < 22.3) & (soft.v_ml > 0.5)
@@ -33,7 +33,7 @@ def test_soft_grips_leave_the_free_path_and_its_snap():
 
 
 def test_the_pressure_is_the_energy_gradient_and_segments_share_it():
-    actuator = BlockedActuator([load_segment("B48-T30"), load_segment("B50-T20")], 10.0)
+    actuator = BlockedActuator([load_segment("SI-B48-T30"), load_segment("SI-B50-T20")], 10.0)
     path = actuator.path(20.0, 0.1)
     state = path.v_i_ml[-1]
     g = actuator.gradient_kpa(state)

@@ -65,8 +65,9 @@ def test_air_obeys_the_isothermal_gas_law_at_rest():
 
 
 def test_a_slow_water_inflation_follows_the_models_quasi_static_path():
-    # at 5 mL/min the flow's pressure drop (coupling and wall) is a few hundredths of a kPa
-    segments = [load_segment("B48-T30"), load_segment("B50-T20")]
+    # at 5 mL/min the flow's pressure drop (coupling and wall) is a few hundredths of a
+    # kPa; the SI's segments of this pair have no snap below 22 mL
+    segments = [load_segment("SI-B48-T30"), load_segment("SI-B50-T20")]
     rate_ml_s = 5 / 60
     plant = DynamicPlant(segments, lambda t: max(t, 0.0) * rate_ml_s, fittings_length_mm=10)
     t = np.arange(1.0, 18.0 / rate_ml_s, 0.5)
@@ -81,7 +82,7 @@ def test_a_slow_water_inflation_follows_the_models_quasi_static_path():
 
 
 def test_the_blocked_plant_pushes_with_the_models_force():
-    segments = [load_segment("B48-T30"), load_segment("B50-T20")]
+    segments = [load_segment("SI-B48-T30"), load_segment("SI-B50-T20")]  # snaps at 15.8 mL
     rate_ml_s = 5 / 60
     plant = DynamicPlant(
         segments, lambda t: max(t, 0.0) * rate_ml_s, fittings_length_mm=10, blocked=True
