@@ -24,11 +24,16 @@ only when it ran after the compiled path's tests in their worker.
 """
 
 import importlib
+import os
 import pkgutil
 import shutil
 
 import pytest
 from hypothesis import settings
+
+# no scan started by a test compiles in the background
+# (labrig.model.scan.background_compile): the suite compiles once, in the foreground
+os.environ.setdefault("LABRIG_BACKGROUND_COMPILE", "0")
 
 # node ids (prefixes) of the longest work units, longest first (a group's tests count
 # together; seconds on the idle 2-core machine, warm numba cache, one process): these
@@ -59,6 +64,8 @@ GROUPS = {
     "tests/cli/test_benchmark.py::": COMPILED_GROUP,
     "tests/model/actuator/test_compiled_path.py::": COMPILED_GROUP,
     "tests/model/actuator/test_jit.py::": COMPILED_GROUP,
+    "tests/model/scan/test_background_compile.py::": COMPILED_GROUP,
+    "tests/model/scan/test_plan.py::test_a_first_small_scan": COMPILED_GROUP,
     "tests/model/scan/test_scan.py::": COMPILED_GROUP,
     "tests/model/scan/test_scan_distributed.py::": COMPILED_GROUP,
     "tests/model/scan/test_scan_failures.py::": COMPILED_GROUP,
@@ -147,11 +154,9 @@ def compiled_path_cached():
 
     if not jit.COMPILED:
         return
-    from labrig.model.scan.scan import ScanLibrary, solve_actuator
-    from labrig.model.segments.catalog import analytical_segment
+    from labrig.model.scan.background_compile import compile_solver
 
-    names = ("SI-B46-T20", "SI-B46-T22")
-    solve_actuator(ScanLibrary("warm-up", tuple(analytical_segment(n) for n in names)), (0, 1))
+    compile_solver()
 
 
 @pytest.fixture(autouse=True)

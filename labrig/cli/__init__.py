@@ -88,7 +88,8 @@ def _one_line(exc: BaseException) -> str:
 # actuator or none (a run's dry-run prediction and analysis, model path/curve, compare,
 # plot, library add): a few hundred calls, faster as plain Python than loading the
 # machine code (0.2 s, plus 0.3 s to import numba) or, on a fresh install, compiling
-# it (~15 s, which the first `labrig run` used to pay).
+# it (~15 s, which the first `labrig run` used to pay). A scan chooses for itself
+# (labrig.model.scan.plan): a small one on a fresh install runs as Python too.
 _MANY_ACTUATORS = (("model", "scan"), ("bench",))
 
 

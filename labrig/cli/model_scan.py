@@ -142,11 +142,19 @@ def scan(
         TimeRemainingColumn,
     )
 
+    from labrig.model.scan.plan import choose_solver_mode
+
+    _check_png(plot_png)
+    # before the solver is imported, which fixes its mode; a cluster's workers compile
+    # on their own, the scan's process solves nothing
+    plan = None if scheduler is not None else choose_solver_mode(library_spec, n, workers)
+    if plan is not None and plan.compiles_now:
+        click.echo("compiling the solver once for this install (~1 min)...", err=True)
+
     from labrig.model.scan.run import run_scan
     from labrig.model.scan.scan import ScanInterrupted, load_library
     from labrig.model.scan.scan_file import read_scan
 
-    _check_png(plot_png)
     if scheduler is not None:
         import logging
 
@@ -205,6 +213,21 @@ def scan(
         finally:
             signal.signal(signal.SIGINT, previous)
     print_summary(read_scan(out), plot_png)
+    if plan is not None and not plan.compiled and not plan.cached:
+        _compile_for_the_next_scan()
+
+
+def _compile_for_the_next_scan() -> None:
+    """After a scan in plain Python on an empty cache: the compile at the lowest priority,
+    so that a larger scan later finds the solver compiled."""
+    from labrig.model.scan import background_compile
+
+    if background_compile.start():
+        click.echo(
+            "compiling the solver in the background, at the lowest priority, for the next "
+            "larger scan",
+            err=True,
+        )
 
 
 @click.command("scan-summary")

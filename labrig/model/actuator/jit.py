@@ -9,10 +9,11 @@ writable (a system-wide install), in the user's cache folder (numba's own fallba
 peak pressure) makes a few hundred calls: as Python they take ~15 ms, while loading the
 compiled code from the cache takes ~0.2 s plus ~0.3 s to import numba, and compiling it
 on a fresh install 20-40 s. So the console script asks for Python for the commands that
-solve one actuator (``labrig.cli``), through the environment variable ``LABRIG_JIT``:
-``python`` runs the plain functions, anything else (the default) compiles. A user can
-set it either way. The source is the same in both modes and so are the results, bit for
-bit (tests/model/actuator/test_jit.py).
+solve one actuator (``labrig.cli``), and a scan for the scans where compiling would not
+pay (``labrig.model.scan.plan``: a small one on an empty cache), through the environment
+variable ``LABRIG_JIT``: ``python`` runs the plain functions, anything else (the default)
+compiles. A user can set it either way. The source is the same in both modes and so
+are the results, bit for bit (tests/model/actuator/test_jit.py).
 
 The mode is read once, when this module is first imported: every compiled function may
 call only compiled ones, so the modes never mix within a process.

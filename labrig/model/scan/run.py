@@ -15,12 +15,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from labrig.errors import InputError
+from labrig.model.scan.plan import MAX_N, default_workers
 from labrig.model.scan.scan import (
-    MAX_N,
     ChunkResult,
     ScanLibrary,
     default_chunk_size,
-    default_workers,
     peak_rss_mib,
     run_chunks,
 )

@@ -49,9 +49,6 @@ from labrig.model.segments.curve import SegmentCurve
 ANALYTICAL = "analytical"
 GENT = "gent"
 SI = "si"
-# the most segments an actuator of a scan may have; the 36-segment library gives
-# 376,992 actuators at n = 5 and 1.9 million at n = 6
-MAX_N = 6
 
 
 @dataclass(frozen=True)
@@ -338,13 +335,6 @@ def _init_worker(library: ScanLibrary) -> None:
 def _run_in_worker(chunk: Chunk) -> ChunkResult:
     assert _WORKER_LIBRARY is not None
     return run_chunk(_WORKER_LIBRARY, chunk)
-
-
-def default_workers() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
 
 
 class ScanInterrupted(Exception):

@@ -1,0 +1,85 @@
+"""The solver compiled into numba's cache by a process of its own at the lowest priority,
+after a scan that ran as plain Python because compiling would not have paid for it
+(``labrig.model.scan.plan``): the next larger scan then loads the machine code instead of
+compiling it before it starts.
+
+At the lowest priority it takes only the cores nothing else wants; one runs at a time
+(a lock file in the temporary folder), and it stops at once where the cache holds the
+solver already. ``LABRIG_BACKGROUND_COMPILE=0`` turns it off (the test suite does: it
+compiles once, in the foreground, for the tests that need it).
+
+Run as ``python -m labrig.model.scan.background_compile``, which ``start`` does.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import subprocess
+import sys
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+from labrig.model.scan.plan import MODE_VARIABLE, solver_cached
+
+SWITCH_VARIABLE = "LABRIG_BACKGROUND_COMPILE"
+
+
+def start() -> bool:
+    """Start the background compile, detached from this process and its terminal;
+    False where ``LABRIG_BACKGROUND_COMPILE=0`` forbids it."""
+    if os.environ.get(SWITCH_VARIABLE, "").strip() == "0":
+        return False
+    env = {k: v for k, v in os.environ.items() if k != MODE_VARIABLE}  # numba's default
+    subprocess.Popen(
+        [sys.executable, "-m", __name__],
+        env=env,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,  # a Ctrl-C in the terminal is not for it
+    )
+    return True
+
+
+def compile_solver() -> None:
+    """Solve one pair by the compiled path, which compiles the solver's functions that a
+    scan loads (``labrig.model.scan.plan.SOLVER_ENTRIES``, with their callees) and
+    writes them to numba's cache, or loads them from it. In a compiling process only."""
+    from labrig.model.scan.scan import ScanLibrary, solve_actuator
+    from labrig.model.segments.catalog import analytical_segment
+
+    names = ("SI-B46-T20", "SI-B46-T22")  # cheap to build; any pair compiles the same
+    solve_actuator(ScanLibrary("warm-up", tuple(analytical_segment(n) for n in names)), (0, 1))
+
+
+@contextlib.contextmanager
+def one_at_a_time() -> Iterator[bool]:
+    """True while this process holds the background compile's lock, False where another
+    holds it; True without a lock where the system has none (not POSIX)."""
+    try:
+        import fcntl
+    except ImportError:
+        yield True
+        return
+    path = Path(tempfile.gettempdir()) / f"labrig-background-compile-{os.getuid()}.lock"
+    with open(path, "a") as lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            yield False
+            return
+        yield True  # released when the file closes
+
+
+def main() -> None:
+    if hasattr(os, "nice"):
+        os.nice(19)
+    with one_at_a_time() as mine:
+        if mine and not solver_cached():
+            compile_solver()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,90 @@
+"""The background compile: started by ``labrig model scan`` after a scan in plain Python
+on an empty cache (and only then), detached, in numba's mode, switched off by
+``LABRIG_BACKGROUND_COMPILE=0``; one at a time."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from labrig.cli import main
+from labrig.model.scan import background_compile, plan
+from labrig.model.scan.plan import SolverPlan
+
+
+class _Spawned:
+    def __init__(self) -> None:
+        self.calls = []
+
+    def __call__(self, argv, **options):
+        self.calls.append((argv, options))
+
+
+def test_start_detaches_a_process_in_numbas_mode(monkeypatch):
+    spawned = _Spawned()
+    monkeypatch.setattr(background_compile.subprocess, "Popen", spawned)
+    monkeypatch.delenv(background_compile.SWITCH_VARIABLE, raising=False)
+    monkeypatch.setenv(plan.MODE_VARIABLE, plan.PYTHON)
+    assert background_compile.start()
+    [(argv, options)] = spawned.calls
+    assert argv == [sys.executable, "-m", "labrig.model.scan.background_compile"]
+    assert plan.MODE_VARIABLE not in options["env"]
+    assert options["start_new_session"]
+    assert options["stdout"] == options["stderr"] == subprocess.DEVNULL
+
+
+def test_start_is_switched_off(monkeypatch):
+    spawned = _Spawned()
+    monkeypatch.setattr(background_compile.subprocess, "Popen", spawned)
+    monkeypatch.setenv(background_compile.SWITCH_VARIABLE, "0")
+    assert not background_compile.start()
+    assert spawned.calls == []
+
+
+def test_one_compile_at_a_time(tmp_path):
+    cache = tmp_path / "cache"
+    env = {k: v for k, v in os.environ.items() if k != plan.MODE_VARIABLE}
+    env["NUMBA_CACHE_DIR"] = str(cache)
+    with background_compile.one_at_a_time() as mine:
+        assert mine
+        with background_compile.one_at_a_time() as second:
+            assert not second
+        # another process leaves at once, without compiling into the empty cache
+        done = subprocess.run(
+            [sys.executable, "-m", "labrig.model.scan.background_compile"],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=300,  # a guard against a hang, not a measure: compiling writes files
+        )
+        assert done.returncode == 0, done.stderr
+    assert not list(cache.rglob("*.nbi"))
+    with background_compile.one_at_a_time() as again:
+        assert again  # released
+
+
+@pytest.mark.parametrize(
+    ("compiled", "cached", "before", "after"),
+    [
+        (False, False, False, True),  # Python on an empty cache: compile for the next
+        (False, True, False, False),  # a tiny scan beside a cached solver
+        (True, False, True, False),  # compiles now, and says so first
+        (True, True, False, False),
+    ],
+)
+def test_the_scan_command_says_what_it_compiles(
+    tmp_path, capsys, monkeypatch, compiled, cached, before, after
+):
+    chosen = SolverPlan(compiled, cached, python_s=1.0, compiled_s=1.0)
+    monkeypatch.setattr(plan, "choose_solver_mode", lambda *args: chosen)
+    started = []
+    monkeypatch.setattr(background_compile, "start", lambda: started.append(1) or True)
+    out = tmp_path / "gent.h5"
+    with pytest.raises(SystemExit) as exited:
+        main(["model", "scan", "--n", "2", "--library", "gent", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert exited.value.code == 0, err
+    assert ("compiling the solver once" in err) is before
+    assert ("compiling the solver in the background" in err) is after
+    assert started == ([1] if after else [])
