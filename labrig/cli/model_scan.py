@@ -148,8 +148,6 @@ def scan(
     # before the solver is imported, which fixes its mode; a cluster's workers compile
     # on their own, the scan's process solves nothing
     plan = None if scheduler is not None else choose_solver_mode(library_spec, n, workers)
-    if plan is not None and plan.compiles_now:
-        click.echo("compiling the solver once for this install (~1 min)...", err=True)
 
     from labrig.model.scan.run import run_scan
     from labrig.model.scan.scan import ScanInterrupted, load_library
@@ -174,8 +172,15 @@ def scan(
     # running thread; the bar is redrawn on every finished chunk instead
     with Progress(*columns, auto_refresh=False, console=_console(), transient=False) as bar:
         task = bar.add_task("scan", total=None, rate="")
+        # said at the first progress, once the scan's input is accepted and before it
+        # compiles (rich shows it above the bar)
+        untold = plan is not None and plan.compiles_now
 
         def show(p) -> None:
+            nonlocal untold
+            if untold:
+                untold = False
+                click.echo("compiling the solver once for this install (~1 min)...", err=True)
             speed = bar.tasks[0].speed
             rate = f"{speed:,.0f} actuators/s" if speed else ""
             bar.update(

@@ -59,7 +59,7 @@ class SolverCosts:
     """What a scan's solver costs, in seconds of one core (see the module docstring)."""
 
     compile_s: float = 40.0  # a cold compile, in the scan's process before the workers fork
-    load_s: float = 0.8  # importing numba and loading the cached machine code
+    load_s: float = 0.5  # importing numba and loading the cached machine code
     compiled_ms_per_actuator: float = 0.3
     # plain Python, by segments per actuator; the last for more (an underestimate: a
     # scan that large compiles anyway)
@@ -163,7 +163,8 @@ def choose_solver_mode(library_spec: str | None, n: int, workers: int | None) ->
     """Plan a local scan's solver and set ``LABRIG_JIT`` for this process (and the
     workers it forks) to match. None, and nothing set, where the choice is made
     already (``LABRIG_JIT`` set by the user, or the solver imported in this process: a
-    program, or a test, that runs scans in-process) or where the scan will refuse ``n``."""
+    program, or a test, that runs scans in-process) or where the scan will refuse ``n``.
+    A resumed scan is planned by all its actuators, done or not."""
     import sys
 
     if MODE_VARIABLE in os.environ or "labrig.model.actuator.jit" in sys.modules:

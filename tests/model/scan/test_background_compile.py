@@ -1,6 +1,7 @@
 """The background compile: started by ``labrig model scan`` after a scan in plain Python
 on an empty cache (and only then), detached, in numba's mode, switched off by
-``LABRIG_BACKGROUND_COMPILE=0``; one at a time."""
+``LABRIG_BACKGROUND_COMPILE=0``; one at a time. And what the scan command says it
+compiles, once the scan's input is accepted."""
 
 import os
 import subprocess
@@ -88,3 +89,15 @@ def test_the_scan_command_says_what_it_compiles(
     assert ("compiling the solver once" in err) is before
     assert ("compiling the solver in the background" in err) is after
     assert started == ([1] if after else [])
+
+
+def test_no_compile_is_announced_for_a_scan_refused(tmp_path, capsys, monkeypatch):
+    chosen = SolverPlan(True, False, python_s=100.0, compiled_s=50.0)
+    monkeypatch.setattr(plan, "choose_solver_mode", lambda *args: chosen)
+    out = tmp_path / "taken.h5"
+    out.write_bytes(b"precious")
+    with pytest.raises(SystemExit) as exited:
+        main(["model", "scan", "--n", "2", "--library", "gent", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert exited.value.code == 2 and "the file exists" in err
+    assert "compiling" not in err
