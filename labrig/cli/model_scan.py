@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import signal
+import sys
 import threading
 from pathlib import Path
 
@@ -173,14 +174,15 @@ def scan(
     with Progress(*columns, auto_refresh=False, console=_console(), transient=False) as bar:
         task = bar.add_task("scan", total=None, rate="")
         # said at the first progress, once the scan's input is accepted and before it
-        # compiles (rich shows it above the bar)
+        # compiles; through sys.stderr, which rich redirects above the bar on a terminal
+        # (click's echo writes past it, onto the bar's line)
         untold = plan is not None and plan.compiles_now
 
         def show(p) -> None:
             nonlocal untold
             if untold:
                 untold = False
-                click.echo("compiling the solver once for this install (~1 min)...", err=True)
+                print("compiling the solver once for this install (~1 min)...", file=sys.stderr)
             speed = bar.tasks[0].speed
             rate = f"{speed:,.0f} actuators/s" if speed else ""
             bar.update(
