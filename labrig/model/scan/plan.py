@@ -7,12 +7,12 @@ decides before anything imports the solver, and this module imports none of it.
 
 Compiling pays for scans, not for every scan. Compiled, an actuator takes ~0.3 ms; as
 plain Python 4-40 ms, more the more segments it has. Compiling on a fresh install costs
-~55 s of one core, once: numba keeps the machine code in its cache. So a small scan on an
+~40 s of one core, once: numba keeps the machine code in its cache. So a small scan on an
 empty cache (``labrig model scan --n 2``: 630 actuators, ~3 s of Python on one core) runs
-as Python, and a large one (n = 3 and up) compiles first as it always did; a scan whose
-compiled code is already cached loads it (~0.5 s). The figures of ``SolverCosts`` are
-measured on this 2-core machine (``tests/benchmarks/bench_scan_mode.py``); the choice
-only needs them right within a factor of about two.
+as Python, and a large one (n = 3 and up, on 2 cores) compiles first; a scan whose
+compiled code is already cached loads it (~0.5 s). The figures of ``SolverCosts`` were
+measured on a 2-core machine (``tests/benchmarks/bench_scan_mode.py`` prints them
+beside the code's); the choice only needs them right within a factor of about two.
 
 The scan's results are the same bits in both modes: the same source runs either way.
 """
