@@ -6,13 +6,14 @@ per process, and the workers fork from the scan's process), so ``choose_solver_m
 decides before anything imports the solver, and this module imports none of it.
 
 Compiling pays for scans, not for every scan. Compiled, an actuator takes ~0.3 ms; as
-plain Python 4-40 ms, more the more segments it has. Compiling on a fresh install costs
-~40 s of one core, once: numba keeps the machine code in its cache. So a small scan on an
-empty cache (``labrig model scan --n 2``: 630 actuators, ~3 s of Python on one core) runs
-as Python, and a large one (n = 3 and up, on 2 cores) compiles first; a scan whose
-compiled code is already cached loads it (~0.5 s). The figures of ``SolverCosts`` were
-measured on a 2-core machine (``tests/benchmarks/bench_scan_mode.py`` prints them
-beside the code's); the choice only needs them right within a factor of about two.
+plain Python ~6 ms for a pair and 10 ms to seconds for more segments. Compiling on a
+fresh install costs ~40 s of one core, once: numba keeps the machine code in its cache.
+So a small scan on an empty cache (``labrig model scan --n 2``: 630 actuators, ~4 s of
+Python on one core) runs as Python, and a large one (n = 3 and up) compiles first; a
+scan whose compiled code is already cached loads it (~0.5 s). The figures of
+``SolverCosts`` were measured on a 2-core machine (``tests/benchmarks/bench_scan_mode.py``
+prints them beside the code's); the choice only needs them right within a factor of
+about two.
 
 The scan's results are the same bits in both modes: the same source runs either way.
 """
@@ -61,9 +62,11 @@ class SolverCosts:
     compile_s: float = 40.0  # a cold compile, in the scan's process before the workers fork
     load_s: float = 0.5  # importing numba and loading the cached machine code
     compiled_ms_per_actuator: float = 0.3
-    # plain Python, by segments per actuator; the last for more (an underestimate: a
-    # scan that large compiles anyway)
-    python_ms_per_actuator: tuple[tuple[int, float], ...] = ((2, 4.5), (3, 15.0), (4, 36.0))
+    # plain Python, by segments per actuator, the last for more. A pair settles by an
+    # exact root (~6 ms); three segments and more by a flow, which where it does not
+    # settle runs its 200,000 steps before it fails the actuator, seconds in Python: a
+    # heavy tail (triples of 30 in a row averaged 10-840 ms), so the figure is set high
+    python_ms_per_actuator: tuple[tuple[int, float], ...] = ((2, 6.0), (3, 100.0))
 
     def python_ms(self, n: int) -> float:
         table = self.python_ms_per_actuator

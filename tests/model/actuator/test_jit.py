@@ -101,27 +101,26 @@ def test_the_console_script_compiles_only_for_many_actuators(tmp_path, argv, num
 
 
 _WARNINGS = """
-import sys, warnings
-sys.path.insert(0, {helpers!r})
-from support.scan_helpers import small_library
-from labrig.model.scan.scan import Chunk, run_chunk
+import warnings
+from labrig.model.scan.scan import Chunk, ScanLibrary, run_chunk
+from labrig.model.segments.catalog import SI_NAMES, analytical_segment
+library = ScanLibrary("si", tuple(analytical_segment(n) for n in SI_NAMES[::5]))
 chunk = Chunk(0, 0, 56, 3)  # every triple of the 8 segments
 with warnings.catch_warnings(record=True) as shown:
-    run_chunk(small_library(), chunk)
+    run_chunk(library, chunk)
 with warnings.catch_warnings(record=True) as raised:
     warnings.simplefilter("always")
-    run_chunk(small_library(), chunk)
-print(len(shown), len({{str(w.message) for w in raised if w.category is RuntimeWarning}}))
+    run_chunk(library, chunk)
+print(len(shown), len({str(w.message) for w in raised if w.category is RuntimeWarning}))
 """
 
 
 def test_plain_python_hides_numpys_warnings_of_expected_infinities():
     """numpy warns where the 1/k sums meet both signs of inf (the compiled code gives the
     same nan silently): a scan in plain Python shows the user none of it."""
-    code = _WARNINGS.format(helpers=str(Path(__file__).parents[2]))
     env = {**os.environ, jit.MODE_VARIABLE: jit.PYTHON}
     done = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+        [sys.executable, "-c", _WARNINGS], env=env, capture_output=True, text=True, check=True
     )
     shown, raised = map(int, done.stdout.split())
     assert raised > 0  # the triples meet them

@@ -25,7 +25,8 @@ from labrig.model.scan.scan import load_library
     [
         (36, 2, 2, False, False),  # the first scan after install: 630 actuators
         (36, 2, 16, False, False),
-        (36, 3, 2, False, True),  # 7,140 actuators: ~107 s of Python, ~2 s compiled
+        (36, 3, 2, False, True),  # 7,140 actuators: minutes of Python, ~2 s compiled
+        (36, 3, 16, False, True),
         (36, 4, 2, False, True),
         (36, 5, 64, False, True),
         (36, 2, 2, True, True),  # loading the cache costs less than 630 in Python
@@ -49,13 +50,14 @@ def test_the_plan_picks_the_cheaper_mode(segments, n, workers, cached, compiled)
 
 
 def test_python_costs_by_segments_extend_past_the_table():
-    costs = SolverCosts(python_ms_per_actuator=((2, 1.0), (3, 2.0)))
-    assert [costs.python_ms(n) for n in (2, 3, 4, 6)] == [1.0, 2.0, 2.0, 2.0]
+    costs = SolverCosts(python_ms_per_actuator=((2, 1.0), (3, 2.0), (4, 3.0)))
+    assert [costs.python_ms(n) for n in (2, 3, 4, 6)] == [1.0, 2.0, 3.0, 3.0]
 
 
-def test_library_sizes_without_loading():
-    assert plan.library_size("analytical") == plan.library_size(None) == 36
-    assert plan.library_size(" Gent ") == len(load_library("gent").curves)
+@pytest.mark.parametrize("spec", ["analytical", "si", "gent", " Gent "])
+def test_library_sizes_without_loading(spec):
+    assert plan.library_size(spec) == len(load_library(spec).curves)
+    assert plan.library_size(None) == plan.library_size("analytical")
 
 
 def test_library_size_of_a_folder(tmp_path):
