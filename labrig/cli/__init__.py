@@ -84,12 +84,12 @@ def _one_line(exc: BaseException) -> str:
 
 
 # Commands that solve many actuators: thousands of calls of the solver's inner loops,
-# 20 times faster compiled (labrig.model.actuator.jit). Every other command solves one
-# actuator or none (a run's dry-run prediction and analysis, model path/curve, compare,
-# plot, library add): a few hundred calls, faster as plain Python than loading the
-# machine code (0.2 s, plus 0.3 s to import numba) or, on a fresh install, compiling
-# it (~15 s, which the first `labrig run` used to pay). A scan chooses for itself
-# (labrig.model.scan.plan): a small one on a fresh install runs as Python too.
+# 20 times faster compiled (labrig.model.actuator.jit); a scan then chooses for itself
+# whether compiling pays (labrig.model.scan.plan: a small one on a fresh install runs as
+# plain Python). Every other command solves one actuator or none (a run's dry-run
+# prediction and analysis, model path/curve, compare, plot, library add): a few hundred
+# calls, faster as plain Python than loading the machine code (~0.5 s with numba's
+# import) or, on a fresh install, compiling it (~40 s of CPU).
 _MANY_ACTUATORS = (("model", "scan"), ("bench",))
 
 
