@@ -27,9 +27,10 @@ what holds the actuator's ends (the blocked-force test):
 The state (segment volumes, coupling flows, manifold pressure, and the gas pressure in
 each segment when the fluid is compressible enough to matter) is integrated with
 scipy's LSODA (it switches to a stiff method where the water's compliance, 10^6 times
-below a segment's, or the air's fast ringing calls for one) on the virtual clock, lazily, up to the latest time anyone asks about, between the
-breakpoints of the inputs (connections, pushes). In the slow limit it follows the
-model's quasi-static path (tested). Thread-safe.
+below a segment's, or the air's fast ringing calls for one) on the virtual clock,
+lazily, up to the latest time anyone asks about, between the breakpoints of the inputs
+(connections, pushes). In the slow limit it follows the model's quasi-static path
+(tested). Thread-safe.
 """
 
 from __future__ import annotations
