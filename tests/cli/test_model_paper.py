@@ -76,8 +76,8 @@ def test_calibrated_peaks_lie_in_the_measured_range(calibrated_table):
 
 @pytest.mark.xfail(
     strict=True,
-    reason="the calibrated segments do not snap like the paper's actuators yet (docs/model.md, "
-    "Calibration: what the fit cannot reach)",
+    reason="the calibrated segments do not snap like the paper's actuators yet (docs/explanation/"
+    "calibration.md: what still fails, and why)",
 )
 def test_at_least_eight_of_the_nine_statements_hold(calibrated_table):
     holding = [o.key for o in calibrated_table if o.holds]

@@ -12,9 +12,6 @@ LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
 EXTERNAL = ("http://", "https://", "mailto:")
 # What a reader of the repository does not have: notes outside it, and issue numbers.
 OUTSIDE = re.compile(r"\.\./shared|shared/|DESIGN\.md|model-?notes|hardware\.md|\bissue \d+")
-# The pages not yet split by purpose; they still carry such references, and lose them as
-# their content moves into the new sections.
-UNSPLIT = {"docs/model.md", "docs/scan.md"}
 
 
 def links(text: str) -> list[str]:
@@ -42,8 +39,6 @@ def test_every_relative_link_points_at_a_file(page):
 @pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(REPO)))
 def test_no_reference_points_outside_the_repository(page):
     name = str(page.relative_to(REPO))
-    if name in UNSPLIT:
-        pytest.skip(f"{name} is not split by purpose yet")
     found = OUTSIDE.findall(page.read_text(encoding="utf-8"))
     assert not found, f"{name} refers to {found}"
 

@@ -10,7 +10,7 @@ fixes theta, the segment shortens as it is inflated further, and the pressure is
 derivative of the total elastic energy along that constrained path (the consistent
 form of S42–S46: continuous at first contact, with a wall where the enclosed volume
 is maximal). The derivations and every correction to the OCR'd equations are in
-docs/model.md.
+docs/explanation/segments.md.
 
 Lengths in mm, forces in N, moduli in MPa; N*mm = mJ, so energies per mm^3 are MPa.
 What this module produces is a ``SegmentCurve``; turning names into segments is

@@ -3,7 +3,7 @@
 The SI's segment (``labrig.model.segments.braided``, under ``SI-B46-T20``) peaks at
 38-40 kPa where the paper measured 65-85 kPa, and its peak does not depend on L_tube.
 The calibrated form keeps the SI's mechanics and changes what the paper leaves free or
-names as the model's limits (docs/model.md, "Calibration"):
+names as the model's limits (docs/explanation/calibration.md):
 
 - the membrane is a one-term Ogden solid (``ogden_braided``; exponent 2 is the SI's
   neo-Hookean latex), which softens more after the peak;
@@ -51,7 +51,7 @@ class Calibration:
         return asdict(self)
 
 
-# Fitted by `labrig model calibrate` (objective in docs/model.md).
+# Fitted by `labrig model calibrate` (objective in docs/explanation/calibration.md).
 CALIBRATION = Calibration(
     shear_modulus_mpa=0.6302,
     ogden_alpha=1.290,

@@ -4,7 +4,7 @@ Every segment source reduces to one ``SegmentCurve``, a table (v, p, l) with v t
 supplied from the unpressurised state (zero there, as on the paper's axes). Between the
 samples it is interpolated with PCHIP, which is monotone between samples and puts every
 extremum exactly on a sample: a C2 spline would ring at the braid-contact kink and create
-false peaks (model-notes, trap 5). So the monotone branches of p(v) are runs of samples,
+false peaks, each a transition no segment has. So the monotone branches of p(v) are runs of samples,
 and the elastic energy (Eq. 1) is the exact antiderivative of the interpolant.
 
 Past the last sample the curve continues linearly with its end slope, so that a state a

@@ -5,7 +5,7 @@ material stiffens towards a locking stretch set by J_m. Its p(v) has the rise, f
 final rise that makes interconnected membranes snap (Figs. S1, S2), which makes it the
 smallest test case of the actuator model. The paper gives no value for J_m; membranes
 a, b, c are those of Fig. S1 with J_m,a = 28.5, chosen so that the three pairs of
-Fig. S2 behave as the paper describes (docs/model.md: a+b all stable, b+c one snap,
+Fig. S2 behave as the paper describes (docs/explanation/segments.md: a+b all stable, b+c one snap,
 a+c two snaps with the second flowing back; the window is about 27.5 < J_m,a < 29.8).
 
 Units: R = 10 mm, H_a = 1 mm, mu = 0.5 MPa (pressure scale mu H/R = 50 kPa, peaks

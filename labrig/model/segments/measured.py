@@ -12,7 +12,8 @@ way the pressure is then referred to zero at v = 0 (the unpressurised state is a
 atmospheric pressure, so what the curve shows there is a residual sensor offset; a gain
 error cannot be seen and stays), and a curve that ends below P_END_KPA is extended along
 a straight line with its final slope, so that actuators find every pressure they need
-on the table (model-notes, trap 10).
+on the table (an actuator's other segments may take it far past what one
+segment was measured to).
 """
 
 from __future__ import annotations
@@ -59,7 +60,7 @@ OFFSET_SIGMAS = 3.0  # an offset is removed when it stands out of its uncertaint
 P_END_KPA = 300.0
 # steps from which a staircase's peak and valley come from its stair edges: below, the
 # stair values are within 0.025 kPa of them (a snap within ~0.06 mL), and the edges
-# were not checked on the 0.01-0.027 kPa tables other tools write (docs/model.md, 9)
+# were not checked on the 0.01-0.027 kPa tables other tools write (docs/explanation/measured-curves.md)
 EDGE_MIN_STEP_KPA = 0.05
 MIN_END_SLOPE_KPA_PER_ML = 1.0
 EXTENSION_SAMPLES = 8

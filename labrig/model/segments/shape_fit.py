@@ -2,7 +2,8 @@
 
 Raw measured p(v) has thousands of samples whose noise (a few tenths of a kPa) is larger
 than the change of the softening branch over a millilitre: every local extremum of the
-raw data is spurious except the pressure peak and the valley (model-notes, trap 10). So
+raw data is spurious except the pressure peak and the valley, and a path through them
+would snap at each. So
 the samples are first averaged on a volume grid (a trimmed mean per bin: robust to
 spikes, unbiased for symmetric noise, and it dithers the sensor's quantisation), then
 fitted by the best monotone-up, monotone-down, monotone-up sequence in the least-squares

@@ -17,7 +17,7 @@ fewer on its falling side: those, and before a valley the peak's estimate):
 
 Each edge is weighted by 1 / gap^2 (the variance of its volume, in pressure: slope^2 x
 gap^2 / 12, the slope nearly the same over two edges). Checked against the analytical
-segments at 0.27 and 0.5 kPa every 0.1 mL (docs/model.md, section 9): the mean error of
+segments at 0.27 and 0.5 kPa every 0.1 mL (docs/explanation/measured-curves.md): the mean error of
 a peak is 0.03-0.07 kPa and of a valley 0.03-0.05 kPa, against 0.07-0.12 kPa for the
 stair values.
 """

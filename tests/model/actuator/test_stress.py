@@ -97,7 +97,7 @@ def test_near_coincident_and_identical_peaks(first, offset_kpa, twin, data):
     pressure, a singular Hessian), and identical segments (a symmetric bifurcation: one
     deterministic branch, no NaN).
 
-    Not covered (docs/scan.md, limits): dips of 1e-6 kPa (1e-8 of the peak; the random
+    Not covered (docs/explanation/scans.md, limits): dips of 1e-6 kPa (1e-8 of the peak; the random
     curves above have them) next to near-coincident peaks, and a twin pair plus a third
     segment peaking within 1e-9 kPa of them: such degeneracies are decided by rounding
     and the solver may give up (a FlowError, which a scan records as a failed
@@ -182,7 +182,7 @@ def test_noisy_measured_curves(tmp_path_factory, knots, seed):
     """Raw rig-like data (1000 samples/mL, 0.3 kPa noise, 0.3 kPa quantisation) through
     the measured-curve loader's shape fit, then the path. Valleys stay 2 kPa (7 noise
     sigmas) above zero: a fitted valley below 0 kPa asks another segment for a pressure
-    below its unpressurised state, outside the curves (a FlowError, docs/scan.md)."""
+    below its unpressurised state, outside the curves (a FlowError, docs/explanation/scans.md)."""
     from labrig.model.segments.measured import load_csv
 
     rng = np.random.default_rng(seed)

@@ -4,7 +4,7 @@ sextuple that fails alike in n = 6).
 In each, one segment is just past its peak (falling, k < 0) and its 1/k term is nearly
 cancelled by the others' (Eq. 10: sum 1/k comes within ~1e-4 of zero along a stretch
 of otherwise stable states). Four of the five do it with two segments of the same braid
-length, which peak at exactly the same pressure (docs/model.md), one either side of
+length, which peak at exactly the same pressure (docs/reference/segments.md), one either side of
 it; the fifth with SI-B46-T26 against three rising B48 segments. There sum 1/k crosses
 zero twice, 1e-7 to 9e-5 kPa apart: a fold pair. Inflating, the state is lost at the
 first fold and the same branches are stable again past the second, the volume regained

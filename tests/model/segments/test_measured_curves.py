@@ -160,8 +160,9 @@ def test_quantised_tables_give_the_librarys_snap(spacing_ml, round_to_kpa):
 # snap (no spurious one, none missed, the issue's complaint), within 0.46 mL of the
 # clean 25.6 mL at 50 rows/mL and 0.3 kPa (rms 0.23 mL), 0.40 mL at 0.2 kPa, 0.19 mL
 # at 1,000 rows/mL. SI-B50-T22's falling branch (-0.5 kPa/mL) turns every 0.1 kPa of
-# error in SI-B42-T24's fitted valley into 0.2 mL (docs/model.md); the offset at v = 0
-# is removed only where it stands out of its own uncertainty, which halved these errors
+# error in SI-B42-T24's fitted valley into 0.2 mL (docs/explanation/measured-curves.md); the offset at v = 0
+# is removed only where it stands out of its own uncertainty: extrapolated from four
+# noisy bins it is uncertain by ~0.3 kPa, and removing that would shift the whole curve
 NOISY_TOLERANCE_ML = {50: 0.5, 1000: 0.5}
 
 
@@ -292,7 +293,7 @@ spacings = st.floats(np.log10(0.0005), np.log10(0.5)).map(lambda x: 10.0**x)
 # whose stair values put the snap beyond 1.5 mL per kPa of step or made a snap vanish
 # (found by a sweep of 80 random draws; within it with the stair-edge extrema); a
 # monotone segment beside a snapping one at 0.1 kPa, 0.51 mL off: a test below (its
-# corner rows kept now); with 40 examples, a dense table rounded to 0.001 kPa whose real
+# corner rows kept); with 40 examples, a dense table rounded to 0.001 kPa whose real
 # snaps at 17.5 and 30.4 mL were each followed by a train of unresolved 0.001 kPa fold
 # pairs within a bin, and dropped as 'one snap in two steps' (both missed)
 @example(names=("SI-B40-T28", "SI-B42-T20", "SI-B44-T20"), spacing_ml=0.001, uniform=False,
@@ -305,7 +306,7 @@ spacings = st.floats(np.log10(0.0005), np.log10(0.5)).map(lambda x: 10.0**x)
 # found by a sweep of 200 random draws of staircases at 0.27/0.5 kPa every 0.05-0.5 mL:
 # a dip of one or two steps (SI-B40-T24's 0.73 kPa, SI-B42-T26's 0.61, SI-B44-T28's 0.51 at 0.5
 # kPa) fell under the 3-step prominence and the partner's snap moved by 0.7-1.8 mL; an
-# undithered staircase that falls shows a real dip now (``stair_edges.shows_dip``), and
+# undithered staircase that falls shows a real dip (``stair_edges.shows_dip``), and
 # its peak and valley come from its edges: 0.05-0.2 mL. The last: SI-B40-T26's 0.05 kPa
 # dip, under the step, which the table does not hold (``dip_hidden_by_step``)
 @example(names=("SI-B40-T24", "SI-B48-T24"), spacing_ml=0.3030689851144785, uniform=False,
@@ -363,12 +364,11 @@ def test_clean_and_quantised_library_tables_snap_like_the_clean_curves(
 
 
 def test_a_monotone_segment_rounded_to_a_tenth_beside_a_snapping_one():
-    """Was a strict xfail, found by the property above: SI-B44-T30 (no peak) + SI-B46-T20
-    every 0.1 mL (jittered), rounded to 0.1 kPa, snapped 0.51 mL off the clean 15.594
-    mL. SI-B44-T30's braid contact is a corner inside one row gap (39.1 kPa up to 8.357 mL,
-    39.3 at 8.513); the plateau's centre joined to the next row spread it, and the fold
-    moved to 39.30 kPa (clean 39.09). The plateau's row at the jump is now kept
-    (``keep_corner_rows``): the fold at 39.13 kPa, the snap 0.39 mL off."""
+    """Found by the property above: SI-B44-T30 (no peak) + SI-B46-T20
+    every 0.1 mL (jittered), rounded to 0.1 kPa, must snap near the clean 15.594 mL. SI-B44-T30's braid contact is a corner inside one row gap (39.1 kPa up to 8.357 mL,
+    39.3 at 8.513); the plateau's centre joined to the next row would spread it and move
+    the fold to 39.30 kPa (clean 39.09), 0.51 mL of snap. The plateau's row at the jump is
+    kept (``keep_corner_rows``): the fold at 39.13 kPa, the snap 0.39 mL off."""
     names = ("SI-B44-T30", "SI-B46-T20")
     clean = [analytical_segment(n) for n in names]
     curves = measured(clean, 0.1, uniform=False, round_to_kpa=0.1, seed=1)
@@ -381,7 +381,7 @@ def test_a_monotone_segment_rounded_to_a_tenth_beside_a_snapping_one():
 # 0.5 kPa noise on a 0.27 kPa step snapped 1.17 mL off: SI-B42-T26's 0.6 kPa dip, within
 # three steps, was taken for rounding although the noise dithers the steps (its bins'
 # means resolve it by 10 standard errors); its peak lost, the path was another one.
-# The valleys fitted were within 0.1 kPa all along (docs/model.md, section 9)
+# The valleys fitted are within 0.1 kPa (docs/explanation/measured-curves.md)
 @example(names=("SI-B40-T20", "SI-B42-T26", "SI-B44-T20"), noise_kpa=0.5, averaging=0.015625,
          round_to_kpa=0.27, seed=0)  # fmt: skip
 @PROPERTY
@@ -399,7 +399,7 @@ def test_noisy_library_tables_snap_like_the_clean_curves(
     up to 0.02 kPa, with noise enough to dither the quantisation (at least half a
     step), the clean snaps are found, none spurious, at any noise of 0.05-0.5 kPa,
     within the issue's 0.5 mL; beyond, the fit still gives a valid curve and the path
-    no exception (docs/model.md, the benchmark)."""
+    no exception (docs/performance.md, measured curves)."""
     spacing_ml = max((averaging / noise_kpa) ** 2, 0.00053)
     clean = [analytical_segment(n) for n in names]
     curves = measured(clean, spacing_ml, round_to_kpa=round_to_kpa, noise_kpa=noise_kpa, seed=seed)
@@ -435,7 +435,7 @@ def synthetic(name: str, shape: dict):
 # The clean path is marginally stable (A's rising slope 1.9-2.0 kPa/mL against B's
 # steepest fall, -1.99); A, a 0.27 kPa staircase tabulated at its plateau centres, put
 # its slope 10 % low there: a deficit of 0.20 kPa/mL, 0.65 standard errors of the
-# slope its rows resolve over 0.29 mL, now not reported (``fold_slope_deficit``)
+# slope its rows resolve over 0.29 mL, so not reported (``fold_slope_deficit``)
 @example(
     shape_a={"peak_v_ml": 3.0, "peak_kpa": 30.0, "dip_kpa": 2.0, "valley_after_ml": 3.0,
              "end_after_ml": 20.0},
@@ -483,8 +483,8 @@ def test_random_rise_fall_rise_shapes_snap_like_their_clean_curves(
 @pytest.mark.parametrize("case", [5, 6, 10, 28, 30, 39])
 def test_noisy_synthetic_pairs_that_had_spurious_snaps(case):
     """Pairs whose fit took the isotonic blocks (their slopes flicker from bin to bin)
-    because a tangent clamped flat repeated a value, and showed 2 to 16 spurious snaps:
-    now smooth, with the clean snaps."""
+    would, where a tangent clamped flat repeats a value, show 2 to 16 spurious snaps; the
+    fit is smooth there and finds the clean snaps."""
     shapes, noise, spacing, rounding, seed = noisy_synthetic_pair(1, case)
     curves = measured(shapes, spacing, round_to_kpa=rounding, noise_kpa=noise, seed=seed)
     assert all(len(c.v_ml) >= 200 for c in curves)  # the smooth fit on the bins, not blocks
@@ -492,10 +492,10 @@ def test_noisy_synthetic_pairs_that_had_spurious_snaps(case):
 
 
 def test_a_noisy_library_triple_at_half_a_kpa_has_no_fold_pairs():
-    """Was a strict xfail: the spline fitted to SI-B40-T26's rising branch (no peak at 0.5
-    kPa noise) let its slope flicker by up to 1.5 kPa/mL from bin to bin, down to the
-    falling SI-B42-T20's 0.44 kPa/mL: four fold pairs of 0.02-0.05 kPa. A rising branch
-    is now fitted with a slope of one minimum (``one_minimum_slope_rise``)."""
+    """A spline fitted to SI-B40-T26's rising branch (no peak at 0.5 kPa noise) lets its
+    slope flicker by up to 1.5 kPa/mL from bin to bin, below the falling SI-B42-T20's
+    0.44 kPa/mL: four fold pairs of 0.02-0.05 kPa. A rising branch is fitted with a slope
+    of one minimum (``one_minimum_slope_rise``)."""
     names = ("SI-B42-T20", "SI-B44-T20", "SI-B40-T26")
     clean = [analytical_segment(n) for n in names]
     curves = measured(clean, (0.015625 / 0.5) ** 2, noise_kpa=0.5, seed=0)
@@ -505,7 +505,7 @@ def test_a_noisy_library_triple_at_half_a_kpa_has_no_fold_pairs():
 
 
 def test_a_marginal_noisy_library_pair_reports_no_fold_pair_its_rows_cannot_resolve():
-    """Was a strict xfail: SI-B42-T30's smallest slope (0.5 kPa/mL just before its braids'
+    """SI-B42-T30's smallest slope (0.5 kPa/mL just before its braids'
     contact) is within a few hundredths of SI-B44-T24's falling 0.44 kPa/mL: the clean path
     is marginally stable, and at 0.21 kPa noise the fit's slope there dips below it, a
     fold pair of 0.09 kPa over 0.22 mL of flow. Even its whole slope, 0.42 kPa/mL (its
@@ -590,7 +590,7 @@ FORMATS = {"%.2f": 0.01, "%.5f": 1e-5, "%.9f": 0.0, "%g": 1e-3, "%.6e": 1e-4}
          seed=0)  # fmt: skip
 # two valleys 0.006 kPa apart, swapped by an offset of -0.04 kPa that the quadratic
 # through the first rows' steep start made up (a spurious snap at 41.46 mL): the
-# quadratic's misfit now counts in the offset's uncertainty (``zero_offset``)
+# quadratic's misfit counts in the offset's uncertainty (``zero_offset``)
 @example(names=("SI-B50-T30", "SI-B40-T20", "SI-B46-T28"), spacing_ml=0.1, uniform=False,
          fmt="%.2f", adc=False, seed=0)  # fmt: skip
 # the clean fold pair of 0.10 kPa at 14.93 mL, missed: its slope deficit (0.14

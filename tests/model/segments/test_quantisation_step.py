@@ -40,7 +40,7 @@ def on_lattice(p_kpa, step_kpa: float, offset_kpa: float) -> np.ndarray:
 @pytest.mark.parametrize(
     ("step_kpa", "decimals", "offset_kpa"),
     [
-        (0.5, 1, 0.0),  # the staircase read as 0.1 kPa before
+        (0.5, 1, 0.0),  # on the 0.1 kPa decimals too: the decimal alone would hide it
         (0.5, 1, 0.2),
         (0.5, 2, 0.0),
         (0.27, 2, 0.0),
