@@ -60,7 +60,8 @@ OFFSET_SIGMAS = 3.0  # an offset is removed when it stands out of its uncertaint
 P_END_KPA = 300.0
 # steps from which a staircase's peak and valley come from its stair edges: below, the
 # stair values are within 0.025 kPa of them (a snap within ~0.06 mL), and the edges
-# were not checked on the 0.01-0.027 kPa tables other tools write (docs/explanation/measured-curves.md)
+# were not checked on the 0.01-0.027 kPa tables other tools write
+# (docs/explanation/measured-curves.md)
 EDGE_MIN_STEP_KPA = 0.05
 MIN_END_SLOPE_KPA_PER_ML = 1.0
 EXTENSION_SAMPLES = 8

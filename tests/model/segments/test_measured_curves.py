@@ -160,9 +160,10 @@ def test_quantised_tables_give_the_librarys_snap(spacing_ml, round_to_kpa):
 # snap (no spurious one, none missed, the issue's complaint), within 0.46 mL of the
 # clean 25.6 mL at 50 rows/mL and 0.3 kPa (rms 0.23 mL), 0.40 mL at 0.2 kPa, 0.19 mL
 # at 1,000 rows/mL. SI-B50-T22's falling branch (-0.5 kPa/mL) turns every 0.1 kPa of
-# error in SI-B42-T24's fitted valley into 0.2 mL (docs/explanation/measured-curves.md); the offset at v = 0
-# is removed only where it stands out of its own uncertainty: extrapolated from four
-# noisy bins it is uncertain by ~0.3 kPa, and removing that would shift the whole curve
+# error in SI-B42-T24's fitted valley into 0.2 mL (docs/explanation/measured-curves.md);
+# the offset at v = 0 is removed only where it stands out of its own uncertainty:
+# extrapolated from four noisy bins it is uncertain by ~0.3 kPa, and removing that would
+# shift the whole curve
 NOISY_TOLERANCE_ML = {50: 0.5, 1000: 0.5}
 
 
@@ -365,7 +366,8 @@ def test_clean_and_quantised_library_tables_snap_like_the_clean_curves(
 
 def test_a_monotone_segment_rounded_to_a_tenth_beside_a_snapping_one():
     """Found by the property above: SI-B44-T30 (no peak) + SI-B46-T20
-    every 0.1 mL (jittered), rounded to 0.1 kPa, must snap near the clean 15.594 mL. SI-B44-T30's braid contact is a corner inside one row gap (39.1 kPa up to 8.357 mL,
+    every 0.1 mL (jittered), rounded to 0.1 kPa, must snap near the clean 15.594 mL.
+    SI-B44-T30's braid contact is a corner inside one row gap (39.1 kPa up to 8.357 mL,
     39.3 at 8.513); the plateau's centre joined to the next row would spread it and move
     the fold to 39.30 kPa (clean 39.09), 0.51 mL of snap. The plateau's row at the jump is
     kept (``keep_corner_rows``): the fold at 39.13 kPa, the snap 0.39 mL off."""
