@@ -102,18 +102,29 @@ def plan_solver(
     return SolverPlan(compiled_s < python_s, cached, python_s, compiled_s)
 
 
-def library_size(spec: str | None) -> int:
-    """How many segments ``labrig.model.scan.scan.load_library(spec)`` gives, counted
-    without building them (0 where it will refuse the spec and say why)."""
+def named_library(spec: str | None) -> tuple[str, tuple[str, ...]] | None:
+    """The name and segment names of a named library (``analytical``, the default; ``si``;
+    ``gent``), or None where ``spec`` names a folder of measured curves. The one place
+    that knows what each named library holds: ``load_library`` builds from it, and the
+    plan counts from it without building anything."""
     key = (spec or "analytical").strip().lower()
     if key in ("analytical", "si"):
         from labrig.model.segments import catalog
 
-        return len(catalog.LIBRARY_NAMES if key == "analytical" else catalog.SI_NAMES)
+        return key, tuple(catalog.LIBRARY_NAMES if key == "analytical" else catalog.SI_NAMES)
     if key == "gent":
         from labrig.model.segments.gent import GENT_NAMES
 
-        return len(GENT_NAMES)
+        return key, tuple(sorted(GENT_NAMES))
+    return None
+
+
+def library_size(spec: str | None) -> int:
+    """How many segments ``labrig.model.scan.scan.load_library(spec)`` gives, counted
+    without building them (0 where it will refuse the spec and say why)."""
+    named = named_library(spec)
+    if named is not None:
+        return len(named[1])
     folder = Path(spec)
     return len(list(folder.glob("*.csv"))) if folder.is_dir() else 0
 

@@ -44,6 +44,7 @@ from labrig.model.actuator.equilibria import Actuator
 from labrig.model.actuator.kernel import kernel_of
 from labrig.model.actuator.path import quasi_static_path
 from labrig.model.actuator.transitions import WINDOW_ML, transitions
+from labrig.model.scan.plan import named_library
 from labrig.model.segments.curve import SegmentCurve
 
 ANALYTICAL = "analytical"
@@ -78,18 +79,14 @@ def load_library(spec: str | None) -> ScanLibrary:
     """``analytical`` (default: the 36 calibrated braided segments), ``si`` (the SI's 36
     uncalibrated ones), ``gent`` (the three membranes of Fig. S1) or a folder of measured
     curves (every ``*.csv`` in it, by file name)."""
-    from labrig.model.segments import catalog
-
-    if spec is None or spec.strip().lower() == ANALYTICAL:
-        names = catalog.LIBRARY_NAMES
-        return ScanLibrary(ANALYTICAL, tuple(catalog.analytical_segment(n) for n in names))
-    if spec.strip().lower() == SI:
-        names = catalog.SI_NAMES
-        return ScanLibrary(SI, tuple(catalog.analytical_segment(n) for n in names))
-    if spec.strip().lower() == GENT:
-        from labrig.model.segments.gent import GENT_NAMES, gent_membrane
-
-        return ScanLibrary(GENT, tuple(gent_membrane(n) for n in sorted(GENT_NAMES)))
+    named = named_library(spec)
+    if named is not None:
+        name, segment_names = named
+        if name == GENT:
+            from labrig.model.segments.gent import gent_membrane as build
+        else:
+            from labrig.model.segments.catalog import analytical_segment as build
+        return ScanLibrary(name, tuple(build(n) for n in segment_names))
     folder = Path(spec)
     if not folder.is_dir():
         raise InputError(
