@@ -36,9 +36,19 @@ FIELDS = (
     "force_scale",
     "envelope_radius_mm",
     "contact_compliance",
-    "drop_kpa_per_ml",
+    "depth_gain",
+    "drop_width_ml",
 )
-BOUNDS = ((0.2, 1.5), (1.0, 2.0), (0.0, 15.0), (0.3, 1.5), (4.0, 7.94), (1.0, 20.0), (1.0, 1000.0))
+BOUNDS = (
+    (0.2, 1.5),
+    (1.0, 2.0),
+    (0.0, 15.0),
+    (0.3, 1.5),
+    (4.0, 7.94),
+    (1.0, 20.0),
+    (1.0, 10.0),
+    (0.2, 5.0),
+)
 MARGIN_KPA = 1.0
 S3_VOLUME_ML = 23.0
 

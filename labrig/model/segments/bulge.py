@@ -1,20 +1,31 @@
-"""A segment whose tube bulges after its peak: the uniform curve with a Maxwell plateau.
+"""A segment whose tube bulges after its peak: the uniform curve with a bulge plateau.
 
 The SI's tube (and ``ogden_braided``'s) deforms uniformly, so after its pressure peak it
 softens slowly all the way to the braids (B46-T20: 2 kPa/mL at most). A latex tube
 under volume control does not: past the peak it localises into a bulge, the pressure
-falls within a few millilitres to the bulge's propagation pressure, and the bulge then
-spreads along the tube at that pressure until the whole tube lies against the braids
-(Chater and Hutchinson's two-phase tube; the SI names these bulges among its limits).
+falls within a millilitre or two, and the bulge then spreads along the tube at a nearly
+constant propagation pressure until the whole tube lies against the braids (Chater and
+Hutchinson's two-phase tube; the SI names these bulges among its limits).
 
-``bulging_curve`` builds that from the uniform curve p_u(v): the propagation pressure
-p_M is Maxwell's, the equal-area pressure between the uniform branch before the peak
-(v_a) and the stiffening branch after contact (v_b), int_{v_a}^{v_b} (p_u - p_M) dv = 0;
-after the peak the pressure drops with a slope ``drop_kpa_per_ml`` to the plateau, which
-runs to v_b falling by ``PLATEAU_FALL`` of the drop (a plateau exactly flat would leave
-the falling branch without a strict order); from v_b on the curve is the uniform one.
-On the plateau the tube is two uniform parts, a fraction (v - v_a)/(v_b - v_a) of it in
-the bulged state, so its length is the mixture of the two states' lengths.
+``bulging_curve`` builds that from the uniform curve p_u(v):
+
+- the plateau lies ``depth_gain`` times Maxwell's depth below the peak,
+  p_plateau = p_peak - g (p_peak - p_M), with p_M the equal-area pressure between the
+  uniform branch before the peak and the stiffening branch after contact. For g = 1 it
+  is Maxwell's propagation pressure of a free tube; the clamped couplings and the braids'
+  pull on a short bulge make the measured drop deeper (the paper's Fig. 1C falls by
+  20-40 kPa where Maxwell's construction gives a few), and scaling Maxwell's depth keeps
+  its ordering: deeper for long braids and short tubes;
+- from the peak the pressure falls over ``drop_width_ml`` as a half cosine (no kink at
+  either end, so the peak stays a smooth maximum);
+- the plateau then falls by ``PLATEAU_FALL_KPA`` (at most the drop's depth) until it
+  meets the stiffening branch; a plateau exactly flat would leave the falling branch
+  without a strict order. Where the plateau lies below the stiffening branch's start it
+  ends there, and the tube's contact with the braids is what lifts the pressure again.
+
+On the plateau the tube is two uniform parts, the unbulged one on the rising branch at
+the plateau's pressure and the bulged one where the plateau ends, so its length is the
+mixture of the two states' lengths.
 """
 
 from __future__ import annotations
@@ -24,9 +35,9 @@ from scipy.optimize import brentq
 
 from labrig.model.segments.curve import SegmentCurve
 
-# the plateau falls by this fraction of the drop from the peak to it
-PLATEAU_FALL = 0.05
-DROP_SAMPLES = 9
+# how far the plateau falls to where it meets the braids
+PLATEAU_FALL_KPA = 1.0
+DROP_SAMPLES = 17
 PLATEAU_SAMPLES = 33
 
 
@@ -47,39 +58,56 @@ def maxwell_pressure(curve: SegmentCurve) -> tuple[float, float, float]:
     return (p_m, *volumes(p_m))
 
 
-def bulging_curve(curve: SegmentCurve, drop_kpa_per_ml: float) -> SegmentCurve:
+def plateau_pressure(curve: SegmentCurve, depth_gain: float) -> float:
+    """The bulge's plateau: ``depth_gain`` times Maxwell's depth below the peak."""
+    p_m, _, _ = maxwell_pressure(curve)
+    peak = curve.peak.p_kpa
+    plateau = peak - depth_gain * (peak - p_m)
+    if not plateau > 0:
+        raise ValueError(
+            f"{curve.name}: a depth gain of {depth_gain:g} puts the plateau at "
+            f"{plateau:.1f} kPa, below zero"
+        )
+    return plateau
+
+
+def bulging_curve(curve: SegmentCurve, depth_gain: float, drop_width_ml: float) -> SegmentCurve:
     """``curve`` with the bulge's drop and plateau between its peak and the stiffening
     branch (module docstring); a curve without a peak is returned as it is."""
-    if not drop_kpa_per_ml > 0:
-        raise ValueError(f"drop_kpa_per_ml must be > 0, got {drop_kpa_per_ml}")
-    peak = curve.peak
+    if not depth_gain > 0:
+        raise ValueError(f"depth_gain must be > 0, got {depth_gain}")
+    if not drop_width_ml > 0:
+        raise ValueError(f"drop_width_ml must be > 0, got {drop_width_ml}")
+    peak, valley = curve.peak, curve.valley
     if peak is None:
         return curve
-    p_m, v_a, v_b = maxwell_pressure(curve)
-    fall = PLATEAU_FALL * (peak.p_kpa - p_m)
-    p_drop_end = p_m + fall
-    v_drop_end = peak.v_ml + (peak.p_kpa - p_drop_end) / drop_kpa_per_ml
-    if not v_drop_end < v_b:
-        v_drop_end = peak.v_ml + 0.5 * (v_b - peak.v_ml)  # a drop steeper than asked
+    p_top = plateau_pressure(curve, depth_gain)
+    p_end = p_top - min(PLATEAU_FALL_KPA, peak.p_kpa - p_top)
+    last = len(curve.branches) - 1
+    if p_end > valley.p_kpa:
+        v_b = float(curve.volume_on_branch(last, p_end)[0])
+    else:
+        v_b = valley.v_ml
+    v_a = float(curve.volume_on_branch(0, p_top)[0])
+    drop_end = peak.v_ml + min(drop_width_ml, 0.5 * (v_b - peak.v_ml))
     l_a, l_b = (float(x) for x in curve.length_mm(np.array([v_a, v_b])))
 
     def mixture_mm(v):
         return l_a + (v - v_a) / (v_b - v_a) * (l_b - l_a)
 
-    v_drop = np.linspace(peak.v_ml, v_drop_end, DROP_SAMPLES)[1:]
-    p_drop = np.linspace(peak.p_kpa, p_drop_end, DROP_SAMPLES)[1:]
+    s = np.linspace(0.0, 1.0, DROP_SAMPLES)[1:]
+    v_drop = peak.v_ml + s * (drop_end - peak.v_ml)
+    p_drop = p_top + (peak.p_kpa - p_top) * 0.5 * (1 + np.cos(np.pi * s))
     l_peak = float(curve.length_mm(peak.v_ml))
-    l_drop = l_peak + (v_drop - peak.v_ml) / (v_drop_end - peak.v_ml) * (
-        mixture_mm(v_drop_end) - l_peak
-    )
-    v_plateau = np.linspace(v_drop_end, v_b, PLATEAU_SAMPLES)[1:-1]
-    p_plateau = p_drop_end - (v_plateau - v_drop_end) / (v_b - v_drop_end) * fall
+    l_drop = l_peak + s * (mixture_mm(drop_end) - l_peak)
+    v_plateau = np.linspace(drop_end, v_b, PLATEAU_SAMPLES)[1:]
+    p_plateau = p_top - (v_plateau - drop_end) / (v_b - drop_end) * (p_top - p_end)
     before = curve.v_ml <= peak.v_ml
     after = curve.v_ml > v_b
-    v = np.concatenate([curve.v_ml[before], v_drop, v_plateau, [v_b], curve.v_ml[after]])
-    p = np.concatenate([curve.p_kpa[before], p_drop, p_plateau, [p_m], curve.p_kpa[after]])
+    v = np.concatenate([curve.v_ml[before], v_drop, v_plateau, curve.v_ml[after]])
+    p = np.concatenate([curve.p_kpa[before], p_drop, p_plateau, curve.p_kpa[after]])
     length = np.concatenate(
-        [curve.l_mm[before], l_drop, mixture_mm(v_plateau), [l_b], curve.l_mm[after]]
+        [curve.l_mm[before], l_drop, mixture_mm(v_plateau), curve.l_mm[after]]
     )
     return SegmentCurve(
         curve.name,
@@ -88,7 +116,8 @@ def bulging_curve(curve: SegmentCurve, drop_kpa_per_ml: float) -> SegmentCurve:
         length,
         V0_ml=curve.V0_ml,
         source=(
-            f"{curve.source}; bulging after the peak: propagation pressure {p_m:.2f} kPa "
-            f"(Maxwell) from {v_a:.3f} to {v_b:.3f} mL, drop {drop_kpa_per_ml:g} kPa/mL"
+            f"{curve.source}; bulging after the peak: plateau {p_top:.2f} kPa "
+            f"({depth_gain:g} x Maxwell's depth) from {drop_end:.3f} to {v_b:.3f} mL, "
+            f"drop over {drop_width_ml:g} mL"
         ),
     )

@@ -18,8 +18,10 @@ names as the model's limits (docs/explanation/calibration.md):
 - the braids give way after contact (``contact_compliance``): the stiffening is spread
   over a fitted multiple of the rigid braids' volume;
 - past its peak the tube bulges (``labrig.model.segments.bulge``): the pressure drops
-  with a fitted slope to the bulge's Maxwell propagation pressure and stays there until
-  the tube lies against the braids.
+  over a fitted width to a plateau a fitted multiple of Maxwell's depth below the peak
+  and stays there until the tube lies against the braids;
+- the braids themselves give radially after contact (``braid_stiffness``), with an
+  assumed stiffness, so that no branch is a wall.
 
 The values are the result of ``labrig model calibrate`` (``labrig.model.paper.fit``),
 fitted to the peak range of the 36 segments and Movie S3 only.
@@ -30,6 +32,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 from labrig.model.segments.braided import R_TUBE_MM, braid_force_n
+from labrig.model.segments.braid_stiffness import with_braid_stiffness
 from labrig.model.segments.bulge import bulging_curve
 from labrig.model.segments.curve import SegmentCurve
 from labrig.model.segments.ogden_braided import OgdenBraidedSegment
@@ -45,7 +48,8 @@ class Calibration:
     force_scale: float
     envelope_radius_mm: float
     contact_compliance: float
-    drop_kpa_per_ml: float
+    depth_gain: float
+    drop_width_ml: float
 
     def as_dict(self) -> dict[str, float]:
         return asdict(self)
@@ -53,14 +57,19 @@ class Calibration:
 
 # Fitted by `labrig model calibrate` (objective in docs/explanation/calibration.md).
 CALIBRATION = Calibration(
-    shear_modulus_mpa=0.6302,
-    ogden_alpha=1.290,
-    end_stiffening=5.010,
-    force_scale=0.7699,
-    envelope_radius_mm=5.461,
-    contact_compliance=1.547,
-    drop_kpa_per_ml=357.7,
+    shear_modulus_mpa=0.6269,
+    ogden_alpha=1.329,
+    end_stiffening=5.003,
+    force_scale=0.7018,
+    envelope_radius_mm=5.241,
+    contact_compliance=1.567,
+    depth_gain=4.514,
+    drop_width_ml=1.527,
 )
+
+# Assumed, not fitted: the braids' radial stiffness after contact (a few times the
+# stiffening branch's slope, so that it softens the wall and little else).
+BRAID_STIFFNESS_KPA_PER_ML = 200.0
 
 
 def calibrated_segment(
@@ -86,4 +95,5 @@ def calibrated_curve(
 ) -> SegmentCurve:
     """The calibrated segment's p(v), l(v): the uniform tube's curve with its bulge."""
     uniform = calibrated_segment(l_braid_mm, l_tube_mm, calibration).curve(name)
-    return bulging_curve(uniform, calibration.drop_kpa_per_ml)
+    bulged = bulging_curve(uniform, calibration.depth_gain, calibration.drop_width_ml)
+    return with_braid_stiffness(bulged, BRAID_STIFFNESS_KPA_PER_ML)
