@@ -1,6 +1,7 @@
-"""The bulging segment: Maxwell's equal-area plateau checked by quadrature of the uniform
-curve, the drop and the plateau as specified, the two-phase length, and what the bulge
-does to an actuator (the second segment snaps as it crosses its peak)."""
+"""The bulging segment: Maxwell's equal-area pressure checked by quadrature of the uniform
+curve, the plateau's depth, the half-cosine drop and the plateau as specified, the
+two-phase length, and what the bulge does to an actuator (the second segment snaps as it
+crosses its peak)."""
 
 import numpy as np
 import pytest
@@ -9,14 +10,19 @@ from scipy.integrate import quad
 from labrig.model.actuator.equilibria import Actuator
 from labrig.model.actuator.path import quasi_static_path
 from labrig.model.actuator.transitions import transitions
-from labrig.model.segments.bulge import PLATEAU_FALL, bulging_curve, maxwell_pressure
+from labrig.model.segments.bulge import (
+    PLATEAU_FALL_KPA,
+    bulging_curve,
+    maxwell_pressure,
+    plateau_pressure,
+)
 from labrig.model.segments.catalog import analytical_segment
 
 NAMES = ["SI-B46-T20", "SI-B50-T22", "SI-B42-T24"]
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_the_plateau_is_maxwells_equal_area_pressure(name):
+def test_maxwells_pressure_is_the_equal_area_pressure(name):
     uniform = analytical_segment(name)
     p_m, v_a, v_b = maxwell_pressure(uniform)
     assert uniform.valley.p_kpa < p_m < uniform.peak.p_kpa
@@ -31,24 +37,41 @@ def test_the_plateau_is_maxwells_equal_area_pressure(name):
     assert area == pytest.approx(0.0, abs=1e-7 * p_m * (v_b - v_a))
 
 
-@pytest.mark.parametrize("drop", [5.0, 40.0])
-def test_drop_plateau_and_the_uniform_curve_around_them(drop):
+def test_a_gain_of_one_puts_the_plateau_at_maxwells_pressure():
     uniform = analytical_segment("SI-B46-T20")
-    bulged = bulging_curve(uniform, drop)
-    p_m, v_a, v_b = maxwell_pressure(uniform)
-    assert bulged.peak == uniform.peak
-    assert bulged.valley.v_ml == pytest.approx(v_b) and bulged.valley.p_kpa == pytest.approx(p_m)
-    # the uniform samples are kept (between the samples around a kink PCHIP's slopes
-    # depend on the neighbours, which the bulge changed)
-    before = uniform.v_ml[uniform.v_ml <= uniform.peak.v_ml]
-    after = np.append(v_b, uniform.v_ml[uniform.v_ml > v_b])
+    p_m, _, _ = maxwell_pressure(uniform)
+    assert plateau_pressure(uniform, 1.0) == pytest.approx(p_m, abs=1e-12)
+    depth = uniform.peak.p_kpa - p_m
+    assert plateau_pressure(uniform, 2.5) == pytest.approx(uniform.peak.p_kpa - 2.5 * depth)
+
+
+@pytest.mark.parametrize("width", [0.3, 1.5])
+def test_drop_plateau_and_the_uniform_curve_around_them(width):
+    uniform = analytical_segment("SI-B46-T20")
+    bulged = bulging_curve(uniform, 1.0, width)
+    p_top = plateau_pressure(uniform, 1.0)
+    p_end = p_top - min(PLATEAU_FALL_KPA, uniform.peak.p_kpa - p_top)
+    peak = uniform.peak
+    assert bulged.peak == peak
+    # the plateau ends where the stiffening branch has its end pressure
+    v_b = bulged.valley.v_ml
+    assert bulged.valley.p_kpa == pytest.approx(p_end)
+    assert uniform.pressure_kpa(v_b) == pytest.approx(p_end, abs=1e-9)
+    # the uniform samples are kept before the peak and after the plateau
+    before = uniform.v_ml[uniform.v_ml <= peak.v_ml]
+    after = uniform.v_ml[uniform.v_ml > v_b]
     for v in (before, after):
         np.testing.assert_allclose(bulged.pressure_kpa(v), uniform.pressure_kpa(v), atol=1e-9)
         np.testing.assert_allclose(bulged.length_mm(v), uniform.length_mm(v), atol=1e-9)
-    drop_end = uniform.peak.v_ml + (uniform.peak.p_kpa - p_m) * (1 - PLATEAU_FALL) / drop
-    middle = 0.5 * (uniform.peak.v_ml + drop_end)
-    assert bulged.slope_kpa_per_ml(middle) == pytest.approx(-drop, rel=1e-6)
+    # a half cosine: halfway down at half the width, flat at both ends
+    drop_end = peak.v_ml + width
+    assert bulged.pressure_kpa(peak.v_ml + width / 2) == pytest.approx(
+        0.5 * (peak.p_kpa + p_top), abs=1e-3 * (peak.p_kpa - p_top)
+    )
+    assert bulged.pressure_kpa(drop_end) == pytest.approx(p_top, abs=1e-9)
+    assert abs(bulged.slope_kpa_per_ml(drop_end - 1e-6)) < 0.1 * (peak.p_kpa - p_top) / width
     # on the plateau the tube is two uniform parts: its length the mixture of theirs
+    v_a = float(uniform.volume_on_branch(0, p_top)[0])
     l_a, l_b = uniform.length_mm(v_a), uniform.length_mm(v_b)
     v = bulged.v_ml[(bulged.v_ml >= drop_end - 1e-9) & (bulged.v_ml <= v_b)]
     assert len(v) > 10
@@ -57,24 +80,42 @@ def test_drop_plateau_and_the_uniform_curve_around_them(drop):
     assert np.all(np.diff(bulged.pressure_kpa(np.linspace(drop_end, v_b, 40))) < 0)
 
 
-def test_a_curve_without_a_peak_is_left_as_it_is():
+def test_a_plateau_below_the_braids_ends_where_contact_begins():
+    uniform = analytical_segment("SI-B46-T20")
+    depth = uniform.peak.p_kpa - maxwell_pressure(uniform)[0]
+    # deep enough to lie 5 kPa under the valley
+    gain = (uniform.peak.p_kpa - uniform.valley.p_kpa + 5.0) / depth
+    bulged = bulging_curve(uniform, gain, 1.0)
+    assert bulged.valley.v_ml == pytest.approx(uniform.valley.v_ml)
+    assert bulged.valley.p_kpa == pytest.approx(plateau_pressure(uniform, gain) - 1.0)
+    assert bulged.valley.p_kpa < uniform.valley.p_kpa
+
+
+def test_bad_constants_and_a_curve_without_a_peak():
     uniform = analytical_segment("SI-B40-T30")
     assert uniform.peak is None
-    assert bulging_curve(uniform, 10.0) is uniform
-    with pytest.raises(ValueError, match="drop_kpa_per_ml"):
-        bulging_curve(uniform, 0.0)
+    assert bulging_curve(uniform, 2.0, 1.0) is uniform
+    with pytest.raises(ValueError, match="depth_gain"):
+        bulging_curve(uniform, 0.0, 1.0)
+    with pytest.raises(ValueError, match="drop_width_ml"):
+        bulging_curve(uniform, 2.0, -1.0)
+    with pytest.raises(ValueError, match="below zero"):
+        bulging_curve(analytical_segment("SI-B46-T20"), 1e4, 1.0)
 
 
 def test_with_a_bulge_the_second_segment_snaps_as_it_crosses_its_peak():
     # uniform SI segments: the second peak crossing is stable (the first segment is on
-    # its stiff branch); with a steep drop it is where a snap starts
+    # its stiff branch); with a bulge (three times Maxwell's depth, dropping within
+    # 0.1 mL) it is where a snap starts
     names = ["SI-B46-T20", "SI-B50-T24"]
     uniform = transitions(quasi_static_path(Actuator([analytical_segment(n) for n in names])))
     bulged = transitions(
-        quasi_static_path(Actuator([bulging_curve(analytical_segment(n), 30.0) for n in names]))
+        quasi_static_path(
+            Actuator([bulging_curve(analytical_segment(n), 3.0, 0.1) for n in names])
+        )
     )
     second = [t.v_ml for t in uniform if (t.alpha, t.beta) == (1, 2)]
     assert second and not any(not t.stable and abs(t.v_ml - second[0]) < 1e-3 for t in uniform)
     crossing = next(t for t in bulged if (t.alpha, t.beta) == (1, 2))
-    snaps_there = [t for t in bulged if not t.stable and abs(t.v_ml - crossing.v_ml) < 1e-3]
+    snaps_there = [t for t in bulged if not t.stable and abs(t.v_ml - crossing.v_ml) < 1e-2]
     assert snaps_there and snaps_there[0].dE < 0
