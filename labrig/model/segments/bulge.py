@@ -83,11 +83,10 @@ def bulging_curve(curve: SegmentCurve, depth_gain: float, drop_width_ml: float) 
         return curve
     p_top = plateau_pressure(curve, depth_gain)
     p_end = p_top - min(PLATEAU_FALL_KPA, peak.p_kpa - p_top)
+    # where the plateau meets the stiffening branch, or where contact begins
     last = len(curve.branches) - 1
-    if p_end > valley.p_kpa:
-        v_b = float(curve.volume_on_branch(last, p_end)[0])
-    else:
-        v_b = valley.v_ml
+    on_braids = p_end > valley.p_kpa
+    v_b = float(curve.volume_on_branch(last, p_end)[0]) if on_braids else valley.v_ml
     v_a = float(curve.volume_on_branch(0, p_top)[0])
     drop_end = peak.v_ml + min(drop_width_ml, 0.5 * (v_b - peak.v_ml))
     l_a, l_b = (float(x) for x in curve.length_mm(np.array([v_a, v_b])))
@@ -106,9 +105,7 @@ def bulging_curve(curve: SegmentCurve, depth_gain: float, drop_width_ml: float) 
     after = curve.v_ml > v_b
     v = np.concatenate([curve.v_ml[before], v_drop, v_plateau, curve.v_ml[after]])
     p = np.concatenate([curve.p_kpa[before], p_drop, p_plateau, curve.p_kpa[after]])
-    length = np.concatenate(
-        [curve.l_mm[before], l_drop, mixture_mm(v_plateau), curve.l_mm[after]]
-    )
+    length = np.concatenate([curve.l_mm[before], l_drop, mixture_mm(v_plateau), curve.l_mm[after]])
     return SegmentCurve(
         curve.name,
         v,

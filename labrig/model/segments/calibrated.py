@@ -31,8 +31,8 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
-from labrig.model.segments.braided import R_TUBE_MM, braid_force_n
 from labrig.model.segments.braid_stiffness import with_braid_stiffness
+from labrig.model.segments.braided import R_TUBE_MM, braid_force_n
 from labrig.model.segments.bulge import bulging_curve
 from labrig.model.segments.curve import SegmentCurve
 from labrig.model.segments.ogden_braided import OgdenBraidedSegment

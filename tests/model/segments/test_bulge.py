@@ -110,9 +110,7 @@ def test_with_a_bulge_the_second_segment_snaps_as_it_crosses_its_peak():
     names = ["SI-B46-T20", "SI-B50-T24"]
     uniform = transitions(quasi_static_path(Actuator([analytical_segment(n) for n in names])))
     bulged = transitions(
-        quasi_static_path(
-            Actuator([bulging_curve(analytical_segment(n), 3.0, 0.1) for n in names])
-        )
+        quasi_static_path(Actuator([bulging_curve(analytical_segment(n), 3.0, 0.1) for n in names]))
     )
     second = [t.v_ml for t in uniform if (t.alpha, t.beta) == (1, 2)]
     assert second and not any(not t.stable and abs(t.v_ml - second[0]) < 1e-3 for t in uniform)
