@@ -11,7 +11,11 @@ The comparison is made on the analysis grid, per phase (inflation, deflation): t
 of pressure and length between the averaged measurement and the prediction where both
 exist, and the predicted snap-throughs paired with the measured transitions (same
 direction, nearest volume within ``match_ml``). Predicted stable transitions (a segment
-crossing its peak smoothly) are listed but not paired: nothing jumps there.
+crossing its peak smoothly) are listed but not paired: nothing jumps there. A measured
+transition that no predicted snap explains may still be on the model's curve: a steep
+stable stretch (a bulge's drop, taken while the other segments absorb the volume, or
+the braids' wall) changes the pressure within a millilitre, which the detector sees as a
+snap; ``follows_model`` tells those apart from transitions the model lacks.
 """
 
 from __future__ import annotations
@@ -27,6 +31,8 @@ from labrig.errors import LabrigError
 from labrig.model.segments.curve import SegmentCurve
 
 SAMPLE_DV_ML = 0.05
+# around a measured transition, how far the model's curve must follow the measurement
+ON_CURVE_WINDOW_ML = 1.0
 
 
 @dataclass(frozen=True)
@@ -244,3 +250,23 @@ def compare(
         match_transitions(prediction.transitions, measured, match_ml),
         match_ml,
     )
+
+
+def follows_model(
+    comparison: Comparison,
+    grid_ml: np.ndarray,
+    mean_p_kpa: dict[int, np.ndarray],
+    measured: AgreedTransition,
+) -> bool:
+    """Whether the model's own curve makes ``measured``: within ``ON_CURVE_WINDOW_ML``
+    of it the model changes by at least half of the measured step and the mean
+    measurement stays within a quarter of the step of the model."""
+    phase = INFLATE if measured.direction > 0 else DEFLATE
+    near = np.abs(grid_ml - measured.v_ml) <= ON_CURVE_WINDOW_ML
+    model, mean = comparison.model_p_kpa[phase][near], mean_p_kpa[phase][near]
+    both = np.isfinite(model) & np.isfinite(mean)
+    step = abs(measured.dp_kpa)
+    if not (np.count_nonzero(both) >= 3 and step > 0):
+        return False
+    changes = np.ptp(model[both]) >= 0.5 * step
+    return bool(changes and np.max(np.abs(mean[both] - model[both])) <= 0.25 * step)

@@ -14,6 +14,7 @@ from rich.console import Console, Group, RenderableType
 from rich.table import Table
 from rich.text import Text
 
+from labrig.analysis.compare import follows_model
 from labrig.analysis.curves import DEFLATE, INFLATE, PHASES
 from labrig.analysis.results import AnalysisResult
 from labrig.analysis.runfile import RunRecord
@@ -197,9 +198,13 @@ def matches_table(result: AnalysisResult) -> RenderableType | None:
     for match in comparison.matches:
         p, m = match.predicted, match.measured
         smooth = p is not None and p.stable
+        if p is not None:
+            kind = p.type
+        else:
+            kind = "on the curve" if _follows_model(result, m) else "not predicted"
         table.add_row(
             DIRECTION[match.direction],
-            p.type if p is not None else "not predicted",
+            kind,
             _num(p.v_ml) if p else "-",
             _num(m.v_ml) if m else ("-" if smooth else "not seen"),
             _num(match.dv_ml, "+.2f"),
@@ -209,6 +214,12 @@ def matches_table(result: AnalysisResult) -> RenderableType | None:
             _num(m.dl_mm, "+.2f") if m else "-",
         )
     return table
+
+
+def _follows_model(result: AnalysisResult, measured) -> bool:
+    """A measured transition no predicted snap explains, but the model's curve makes."""
+    mean_p = {phase: result.mean_p[phase].mean for phase in PHASES}
+    return follows_model(result.comparison, result.grid_ml, mean_p, measured)
 
 
 def _finite(value: float | None) -> float | None:
@@ -238,6 +249,7 @@ def comparison_json(result: AnalysisResult) -> dict:
                     "v_meas_ml": _finite(m.v_ml),
                     "dp_meas_kpa": _finite(m.dp_kpa),
                     "dl_meas_mm": _finite(m.dl_mm),
+                    "on_model_curve": _follows_model(result, m),
                 }
             )
             continue

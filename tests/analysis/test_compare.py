@@ -6,8 +6,10 @@ import pytest
 
 from labrig.analysis import analyse
 from labrig.analysis.compare import (
+    Comparison,
     PredictedTransition,
     TransitionMatch,
+    follows_model,
     match_transitions,
     predict,
     rmse,
@@ -60,6 +62,28 @@ def test_snaps_pair_with_the_nearest_measurement_of_their_direction():
     ]
     assert rows[1].dv_ml == pytest.approx(0.4)
     assert np.isnan(TransitionMatch(INFLATE, None, measured[0]).dv_ml)
+
+
+def test_a_steep_stretch_of_the_models_curve_is_told_from_a_transition_it_lacks():
+    # the model drops 12 kPa between 9.8 and 10.2 mL (a bulge's drop, stable); a
+    # measurement that follows it is on the curve, one that stays flat is not, and a
+    # step where the model is smooth is not
+    grid = np.linspace(0.0, 20.0, 201)
+    model = 50.0 + grid - 12.0 * np.clip((grid - 9.8) / 0.4, 0.0, 1.0)
+    comparison = Comparison(None, {INFLATE: model}, {}, {}, {}, (), 2.0)
+    step = AgreedTransition(INFLATE, 10.0, 0.02, -11.0, 0.0, 2, 2)
+    noise = 0.3 * np.sin(7.0 * grid)
+    assert follows_model(comparison, grid, {INFLATE: model + noise}, step)
+    flat = 50.0 + grid
+    assert not follows_model(comparison, grid, {INFLATE: flat}, step)
+    elsewhere = AgreedTransition(INFLATE, 15.0, 0.02, -11.0, 0.0, 2, 2)
+    measured_there = model - 11.0 * (grid > 15.0)
+    assert not follows_model(comparison, grid, {INFLATE: measured_there}, elsewhere)
+    # deflation is looked up on its own phase: none recorded, nothing follows
+    back = AgreedTransition(DEFLATE, 10.0, 0.02, 11.0, 0.0, 2, 2)
+    nothing = {INFLATE: model, DEFLATE: np.full_like(grid, np.nan)}
+    comparison = Comparison(None, {INFLATE: model, DEFLATE: model}, {}, {}, {}, (), 2.0)
+    assert not follows_model(comparison, grid, nothing, back)
 
 
 def test_a_single_segment_is_predicted_by_its_own_curve_both_ways():
