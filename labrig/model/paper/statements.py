@@ -164,12 +164,21 @@ def _volume_outcome(key, statement, snaps, v_paper, role) -> tuple[Outcome, Snap
 
 
 def _elongation_outcome(key, statement, snap, snaps, minimum, paper, role) -> Outcome:
+    """The nearest snap's dl decides; where several snaps lie within the volume
+    tolerance of it, their sum is shown too: a movie shows them as one event."""
     holds = snap is not None and snap.dl > minimum
+    text = "none" if snap is None else f"{snap.dl:+.1%}"
+    near = (
+        [] if snap is None else [s for s in snaps if abs(s.v_ml - snap.v_ml) <= VOLUME_TOLERANCE_ML]
+    )
+    if len(near) > 1:
+        together = sum(s.dl for s in near)
+        text += f" (the {len(near)} snaps within {VOLUME_TOLERANCE_ML:g} mL: {together:+.1%})"
     return Outcome(
         key,
         statement,
         paper,
-        "none" if snap is None else f"{snap.dl:+.1%}",
+        text,
         holds,
         role,
         "" if holds else _snaps_text(snaps),
