@@ -191,12 +191,21 @@ def settle_flow(tables, w0, tol_ml, unit_ml, max_steps):
             gained += step[i] * (0.5 * (p[i] + p_new[i]) + step[i] * (k[i] - k_new[i]) / 12.0)
             moved += abs(step[i] * p[i])
         lost_energy = gained <= 1e-12 * moved
-        accepted = error <= tol_ml and lost_energy
+        # a trial stage that jumps a wall (a rise narrower than the step) makes the
+        # second stage cancel the first: the step moves nothing while its error estimate
+        # passes, and would repeat at the same h for ever
+        stage = 0.0
+        progress = 0.0
+        for i in range(n):
+            stage = max(stage, abs(k1[i]))
+            progress = max(progress, abs(step[i]))
+        cancelled = progress <= 1e-9 * h * stage
+        accepted = error <= tol_ml and lost_energy and not cancelled
         if accepted:
             w, trial = trial, w
             p, p_new = p_new, p
             k, k_new = k_new, k
-        elif not lost_energy:
+        elif not lost_energy or cancelled:
             error = max(error, 4.0 * tol_ml)
         factor = 0.8 * math.sqrt(tol_ml / error) if error > 0 else 5.0
         # no growth right after a rejection (avoids alternating reject/accept)

@@ -190,6 +190,21 @@ def test_snaps_of_three_and_four_segments_land_where_a_tight_integration_of_the_
     assert checked >= 2
 
 
+def test_a_flow_onto_a_wall_narrower_than_its_step_settles_where_radau_does():
+    # B40-T24's bulge plateau ends 0.02 mL below a 4 kPa rise (the braids' spring); the
+    # flow's trial stage jumped it, the two stages cancelled, and the step control
+    # accepted the same empty step for ever (this triple failed the n = 3 scan)
+    from labrig.model.actuator.descent import settle
+    from labrig.model.segments.catalog import analytical_segment
+
+    actuator = Actuator([analytical_segment(n) for n in ("B40-T24", "B40-T30", "B48-T24")])
+    start = [5.47366351961869, 8.794617197742577, 4.065241871136714]
+    end = settle(actuator.kernels, start)
+    np.testing.assert_allclose(end, flow_destination(actuator, start), atol=1e-6)
+    assert sum(end) == pytest.approx(sum(start), abs=1e-12)
+    assert transitions(quasi_static_path(actuator, deflate=True))
+
+
 def test_a_snap_without_a_peak_crossing_is_a_transition():
     """A snap need not cross a peak: B jumps from its softening onto its stiffening branch while A
     stays right of its peak; no peak flag changes, and it is still an unstable transition."""
