@@ -16,6 +16,15 @@ import time
 
 from labrig.cli.performance_doc import add_write_docs_argument, markdown_table, script_doc
 
+# the state change between two 0.02 mL increments that the reference calls a snap
+JUMP_ML = 0.3
+
+
+def _moved_ml(transition) -> float:
+    return max(
+        abs(a - b) for a, b in zip(transition.post.v_i_ml, transition.pre.v_i_ml, strict=True)
+    )
+
 
 def _time_paths(actuators, deflate=False):
     from labrig.model.actuator.path import quasi_static_path
@@ -90,15 +99,21 @@ def main() -> None:
         t_fast = time.perf_counter() - t0
         fast = transitions(fast_path)
         t0 = time.perf_counter()
-        ref = reference_path(actuator, fast_path.v_end_ml, dv_ml=0.02, deflate=True, jump_ml=0.3)
+        ref = reference_path(
+            actuator, fast_path.v_end_ml, dv_ml=0.02, deflate=True, jump_ml=JUMP_ML
+        )
         t_ref = time.perf_counter() - t0
-        same = [(t.alpha, t.beta, t.stable, t.direction) for t in fast] == [
+        # a snap that moves less than the reference's jump threshold is, to the
+        # reference, part of the quasi-static motion: left out of the comparison, counted
+        small = [t for t in fast if not t.stable and _moved_ml(t) < JUMP_ML]
+        compared = [t for t in fast if t not in small]
+        same = [(t.alpha, t.beta, t.stable, t.direction) for t in compared] == [
             (t.alpha, t.beta, t.stable, t.direction) for t in ref.transitions
         ]
         worst = max(
             (
                 abs(f.v_ml - (r.v_ml + 0.01 * r.direction))
-                for f, r in zip(fast, ref.transitions, strict=False)
+                for f, r in zip(compared, ref.transitions, strict=False)
             ),
             default=0.0,
         )
@@ -110,6 +125,7 @@ def main() -> None:
                 f"{len(ref.v_ml):,}",
                 "yes" if same else "no",
                 f"{worst:.3f}",
+                ", ".join(f"{t.v_ml:.2f} mL ({_moved_ml(t):.2f})" for t in small) or "-",
             )
         )
     header = (
@@ -119,6 +135,7 @@ def main() -> None:
         "increments",
         "same transitions",
         "max abs dv (mL)",
+        f"fast-path snaps under the {JUMP_ML} mL jump (mL moved)",
     )
     doc.publish("path-reference", markdown_table(header, rows, right={1, 2, 3, 5}))
 
