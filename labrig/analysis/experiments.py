@@ -244,6 +244,7 @@ def experiment_fields(path: str | Path, comparison: dict, match_ml: float = 2.0)
                 "actuation_time_length_s": _number(
                     step.length.actuation_time_s if step.length else None
                 ),
+                "actuation_time_pressure_s": _number(step.pressure.actuation_time_s),
                 "dp_kpa": _number(step.pressure.change),
                 "dl_mm": _number(step.length.change if step.length else None),
                 "internal_flow_ml": _number(step.internal_flow_ml),
