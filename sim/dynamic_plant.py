@@ -139,7 +139,7 @@ class Plumbing:
     air is in the system while the pump is connected)."""
 
     fluid: Fluid = WATER
-    bore_mm: float = 1.15
+    bore_mm: float = 0.76
     coupling_length_mm: float = 20.0
     dead_volume_ml: float = 2.0
     air_reservoir_ml: float = 0.0

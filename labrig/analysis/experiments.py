@@ -27,6 +27,11 @@ LENGTH_NOISE_MM = 0.05
 # and how far past the model's volume a measured snap is looked for.
 FORCE_WINDOW_ML = 0.5
 SNAP_SEARCH_ML = 1.5
+# The force is averaged over this long before its rate is taken: a snap through the
+# couplings takes about a second, and over a shorter average the rate of the load
+# cell's noise and the DAQ's quantisation (a few hundredths of a newton per 1 kHz
+# sample) can outrun a small snap's.
+FORCE_SMOOTH_S = 0.2
 
 
 @dataclass(frozen=True)
@@ -174,7 +179,7 @@ def _measured_jump(t_s, v_ml, f_n, model, i_snap: int) -> float | None:
 
     A snap crossed at a finite rate starts late and takes time while the pump goes on,
     so the measured force is not read at the model's volume itself. The measured snap is
-    found as the fastest change of the (25-sample averaged) force from a little before
+    found as the fastest change of the (FORCE_SMOOTH_S averaged) force from a little before
     the model's volume to SNAP_SEARCH_ML after it; its span is where the rate stays above
     a fifth of that peak. Before the span (and before the model's volume) and after it,
     over FORCE_WINDOW_ML, the median offset of the measured force from the model's
@@ -184,10 +189,13 @@ def _measured_jump(t_s, v_ml, f_n, model, i_snap: int) -> float | None:
     v_snap_ml = float(model.v_ml[i_snap])
     if len(f_n) < 50:
         return None
-    smooth = np.convolve(f_n, np.ones(25) / 25, mode="same")
+    width = max(1, round(FORCE_SMOOTH_S / float(np.median(np.diff(t_s)))))
+    if len(f_n) < 2 * width + 1:
+        return None
+    smooth = np.convolve(f_n, np.ones(width) / width, mode="same")
     rate = np.gradient(smooth, t_s)
     search = np.flatnonzero((v_ml > v_snap_ml - 0.2) & (v_ml < v_snap_ml + SNAP_SEARCH_ML))
-    search = search[(search > 25) & (search < len(f_n) - 25)]
+    search = search[(search > width) & (search < len(f_n) - width)]
     if search.size == 0:
         return None
     peak = int(search[np.argmax(np.abs(rate[search]))])
@@ -244,6 +252,7 @@ def experiment_fields(path: str | Path, comparison: dict, match_ml: float = 2.0)
                 "actuation_time_length_s": _number(
                     step.length.actuation_time_s if step.length else None
                 ),
+                "actuation_time_pressure_s": _number(step.pressure.actuation_time_s),
                 "dp_kpa": _number(step.pressure.change),
                 "dl_mm": _number(step.length.change if step.length else None),
                 "internal_flow_ml": _number(step.internal_flow_ml),

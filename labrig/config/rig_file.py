@@ -169,7 +169,7 @@ class SimConfig(Strict):
     # the plumbing of the step experiments' plant (labrig.sim.dynamic_plant); the bore
     # is fitted so that the paper's water step (Movie S7) takes 1.4 s
     coupling_bore_mm: float = Field(
-        1.15, gt=0, description="Bore of each segment's coupling (sets the snap time)"
+        0.76, gt=0, description="Bore of each segment's coupling (sets the snap time)"
     )
     coupling_length_mm: float = Field(20.0, gt=0, description="Length of each coupling")
     dead_volume_ml: float = Field(2.0, gt=0, description="Fluid in the lines and the tee")

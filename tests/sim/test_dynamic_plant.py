@@ -65,11 +65,18 @@ def test_air_obeys_the_isothermal_gas_law_at_rest():
 
 
 def test_a_slow_water_inflation_follows_the_models_quasi_static_path():
-    # at 5 mL/min the flow's pressure drop (coupling and wall) is a few hundredths of a
-    # kPa; the SI's segments of this pair have no snap below 22 mL
+    # slow means the flow's pressure drop is small: through 1.5 mm couplings 5 mL/min
+    # drops a few hundredths of a kPa (coupling and wall); the default bore, narrower to
+    # give the water snap its time, would need about 1 mL/min. The SI's segments of this
+    # pair have no snap below 22 mL
     segments = [load_segment("SI-B48-T30"), load_segment("SI-B50-T20")]
     rate_ml_s = 5 / 60
-    plant = DynamicPlant(segments, lambda t: max(t, 0.0) * rate_ml_s, fittings_length_mm=10)
+    plant = DynamicPlant(
+        segments,
+        lambda t: max(t, 0.0) * rate_ml_s,
+        plumbing=Plumbing(bore_mm=1.5),
+        fittings_length_mm=10,
+    )
     t = np.arange(1.0, 18.0 / rate_ml_s, 0.5)
     v_model, p_model, l_model = predicted_inflation(segments, 18.0, 0.05)
     p = plant.pressure_kpa_at(t)
