@@ -36,13 +36,17 @@ class _Titled(Table):
         yield from super().__rich_console__(console, options)
 
 
-def _table(title: str, columns, right: tuple[str, ...] = ()) -> Table:
-    """A compact table (no vertical rules, so it stays legible in 80 columns and logs)."""
+def _table(title: str, columns, right: tuple[str, ...] = (), wrap: tuple[str, ...] = ()) -> Table:
+    """A compact table (no vertical rules, so it stays legible in 80 columns and logs);
+    the ``wrap`` columns take the lines a narrow terminal needs, the others keep their
+    width."""
     table = _Titled(
         title, box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True, show_edge=False
     )
     for name in columns:
-        table.add_column(name, justify="right" if name in right else "left", no_wrap=True)
+        table.add_column(
+            name, justify="right" if name in right else "left", no_wrap=name not in wrap
+        )
     return table
 
 
@@ -112,7 +116,7 @@ def repetitions_table(result: AnalysisResult) -> Table:
     columns.append("transitions")
     units = "time s, v mL, p kPa" + (", l mm" if result.with_length else "")
     title = f"repetitions ({units}; transitions +in/-out at v, seen in p, l)"
-    table = _table(title, columns, right=columns[3:7])
+    table = _table(title, columns, right=columns[3:7], wrap=("transitions",))
     for rep in result.repetitions:
         row = [
             str(rep.index),

@@ -100,6 +100,30 @@ def test_summary_text_tabulates_repetitions_and_the_model(segment_run):
     assert f"{rmse:.3f}" in text
 
 
+def test_many_transitions_wrap_and_leave_the_other_columns_whole(segment_run):
+    # eight transitions a repetition (a bulging library's steep stretches) once squeezed
+    # every other column of the run's 110-column summary to one letter and an ellipsis
+    from labrig.analysis import analyse
+    from labrig.analysis.transitions import MeasuredTransition
+
+    result = analyse(segment_run.path)
+    many = tuple(
+        MeasuredTransition(
+            1, 1, 10.0 + k, 5.0 + 3 * k, 4.9 + 3 * k, 5.1 + 3 * k, -9.0, 0.4, True, k % 2 == 0
+        )
+        for k in range(8)
+    )
+    first = dataclasses.replace(result.repetitions[0], transitions=many)
+    result = dataclasses.replace(result, repetitions=(first, *result.repetitions[1:]))
+    text = summary_text(result, width=110)
+    rows = text[text.index("repetitions (") :].splitlines()
+    assert "status" in rows[1] and "samples" in rows[1] and "transitions" in rows[1]
+    assert "…" not in "\n".join(rows[:8])
+    listed = " ".join(rows[3:8])
+    for t in many:
+        assert f"+{t.v_ml:.2f}({t.kind})" in listed
+
+
 def test_analysis_of_a_file_without_entry_is_refused(tmp_path):
     from labrig.errors import InputError
 
