@@ -5,11 +5,14 @@ crosses its peak)."""
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.integrate import quad
 
 from labrig.model.actuator.equilibria import Actuator
 from labrig.model.actuator.path import quasi_static_path
 from labrig.model.actuator.transitions import transitions
+from labrig.model.segments.braid_stiffness import with_braid_stiffness
 from labrig.model.segments.bulge import (
     PLATEAU_FALL_KPA,
     bulging_curve,
@@ -117,3 +120,38 @@ def test_with_a_bulge_the_second_segment_snaps_as_it_crosses_its_peak():
     crossing = next(t for t in bulged if (t.alpha, t.beta) == (1, 2))
     snaps_there = [t for t in bulged if not t.stable and abs(t.v_ml - crossing.v_ml) < 1e-2]
     assert snaps_there and snaps_there[0].dE < 0
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    braid=st.sampled_from(range(40, 51, 2)),
+    tube=st.sampled_from(range(20, 31, 2)),
+    gain=st.floats(0.5, 8.0),
+    width=st.floats(0.05, 5.0),
+    stiffness=st.floats(20.0, 2000.0),
+)
+def test_any_bulge_the_fit_may_try_is_a_rise_fall_rise_curve(braid, tube, gain, width, stiffness):
+    # the fit's simplex goes anywhere inside its bounds: every curve it builds is a table
+    # the actuator model takes (rising volume, one peak, the uniform rise kept before it)
+    # or a ValueError, never a malformed curve
+    uniform = analytical_segment(f"SI-B{braid}-T{tube}")
+    try:
+        bulged = with_braid_stiffness(bulging_curve(uniform, gain, width), stiffness)
+    except ValueError as exc:
+        assert "below zero" in str(exc)
+        return
+    assert np.all(np.diff(bulged.v_ml) > 0)
+    if uniform.peak is None:
+        assert bulged is uniform
+        return
+    assert bulged.peak == uniform.peak
+    valley = bulged.valley
+    assert valley.v_ml > bulged.peak.v_ml and valley.p_kpa < bulged.peak.p_kpa
+    assert valley.p_kpa == pytest.approx(
+        plateau_pressure(uniform, gain)
+        - min(PLATEAU_FALL_KPA, uniform.peak.p_kpa - plateau_pressure(uniform, gain))
+    )
+    # after the valley the curve only rises, and no rise is steeper than the braids
+    after = bulged.v_ml >= valley.v_ml
+    slopes = np.diff(bulged.p_kpa[after]) / np.diff(bulged.v_ml[after])
+    assert np.all(slopes > 0) and np.all(slopes <= stiffness * (1 + 1e-9))
