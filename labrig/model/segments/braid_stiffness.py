@@ -7,7 +7,7 @@ angle: they stretch and open, so after contact the tube and the braids act as tw
 springs in series. ``with_braid_stiffness`` adds the braids' spring, of stiffness
 ``k_kpa_per_ml``, to every sample past the valley: a sample at pressure p moves to a
 larger volume by (p - p_valley) / k. A wall becomes a slope k, a slope s becomes
-1 / (1/s + 1/k), and the braids store (p - p_valley)^2 / 2k.
+1 / (1/s + 1/k), and the braids take the work (p^2 - p_valley^2) / 2k.
 """
 
 from __future__ import annotations
