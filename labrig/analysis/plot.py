@@ -4,7 +4,9 @@ Pressure on top, length below, sharing the volume axis. Inflation is what the pa
 shows: each repetition faint, the mean of the averaged repetitions bold with its spread
 (± one standard deviation) as a band; the deflation mean is drawn thin in a second
 colour. The model's prediction is dashed, its snap-throughs marked with open diamonds;
-the measured transitions are marked on the mean curve with their dp and dl.
+the measured transitions are marked on the mean curve with their dp and dl, except those
+the model's own path makes (a steep stable stretch, ``compare.follows_model``): those get
+a small grey mark and no label, so that the snaps stand out.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from labrig.analysis.compare import follows_model
 from labrig.analysis.curves import DEFLATE, INFLATE
 from labrig.analysis.results import AnalysisResult
 
@@ -173,15 +176,23 @@ def _mark_transitions(ax, result: AnalysisResult, quantity: str, grid, means) ->
     deflation) labelled with its jump, the label placed on the side the curve leaves
     free (towards the axis' middle) so it neither hides the jump nor leaves the axes."""
     v_span = float(grid[-1]) if len(grid) else 1.0
-    first = True
+    steep = _on_the_models_curve(result)
+    first = first_steep = True
     for t in result.transitions:
         y = _at(grid, means[t.direction].mean, t.v_ml)
         size = t.dp_kpa if quantity == "p" else t.dl_mm
         if not np.isfinite(y):
             continue
+        if t in steep:
+            label = "steep stretches on the model's curve" if first_steep else None
+            first_steep = False
+            marker = "v" if t.direction == INFLATE else "^"
+            ax.plot(t.v_ml, y, marker, mfc="none", mec="0.45", ms=6, label=label, zorder=5)
+            continue
         colour = "tab:red" if t.direction == INFLATE else "tab:purple"
         marker = "v" if t.direction == INFLATE else "^"
-        label = "measured transitions" if first else None
+        label = "measured snaps" if steep else "measured transitions"
+        label = label if first else None
         first = False
         ax.plot(t.v_ml, y, marker, color=colour, ms=8, label=label, zorder=5)
         if not np.isfinite(size):
@@ -191,7 +202,7 @@ def _mark_transitions(ax, result: AnalysisResult, quantity: str, grid, means) ->
         dx = -70 if t.v_ml > 0.75 * v_span else 10
         dy = -34 if y > 0.5 * (bottom + top) else 14
         ax.annotate(
-            f"{symbol} {size:+.1f} {unit}\nat {t.v_ml:.1f} mL",
+            f"{symbol} {round(size, 1) + 0.0:+.1f} {unit}\nat {t.v_ml:.1f} mL",  # no -0.0
             (t.v_ml, y),
             xytext=(dx, dy),
             textcoords="offset points",
@@ -201,3 +212,16 @@ def _mark_transitions(ax, result: AnalysisResult, quantity: str, grid, means) ->
             arrowprops={"arrowstyle": "-", "color": colour, "lw": 0.6},
             zorder=6,
         )
+
+
+def _on_the_models_curve(result: AnalysisResult) -> list:
+    """The measured transitions no predicted snap explains but the model's path makes."""
+    comparison = result.comparison
+    if comparison is None or result.mean_p is None:
+        return []
+    mean_p = {phase: curve.mean for phase, curve in result.mean_p.items()}
+    return [
+        m.measured
+        for m in comparison.matches
+        if m.predicted is None and follows_model(comparison, result.grid_ml, mean_p, m.measured)
+    ]
