@@ -3,7 +3,9 @@
 - p-v and l-v of the combined actuator with its transitions marked (Fig. 2C / 3E);
   deflation dashed, so hysteresis shows;
 - for two segments, the v1-v2 plane (Fig. 3D): every equilibrium of the pressure grid,
-  stable and unstable, with the path on top and each snap as an arrow.
+  stable and unstable, with the path on top and each snap as an arrow;
+- a library's segments side by side (Fig. 1C and D): p-v and the length change, with
+  the paper's measured peak range shaded.
 
 matplotlib is imported inside the function (Agg backend): the model itself never needs it.
 """
@@ -144,3 +146,45 @@ def _plane(
     ax.set_aspect("equal")
     ax.grid(alpha=0.3)
     ax.legend(loc="upper right", fontsize=7, markerscale=3)
+
+
+def plot_library(
+    curves: Sequence, png: FilePath, *, peak_range_kpa: tuple[float, float], title: str
+) -> None:
+    """Fig. 1C and D for a library: every segment's p(v) and l(v) - l(0), coloured by
+    L_braid, the paper's measured peak range shaded and each peak marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    braids = sorted({_braid_mm(c.name) for c in curves})
+    colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.9, len(braids)))
+    colour_of = dict(zip(braids, colours, strict=True))
+    fig, (ax_p, ax_l) = plt.subplots(1, 2, figsize=(11, 4.5), constrained_layout=True)
+    ax_p.axhspan(*peak_range_kpa, color="tab:red", alpha=0.12, label="the paper's peaks")
+    for curve in curves:
+        colour = colour_of[_braid_mm(curve.name)]
+        ax_p.plot(curve.v_ml, curve.p_kpa, color=colour, linewidth=0.9)
+        ax_l.plot(curve.v_ml, curve.l_mm - curve.l_mm[0], color=colour, linewidth=0.9)
+        if curve.peak is not None:
+            ax_p.plot(curve.peak.v_ml, curve.peak.p_kpa, ".", color=colour, markersize=5)
+    for braid in braids:
+        ax_p.plot([], [], color=colour_of[braid], label=f"L_braid {braid:g} mm")
+    v_max = min(40.0, max(float(c.v_max_ml) for c in curves))
+    ax_p.set_ylim(0, 110)
+    ax_p.set_ylabel("pressure p (kPa)")
+    ax_l.set_ylabel("length change l - l(0) (mm)")
+    for ax in (ax_p, ax_l):
+        ax.set_xlabel("supplied volume v (mL)")
+        ax.set_xlim(0, v_max)
+        ax.grid(alpha=0.3)
+    ax_p.legend(loc="lower right", fontsize=7)
+    fig.suptitle(title)
+    fig.savefig(png, dpi=120)
+    plt.close(fig)
+
+
+def _braid_mm(name: str) -> float:
+    """L_braid of a library name (B46-T20 or SI-B46-T20)."""
+    return float(name.split("B")[-1].split("-T")[0])

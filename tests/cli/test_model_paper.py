@@ -91,3 +91,18 @@ def test_calibrate_reports_the_fit_and_never_worsens_the_start(capsys):
         assert low <= doc["calibration"][field] <= high
     assert doc["objective"] <= doc["start_objective"]
     assert doc["start_objective"] == pytest.approx(objective(CALIBRATION))
+
+
+def test_plot_draws_the_library_beside_the_papers_peak_range(tmp_path, capsys):
+    import matplotlib.image
+
+    out_png = tmp_path / "fig1c.png"
+    code, out, _ = run(["model", "paper", "--plot", str(out_png)], capsys)
+    assert code == 0
+    assert f"{out_png}: the 36 segments beside the paper's peak range" in out
+    image = matplotlib.image.imread(out_png)
+    assert image.shape[0] > 400 and image.shape[1] > 1000
+    assert image[..., :3].std() > 0.05  # not a blank canvas
+    code, _, err = run(["model", "paper", "--plot", str(tmp_path / "nope" / "a.png")], capsys)
+    assert code == 2
+    assert "does not exist" in err
