@@ -14,7 +14,7 @@ from pathlib import Path
 
 import click
 
-from labrig.errors import InputError
+from labrig.cli.options import plot_option
 
 RAW_POINTS_PLOTTED = 20_000  # more rows than this are thinned evenly in the plot
 
@@ -131,23 +131,16 @@ def plot_curve(curve, contact_ml: float | None, path: Path) -> None:
 @click.command("curve")
 @click.argument("seg")
 @click.option("--json", "as_json", is_flag=True, help="Print the curve as one JSON object.")
-@click.option(
-    "--plot",
-    "plot_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Write p-v and l-v to this PNG.",
-)
-def curve(seg: str, as_json: bool, plot_path: Path | None) -> None:
+@plot_option("Write p-v and l-v to this PNG.")
+def curve(seg: str, as_json: bool, plot_png: Path | None) -> None:
     """Show the pressure-volume and length-volume curve of one segment SEG: a library
     name (B46-T20), gent-a/b/c, or a CSV with volume_ml,pressure_kpa,length_mm."""
     from labrig.model.segments.catalog import load_segment
 
-    if plot_path is not None and not plot_path.parent.is_dir():
-        raise InputError(f"--plot {plot_path}: the folder {plot_path.parent} does not exist")
     segment = load_segment(seg)
     contact_ml = _contact_ml(seg)
-    if plot_path is not None:
-        plot_curve(segment, contact_ml, plot_path)
+    if plot_png is not None:
+        plot_curve(segment, contact_ml, plot_png)
     if as_json:
         document = {
             "name": segment.name,
@@ -164,5 +157,5 @@ def curve(seg: str, as_json: bool, plot_path: Path | None) -> None:
         return
     for line in summary_lines(segment, contact_ml):
         click.echo(line)
-    if plot_path is not None:
-        click.echo(f"  plot     {plot_path}")
+    if plot_png is not None:
+        click.echo(f"  plot     {plot_png}")

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import click
 
-from labrig.errors import InputError
+from labrig.cli.options import plot_option
 
 
 def _library(si: bool):
@@ -39,20 +39,13 @@ def _table(outcomes, title: str) -> None:
 @click.command("paper")
 @click.option("--json", "as_json", is_flag=True, help="Print the table as one JSON object.")
 @click.option("--si", is_flag=True, help="Check the SI's uncalibrated segments (SI-B46-T20 ...).")
-@click.option(
-    "--plot",
-    "plot_png",
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Also draw the 36 segments' p-v and l-v beside the paper's peak range (Fig. 1C, D).",
-)
+@plot_option("Also draw the 36 segments' p-v and l-v beside the paper's peak range (Fig. 1C, D).")
 def paper(as_json: bool, si: bool, plot_png: Path | None) -> None:
     """The paper's statements about its segments and actuators, and whether the model's
     library reproduces each (fitted ones and predictions)."""
     from labrig.model.paper.statements import PEAK_RANGE_KPA, evaluate, library_names
     from labrig.model.segments.calibrated import CALIBRATION
 
-    if plot_png is not None and not plot_png.parent.is_dir():
-        raise InputError(f"--plot {plot_png}: the folder {plot_png.parent} does not exist")
     library, prefix = _library(si)
     outcomes = evaluate(library, prefix)
     holding = int(sum(bool(o.holds) for o in outcomes))

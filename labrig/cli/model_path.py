@@ -16,6 +16,7 @@ from pathlib import Path
 
 import click
 
+from labrig.cli.options import plot_option
 from labrig.errors import InputError
 
 
@@ -92,12 +93,7 @@ def _table(names, found, v_end_ml: float, seconds: float) -> None:
 @click.option(
     "--json", "as_json", is_flag=True, help="Print the path and transitions as one JSON object."
 )
-@click.option(
-    "--plot",
-    "plot_png",
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Write p-v, l-v (and for two segments the v1-v2 plane) to this PNG.",
-)
+@plot_option("Write p-v, l-v (and for two segments the v1-v2 plane) to this PNG.")
 def path(
     segs: tuple[str, ...],
     deflate: bool,
@@ -113,8 +109,6 @@ def path(
         )
     if v_end_ml is not None and not v_end_ml > 0:
         raise InputError(f"--v-end-ml {v_end_ml}: must be > 0")
-    if plot_png is not None and not plot_png.parent.is_dir():
-        raise InputError(f"--plot {plot_png}: the folder {plot_png.parent} does not exist")
     from labrig.model.actuator.equilibria import Actuator
     from labrig.model.actuator.path import quasi_static_path, sample_path
     from labrig.model.actuator.transitions import transitions

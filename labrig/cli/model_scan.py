@@ -11,6 +11,7 @@ from pathlib import Path
 
 import click
 
+from labrig.cli.options import plot_option
 from labrig.errors import InputError
 
 _TYPE_NAMES = {True: "stable", False: "snap"}
@@ -82,16 +83,8 @@ def _span(metric: str, lo: float, hi: float) -> str:
     return f"{lo:+.4f} … {hi:+.4f}"
 
 
-def _check_png(plot_png: Path | None) -> None:
-    if plot_png is not None and not plot_png.parent.is_dir():
-        raise InputError(f"--plot {plot_png}: the folder {plot_png.parent} does not exist")
-
-
-PLOT_OPTION = click.option(
-    "--plot",
-    "plot_png",
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Draw the paper's Fig. 4 A-C (dv, dl, dp against dE) for the scan to this PNG.",
+PLOT_OPTION = plot_option(
+    "Draw the paper's Fig. 4 A-C (dv, dl, dp against dE) for the scan to this PNG."
 )
 
 
@@ -145,7 +138,6 @@ def scan(
 
     from labrig.model.scan.plan import choose_solver_mode
 
-    _check_png(plot_png)
     # before the solver is imported, which fixes its mode; a cluster's workers compile
     # on their own, the scan's process solves nothing
     plan = None if scheduler is not None else choose_solver_mode(library_spec, n, workers)
@@ -245,7 +237,6 @@ def scan_summary(scan_file: Path, plot_png: Path | None) -> None:
     dv, dl, dp."""
     from labrig.model.scan.scan_file import read_scan
 
-    _check_png(plot_png)
     print_summary(read_scan(scan_file), plot_png)
 
 
