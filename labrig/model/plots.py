@@ -158,13 +158,15 @@ def plot_library(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    braids = sorted({_braid_mm(c.name) for c in curves})
+    from labrig.model.segments.catalog import library_geometry
+
+    braids = sorted({library_geometry(c.name)[0] for c in curves})
     colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.9, len(braids)))
     colour_of = dict(zip(braids, colours, strict=True))
     fig, (ax_p, ax_l) = plt.subplots(1, 2, figsize=(11, 4.5), constrained_layout=True)
     ax_p.axhspan(*peak_range_kpa, color="tab:red", alpha=0.12, label="the paper's peaks")
     for curve in curves:
-        colour = colour_of[_braid_mm(curve.name)]
+        colour = colour_of[library_geometry(curve.name)[0]]
         ax_p.plot(curve.v_ml, curve.p_kpa, color=colour, linewidth=0.9)
         ax_l.plot(curve.v_ml, curve.l_mm - curve.l_mm[0], color=colour, linewidth=0.9)
         if curve.peak is not None:
@@ -183,8 +185,3 @@ def plot_library(
     fig.suptitle(title)
     fig.savefig(png, dpi=120)
     plt.close(fig)
-
-
-def _braid_mm(name: str) -> float:
-    """L_braid of a library name (B46-T20 or SI-B46-T20)."""
-    return float(name.split("B")[-1].split("-T")[0])

@@ -179,9 +179,13 @@ def settle_flow(tables, w0, tol_ml, unit_ml, max_steps):
         for i in range(n):
             step[i] = h * (1.5 * k1[i] + 0.5 * k2[i])
         drift = _mean(step)  # the exact step keeps sum w; rounding would not
+        stage = 0.0
+        progress = 0.0
         for i in range(n):
             step[i] = step[i] - drift
             trial[i] = w[i] + step[i]
+            stage = max(stage, abs(k1[i]))
+            progress = max(progress, abs(step[i]))
         _state(tables, trial, p_new, k_new)
         # a gradient flow only loses energy: a step that gains some is wrong (Hermite
         # rule for the integral of p dw from both ends' p and p')
@@ -194,11 +198,6 @@ def settle_flow(tables, w0, tol_ml, unit_ml, max_steps):
         # a trial stage that jumps a wall (a rise narrower than the step) makes the
         # second stage cancel the first: the step moves nothing while its error estimate
         # passes, and would repeat at the same h for ever
-        stage = 0.0
-        progress = 0.0
-        for i in range(n):
-            stage = max(stage, abs(k1[i]))
-            progress = max(progress, abs(step[i]))
         cancelled = progress <= 1e-9 * h * stage
         accepted = error <= tol_ml and lost_energy and not cancelled
         if accepted:
