@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 
-from labrig.analysis.compare import follows_model
 from labrig.analysis.curves import DEFLATE, INFLATE
 from labrig.analysis.results import AnalysisResult
 
@@ -176,7 +175,7 @@ def _mark_transitions(ax, result: AnalysisResult, quantity: str, grid, means) ->
     deflation) labelled with its jump, the label placed on the side the curve leaves
     free (towards the axis' middle) so it neither hides the jump nor leaves the axes."""
     v_span = float(grid[-1]) if len(grid) else 1.0
-    steep = _on_the_models_curve(result)
+    steep = result.steep_stretches
     first = first_steep = True
     for t in result.transitions:
         y = _at(grid, means[t.direction].mean, t.v_ml)
@@ -212,16 +211,3 @@ def _mark_transitions(ax, result: AnalysisResult, quantity: str, grid, means) ->
             arrowprops={"arrowstyle": "-", "color": colour, "lw": 0.6},
             zorder=6,
         )
-
-
-def _on_the_models_curve(result: AnalysisResult) -> list:
-    """The measured transitions no predicted snap explains but the model's path makes."""
-    comparison = result.comparison
-    if comparison is None or result.mean_p is None:
-        return []
-    mean_p = {phase: curve.mean for phase, curve in result.mean_p.items()}
-    return [
-        m.measured
-        for m in comparison.matches
-        if m.predicted is None and follows_model(comparison, result.grid_ml, mean_p, m.measured)
-    ]

@@ -14,7 +14,6 @@ from rich.console import Console, Group, RenderableType
 from rich.table import Table
 from rich.text import Text
 
-from labrig.analysis.compare import follows_model
 from labrig.analysis.curves import DEFLATE, INFLATE, PHASES
 from labrig.analysis.results import AnalysisResult
 from labrig.analysis.runfile import RunRecord
@@ -205,7 +204,7 @@ def matches_table(result: AnalysisResult) -> RenderableType | None:
         if p is not None:
             kind = p.type
         else:
-            kind = "on the curve" if _follows_model(result, m) else "not predicted"
+            kind = "on the curve" if result.on_the_models_curve(m) else "not predicted"
         table.add_row(
             DIRECTION[match.direction],
             kind,
@@ -218,12 +217,6 @@ def matches_table(result: AnalysisResult) -> RenderableType | None:
             _num(m.dl_mm, "+.2f") if m else "-",
         )
     return table
-
-
-def _follows_model(result: AnalysisResult, measured) -> bool:
-    """A measured transition no predicted snap explains, but the model's curve makes."""
-    mean_p = {phase: result.mean_p[phase].mean for phase in PHASES}
-    return follows_model(result.comparison, result.grid_ml, mean_p, measured)
 
 
 def _finite(value: float | None) -> float | None:
@@ -253,7 +246,7 @@ def comparison_json(result: AnalysisResult) -> dict:
                     "v_meas_ml": _finite(m.v_ml),
                     "dp_meas_kpa": _finite(m.dp_kpa),
                     "dl_meas_mm": _finite(m.dl_mm),
-                    "on_model_curve": _follows_model(result, m),
+                    "on_model_curve": result.on_the_models_curve(m),
                 }
             )
             continue

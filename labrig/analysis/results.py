@@ -21,7 +21,13 @@ import h5py
 import numpy as np
 
 import labrig
-from labrig.analysis.compare import Comparison, PredictedTransition, Prediction, TransitionMatch
+from labrig.analysis.compare import (
+    Comparison,
+    PredictedTransition,
+    Prediction,
+    TransitionMatch,
+    follows_model,
+)
 from labrig.analysis.curves import PHASES, MeanCurve
 from labrig.analysis.transitions import AgreedTransition, DetectionSettings, MeasuredTransition
 from labrig.errors import InputError
@@ -93,6 +99,25 @@ class AnalysisResult:
     @property
     def with_length(self) -> bool:
         return self.mean_l is not None or any(r.l_mm is not None for r in self.repetitions)
+
+    def on_the_models_curve(self, measured) -> bool:
+        """Whether the model's own path makes a measured transition (a steep stable
+        stretch, ``compare.follows_model``); False without a comparison."""
+        if self.comparison is None or self.mean_p is None:
+            return False
+        mean_p = {phase: curve.mean for phase, curve in self.mean_p.items()}
+        return follows_model(self.comparison, self.grid_ml, mean_p, measured)
+
+    @property
+    def steep_stretches(self) -> list[AgreedTransition]:
+        """The averaged transitions no predicted snap explains but the model's path makes."""
+        if self.comparison is None:
+            return []
+        return [
+            m.measured
+            for m in self.comparison.matches
+            if m.predicted is None and self.on_the_models_curve(m.measured)
+        ]
 
 
 def now_iso() -> str:

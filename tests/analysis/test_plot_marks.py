@@ -6,7 +6,7 @@ from matplotlib.figure import Figure
 from support.simulated_runs import simulate_run
 
 from labrig.analysis import analyse
-from labrig.analysis.plot import _mark_transitions, _on_the_models_curve
+from labrig.analysis.plot import _mark_transitions
 
 
 @pytest.fixture(scope="module")
@@ -22,7 +22,7 @@ def demo_pair(tmp_path_factory):
 
 def test_only_the_snaps_get_a_label(demo_pair):
     result = demo_pair
-    steep = _on_the_models_curve(result)
+    steep = result.steep_stretches
     snaps = [m.measured for m in result.comparison.matches if m.predicted and m.measured]
     assert steep and snaps
     assert not set(map(id, steep)) & set(map(id, snaps))
