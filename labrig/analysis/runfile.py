@@ -11,6 +11,7 @@ flag is still set, so commands can say that ``labrig recover`` applies.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -172,26 +173,39 @@ def _text(entry: h5py.Group, name: str, where: str) -> str:
     return decode(_read(entry, name, where)) if name in entry else ""
 
 
-def load_run(path: str | Path) -> RunRecord:
-    """Read a run file for analysis; InputError (one line) for anything missing."""
-    path = Path(path)
+def open_checked(path: Path, opener: Callable[[Path], h5py.File] = open_run) -> h5py.File:
+    """The run file opened by ``opener``, checked to be a labrig run file; InputError
+    (one line) saying why not: not HDF5, truncated, no ``/entry``."""
     facts = superblock_facts(path) if path.is_file() else None
     if facts is not None and facts[2] > path.stat().st_size:
         # SWMR read mode would open it, and fail somewhere in the middle of the data
         raise _diagnose_unopenable(path, InputError(f"{path}: truncated"))
     try:
-        run = open_run(path)
+        run = opener(path)
     except InputError as exc:
         if path.exists():
             raise _diagnose_unopenable(path, exc) from None
         raise
+    if "entry" not in run:
+        found = ", ".join(sorted(run)) or "nothing"
+        run.close()
+        raise InputError(f"{path}: not a labrig run file: missing /entry (the file holds {found})")
+    return run
+
+
+def writer_flag_set(path: Path) -> bool:
+    """Whether the file still carries its writer's "open for writing" flag (a run being
+    recorded, or one whose writer was killed)."""
+    facts = superblock_facts(path) if path.is_file() else None
+    return facts is not None and facts[1] != 0
+
+
+def load_run(path: str | Path, opener: Callable[[Path], h5py.File] = open_run) -> RunRecord:
+    """Read a run file for analysis; InputError (one line) for anything missing.
+    ``opener`` opens the file (the Python API's opens it without HDF5's file lock)."""
+    path = Path(path)
     where = str(path)
-    with run:
-        if "entry" not in run:
-            found = ", ".join(sorted(run)) or "nothing"
-            raise InputError(
-                f"{where}: not a labrig run file: missing /entry (the file holds {found})"
-            )
+    with open_checked(path, opener) as run:
         entry = run["entry"]
         protocol_text = _text(entry, "protocol", where)
         if not protocol_text:
@@ -216,5 +230,5 @@ def load_run(path: str | Path) -> RunRecord:
             versions=versions,
             zero_offset_kpa=zero,
             repetitions=_read_repetitions(entry, where),
-            writer_flag_set=facts is not None and facts[1] != 0,
+            writer_flag_set=writer_flag_set(path),
         )

@@ -194,8 +194,20 @@ def plot_fig4(data: ScanData, png: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    c = data.columns
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.8), constrained_layout=True)
+    draw_fig4(list(axes), data)
+    names = f"{len(data.names)} segments"
+    fig.suptitle(
+        f"All transitions of the {data.actuators_done:,} actuators of n = {data.n} from {names}"
+        f" ({data.row_stop:,} transitions)"
+    )
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+
+
+def draw_fig4(axes: list, data: ScanData) -> None:
+    """The figure's three panels on ``axes``: dv, dl and dp against dE."""
+    c = data.columns
     others: dict[tuple[int, int], str] = {}
     types = sorted(
         {
@@ -237,10 +249,3 @@ def plot_fig4(data: ScanData, png: Path) -> None:
         ax.axhline(0.0, color="0.7", lw=0.6, zorder=0)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8, loc="upper right")
-    names = f"{len(data.names)} segments"
-    fig.suptitle(
-        f"All transitions of the {data.actuators_done:,} actuators of n = {data.n} from {names}"
-        f" ({data.row_stop:,} transitions)"
-    )
-    fig.savefig(png, dpi=110)
-    plt.close(fig)

@@ -1,0 +1,86 @@
+"""``labrig.open_scan``: a scan file (``labrig model scan --out``) as a DataFrame.
+
+The scan file reader keeps the rows in the file until asked for; ``Scan.table`` reads a
+range of them, so a scan of millions of transitions is browsed without loading it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .axes import panel_axes
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+
+def open_scan(path: str | Path) -> Scan:
+    """Open a scan file, complete or cut short; ``InputError`` if it is not one."""
+    from labrig.model.scan.scan_file import read_scan
+
+    return Scan(read_scan(Path(path)))
+
+
+class Scan:
+    """A scan: its metadata as attributes, its transitions as a DataFrame."""
+
+    def __init__(self, data) -> None:
+        self.data = data
+        self.path: Path = data.path
+        #: segments per actuator
+        self.n: int = data.n
+        #: the library's segment names, in the file's order
+        self.names: list[str] = list(data.names)
+        self.complete: bool = data.complete
+        self.actuators_done: int = data.actuators_done
+        self.n_combinations: int = data.n_combinations
+
+    def __len__(self) -> int:
+        return self.data.row_stop
+
+    def __repr__(self) -> str:
+        state = "complete" if self.complete else "incomplete"
+        return (
+            f"<labrig.Scan {self.path.name}: n = {self.n}, {self.actuators_done:,} of "
+            f"{self.n_combinations:,} actuators ({state}), {len(self):,} transitions>"
+        )
+
+    def table(self, start: int = 0, stop: int | None = None) -> pd.DataFrame:
+        """Transition rows ``start`` to ``stop`` (all by default): ``actuator`` (the
+        combination's rank), ``segment1`` ... ``segmentN`` (names), and the fields of
+        ``labrig model path --json``: direction (+1 inflate, -1 deflate), v_ml (mL),
+        alpha, beta, stable, dE, dv, dl, dp (normalised)."""
+        import h5py
+        import pandas as pd
+
+        from labrig.model.scan.scan import TRANSITION_FIELDS
+
+        stop = len(self) if stop is None else min(stop, len(self))
+        with h5py.File(self.path, "r", locking=False) as h5:
+            rows = h5["transitions"]
+            table = {"actuator": rows["actuator"][start:stop]}
+            indices = rows["segments"][start:stop]
+            names = np.asarray(self.names, dtype=object)
+            for i in range(self.n):
+                table[f"segment{i + 1}"] = names[indices[:, i]]
+            for name in TRANSITION_FIELDS:
+                table[name] = rows[name][start:stop]
+        return pd.DataFrame(table)
+
+    @property
+    def transitions(self) -> pd.DataFrame:
+        """Every transition of the scan (``table()``)."""
+        return self.table()
+
+    def plot(self, ax=None):
+        """Draw what ``labrig model scan --plot`` draws (the paper's Fig. 4 A-C: dv, dl,
+        dp against dE, coloured by (alpha, beta)) on ``ax``: one Axes (dv), three, or
+        None (a new figure)."""
+        from labrig.model.scan.scan_summary import draw_fig4
+
+        axes, shown = panel_axes(ax, 3)
+        draw_fig4(axes, self.data)
+        return shown
