@@ -36,13 +36,14 @@ def segment(spec: str | Path, library_dir: str | Path | None = None) -> Segment:
 @dataclass(frozen=True)
 class Segment:
     """One segment's tabulated p(v) and l(v) (supplied volume from the unpressurised
-    state)."""
+    state); ``model`` is the model's own ``SegmentCurve``, ``spec`` what named it."""
 
     spec: str
     model: SegmentCurve
 
     @property
     def name(self) -> str:
+        """The segment's name, as the model and the commands print it."""
         return self.model.name
 
     @property
@@ -104,6 +105,7 @@ class Actuator:
 
     @property
     def names(self) -> list[str]:
+        """The segments' names, in series order."""
         return [s.name for s in self.segments]
 
     def path(self, *, deflate: bool = False, v_end_ml: float | None = None) -> ActuatorPath:

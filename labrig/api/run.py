@@ -84,6 +84,14 @@ class Run:
     Series and curves are ``xarray.Dataset`` objects (named dimensions, ``units`` and
     ``nexus_path`` attributes, the file's NeXus field names) or ``pandas.DataFrame``
     objects with units in the column names, as ``labrig export --csv`` writes them.
+
+    Attributes read at open: ``path``; ``title``; ``status`` (running, complete,
+    aborted or faulted: how the run ended, or ``running`` while it is recorded or after
+    its writer was killed); ``reason`` (why it ended so); ``start_time``, ``end_time``
+    (ISO 8601); ``protocol_text`` and ``rig_config_text`` (YAML as run); ``versions``;
+    ``has_video``; ``writer_open`` (the file still carries its writer's "open" flag: it
+    is being recorded, or its writer was killed); ``live`` (open and written to within
+    the last 10 s: being recorded now).
     """
 
     def __init__(self, path: Path) -> None:
@@ -156,6 +164,7 @@ class Run:
 
     @property
     def n_repetitions(self) -> int:
+        """Repetitions the protocol asks for (each has a status, maybe ``pending``)."""
         return len(self._rep_status)
 
     @cached_property

@@ -25,7 +25,13 @@ def open_scan(path: str | Path) -> Scan:
 
 
 class Scan:
-    """A scan: its metadata as attributes, its transitions as a DataFrame."""
+    """A scan: its metadata as attributes, its transitions as a DataFrame.
+
+    Attributes: ``path``; ``n`` (segments per actuator); ``names`` (the library's
+    segments, in the file's order); ``complete``; ``actuators_done`` of
+    ``n_combinations``; ``data`` (the scan file reader's ``ScanData``); ``len(scan)``
+    is the number of transitions.
+    """
 
     def __init__(self, data) -> None:
         self.data = data
