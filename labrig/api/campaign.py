@@ -5,8 +5,9 @@ ended (status, reason, the writer's flags), the RMSE against the model and, for 
 snap-through the model predicts, the measured volume, pressure jump and length jump
 beside the model's and the error (measured minus model). The snaps are the
 ``transitions`` of ``labrig compare --json`` whose ``type`` is ``snap``, in its order,
-numbered ``snap1_...``, ``snap2_...``; a run with fewer snaps has nulls there. A file
-that cannot be read is a row with its ``error``, so one bad file does not hide the rest.
+numbered ``snap1_...``, ``snap2_...``; a run with fewer snaps has nulls there. A run
+without a comparison says why in ``note``; a file that cannot be read is a row with its
+``error``, so one bad file does not hide the rest.
 """
 
 from __future__ import annotations
@@ -65,21 +66,25 @@ def run_row(path: Path) -> dict[str, Any]:
             warnings.simplefilter("ignore", RunOpenWarning)  # the row carries the flags
             run = Run(path)
         meta = run.metadata
-        row.update(
-            title=meta["title"],
-            protocol=meta["protocol"],
-            specimen=" + ".join(meta["specimen"]),
-            seed=meta["seed"],
-            date=meta["start_time"],
-            status=meta["status"],
-            reason=meta["reason"],
-            repetitions=meta["repetitions"],
-            writer_open=meta["writer_open"],
-            live=meta["live"],
-        )
-        document = run.comparison_document
     except LabrigError as exc:
         row["error"] = str(exc)
+        return row
+    row.update(
+        title=meta["title"],
+        protocol=meta["protocol"],
+        specimen=" + ".join(meta["specimen"]),
+        seed=meta["seed"],
+        date=meta["start_time"],
+        status=meta["status"],
+        reason=meta["reason"],
+        repetitions=meta["repetitions"],
+        writer_open=meta["writer_open"],
+        live=meta["live"],
+    )
+    try:
+        document = run.comparison_document
+    except LabrigError as exc:  # no comparison (none asked for, no repetition done)
+        row["note"] = str(exc)
         return row
     for name, value in document["rmse"].items():
         row[f"rmse_{name}"] = value
@@ -102,9 +107,10 @@ def campaign_rows(runs: str | Path | Iterable[str | Path]) -> list[dict[str, Any
     columns: dict[str, None] = {}
     for row in rows:
         columns.update(dict.fromkeys(row))
-    if "error" in columns:  # last: most rows have none
-        del columns["error"]
-        columns["error"] = None
+    for rare in ("note", "error"):  # last: most rows have none
+        if rare in columns:
+            del columns[rare]
+            columns[rare] = None
     return [{name: row.get(name) for name in columns} for row in rows]
 
 
