@@ -10,13 +10,23 @@ the drawing functions stay the commands' own, unchanged.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from labrig.errors import InputError
 
+if TYPE_CHECKING:
+    from collections.abc import Sequence
 
-def panel_axes(ax, count: int, *, vertical: bool = False, sharex: bool = False):
-    """(axes to draw on, ``count`` of them; the Axes the user sees)."""
+    from matplotlib.axes import Axes
+
+
+def panel_axes(
+    ax: Axes | Sequence[Axes] | None, count: int, *, vertical: bool = False, sharex: bool = False
+) -> tuple[list[Axes], Axes | list[Axes]]:
+    """(axes to draw on, ``count`` of them; the Axes the user sees: the one given, or
+    the list)."""
     if ax is None:
         import matplotlib.pyplot as plt
 

@@ -17,8 +17,14 @@ from .axes import panel_axes
 from .solver_mode import prefer_plain_python
 
 if TYPE_CHECKING:
-    import pandas as pd
+    from collections.abc import Sequence
 
+    import pandas as pd
+    from matplotlib.axes import Axes
+
+    from labrig.model.actuator.path import Path as SolvedPath
+    from labrig.model.actuator.path import SampledPath
+    from labrig.model.actuator.transitions import Transition
     from labrig.model.segments.curve import SegmentCurve
 
 
@@ -73,7 +79,7 @@ class Segment:
             {"v_ml": self.model.v_ml, "p_kpa": self.model.p_kpa, "l_mm": self.model.l_mm}
         )
 
-    def plot(self, ax=None):
+    def plot(self, ax: Axes | Sequence[Axes] | None = None) -> Axes | list[Axes]:
         """Draw what ``labrig model curve --plot`` draws (p-v and l-v, peak and valley
         marked) on ``ax``: one Axes (p-v), two, or None (a new figure)."""
         from labrig.cli.model_curve import _contact_ml, draw_curve
@@ -130,9 +136,9 @@ class ActuatorPath:
     """A solved path: ``document`` is ``labrig model path --json``'s object, ``path``
     and ``transitions`` its tables."""
 
-    solved: Any
-    sampled: Any
-    found: tuple
+    solved: SolvedPath
+    sampled: SampledPath
+    found: tuple[Transition, ...]
 
     @property
     def document(self) -> dict[str, Any]:
@@ -163,7 +169,7 @@ class ActuatorPath:
 
         return pd.DataFrame(self.document["transitions"])
 
-    def plot(self, ax=None):
+    def plot(self, ax: Axes | Sequence[Axes] | None = None) -> Axes | list[Axes]:
         """Draw what ``labrig model path --plot`` draws (p-v and l-v with the
         transitions; for two segments the v1-v2 plane) on ``ax``: one Axes (p-v), a
         sequence, or None (a new figure)."""

@@ -34,6 +34,7 @@ from .reading import open_readonly, open_run_file, writer_state
 if TYPE_CHECKING:
     import pandas as pd
     import xarray as xr
+    from matplotlib.axes import Axes
 
     from labrig.analysis.results import AnalysisResult
     from labrig.config.protocol import Protocol
@@ -510,7 +511,7 @@ class Run:
         ]
 
     # --- pictures -------------------------------------------------------------------
-    def plot(self, ax=None):
+    def plot(self, ax: Axes | Sequence[Axes] | None = None) -> Axes | list[Axes]:
         """Draw what ``labrig plot`` draws (mean p-v and l-v with their spread, each
         repetition faint, the model dashed, transitions marked) on ``ax``: one Axes
         (the p-v panel), a sequence of Axes (one per panel), or None (a new figure).

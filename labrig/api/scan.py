@@ -14,7 +14,10 @@ import numpy as np
 from .axes import panel_axes
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     import pandas as pd
+    from matplotlib.axes import Axes
 
 
 def open_scan(path: str | Path) -> Scan:
@@ -81,7 +84,7 @@ class Scan:
         """Every transition of the scan (``table()``)."""
         return self.table()
 
-    def plot(self, ax=None):
+    def plot(self, ax: Axes | Sequence[Axes] | None = None) -> Axes | list[Axes]:
         """Draw what ``labrig model scan --plot`` draws (the paper's Fig. 4 A-C: dv, dl,
         dp against dE, coloured by (alpha, beta)) on ``ax``: one Axes (dv), three, or
         None (a new figure)."""

@@ -8,6 +8,9 @@ from conftest import QUICK_PROTOCOL
 
 import labrig
 
+# a run with video costs ~3 s of CPU (the camera process and the encoder)
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def video_run(tmp_path_factory):
