@@ -341,10 +341,10 @@ def test_other_values():
 
 def test_status_line_fields_in_femtolitres():
     # 1 mL = 1e12 fL: 1 mL/min = 1e12 fL / 60 s; 2.5 mL = 2.5e12 fL.
-    line = parse_status_line("16666666667 1500 2500000000000 I..TI.")
+    line = parse_status_line("16666666667 150 2500000000000 I..TI.")
     assert line.rate_ml_min == pytest.approx(1.0, rel=1e-9)
     assert line.volume_ml == pytest.approx(2.5)
-    assert line.time_ms == 1500
+    assert line.time_s == 150  # seconds: the manual's "infuse time in seconds"
     assert (line.direction, line.running, line.stalled, line.target_reached) == (
         "i",
         True,
@@ -408,7 +408,7 @@ CONNECT = [
     (b"00poll off\r", b"\n:"),
     (b"00ver\r", b"\nPHD ULTRA 3.0.5\r\n:"),
     (b"00nvram off\r", b"\n:"),
-    (b"00wvolume\r", b"\n0 ul\r\n:"),
+    (b"00metrics\r", b"\nPump type          PHD ULTRA\r\nDirection          Infuse/withdraw\r\n:"),
     (b"00diameter\r", b"\n26.7000 mm\r\n:"),
     (b"00svolume\r", b"\n60 ml\r\n:"),
 ]
@@ -456,10 +456,9 @@ def test_connect_warns_and_goes_on_when_no_nvram_form_is_accepted():
 
 
 def test_an_infuse_only_pump_is_asked_nothing_about_withdrawing():
-    refused = b"\nCommand error: [wvolume]\r\n   Unknown command\r\n:"
     table = [
         *CONNECT[:3],
-        (b"00wvolume\r", refused),
+        (b"00metrics\r", b"\nPump type          PHD ULTRA\r\nDirection          Infuse only\r\n:"),
         *CONNECT[4:],
         INFUSE_LIMITS,
         (b"00irate 10.0000 ml/min\r", b"\n:"),
@@ -513,7 +512,7 @@ def test_a_readback_that_differs_from_the_setting_is_an_error():
     ]
     with (
         expected_protocol(table) as pump,
-        pytest.raises(PumpError, match=r"reports infuse rate 1\.0"),
+        pytest.raises(PumpError, match=r"reports infuse rate '1\.0000 ml/min'"),
     ):
         pump.set_infuse_rate(10.0)
 
