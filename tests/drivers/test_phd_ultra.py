@@ -222,7 +222,7 @@ def test_a_stall_under_load_is_reported_and_cleared_by_stop(clock):
 
 
 def test_the_pumps_refusals_arrive_typed_with_their_text(pump):
-    with pytest.raises(PumpRangeError, match="Range error: 80.0000"):
+    with pytest.raises(PumpRangeError, match=r"Range error: 80\.0000"):
         pump.configure_syringe(80.0, 60.0)
     pump.set_infuse_rate(1.0)
     pump.infuse()
