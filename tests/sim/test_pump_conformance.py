@@ -31,7 +31,8 @@ from labrig.drivers.phd_ultra_protocol import (
     parse_volume_ml,
 )
 from labrig.sim.pump import PumpEmulator
-from labrig.sim.pump_firmware import REAL_ADDRESSING
+from labrig.sim.pump_commands import COMMANDS
+from labrig.sim.pump_firmware import REAL_ADDRESSING, PumpFirmware
 from labrig.time.virtual import VirtualClock
 
 
@@ -117,3 +118,22 @@ def test_the_values_clients_read_are_the_ones_they_set():
     assert parse_can_withdraw(parse_reply(METRICS, expect_payload=True).lines) is True
     line = parse_status_line(text(b"@status\r"))
     assert (line.time_s, line.volume_ml, line.target_reached) == (60, pytest.approx(1.0), True)
+
+
+# ---- the command list ----------------------------------------------------------------
+
+
+def test_the_emulator_answers_exactly_the_command_table():
+    firmware = PumpFirmware(VirtualClock())
+    assert firmware.commands == {command.name for command in COMMANDS}
+
+
+@pytest.mark.parametrize("command", COMMANDS, ids=lambda command: command.name)
+def test_every_listed_command_is_known_in_full_and_by_four_letters(command):
+    firmware = PumpFirmware(VirtualClock())
+    for word in {command.name, command.name[:4]}:
+        answer = firmware.execute(f"{word} ?")  # a bad argument, or ignored: still known
+        assert answer is not None
+        assert "Unknown command" not in " ".join(answer.lines), word
+        expected = "syrm" if word == "syrm" else command.name
+        assert answer.command == expected
