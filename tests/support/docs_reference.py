@@ -251,8 +251,16 @@ def run_file_reference() -> str:
     return "\n".join(lines) + "\n"
 
 
+def pump_command_reference() -> str:
+    """The commands the pump emulator answers, from its command table."""
+    from labrig.sim.pump_commands import markdown_table
+
+    return markdown_table()
+
+
 PAGES: dict[str, Callable[[], str]] = {
     "docs/reference/cli.md": cli_reference,
+    "docs/reference/pump.md": pump_command_reference,
     "docs/reference/protocol.md": protocol_reference,
     "docs/reference/rig-file.md": rig_file_reference,
     "docs/reference/run-file.md": run_file_reference,
