@@ -32,8 +32,9 @@ What ``connect()`` assumes of a pump left by other software: it may be in
 first and its reply may never come; the address form the firmware wants is unknown, so
 with ``address_form="auto"`` the forms are tried in turn and the answered one is kept;
 NVRAM writes are switched off by the first accepted form, and none accepted only warns
-(memory wear must not block a run); an infuse-only model refuses withdraw commands, so
-``can_withdraw`` says which it is and nothing withdraw-related is asked of it.
+(memory wear must not block a run); whether it withdraws is read from the Direction line
+of ``metrics`` (an infuse-only model refuses withdraw commands), so ``can_withdraw`` says
+which it is and nothing withdraw-related is asked of an infuse-only one.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ import logging
 import math
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import serial
@@ -65,14 +67,17 @@ from .phd_ultra_errors import (
 from .phd_ultra_protocol import (
     ADDRESS_FORMS,
     AUTO_ADDRESS_FORM,
+    Reading,
     Reply,
     StatusLine,
+    agrees,
     candidate_address_forms,
     check_refusal,
     force_limit_pressure_kpa,
     format_rate,
     format_volume,
     frame_command,
+    parse_can_withdraw,
     parse_diameter_mm,
     parse_force_pct,
     parse_rate_limits,
@@ -82,6 +87,10 @@ from .phd_ultra_protocol import (
     parse_target_ml,
     parse_volume_ml,
     prompts_in,
+    read_diameter,
+    read_rate,
+    read_target,
+    read_volume,
 )
 
 log = logging.getLogger(__name__)
@@ -106,8 +115,6 @@ STOP_WAIT_S = 0.1
 # long enough for an answering pump (milliseconds), short enough not to hold up a
 # shutdown once per stop.
 DEAF_CONFIRM_S = 0.2
-# Readbacks agree with what was sent to within the 4-decimal formatting.
-READBACK_REL_TOL = 1e-3
 _RUNNING = (PumpState.INFUSING, PumpState.WITHDRAWING)
 # The volume counters, and the one each motion moves.
 _COUNTERS = ("ivolume", "wvolume")
@@ -302,14 +309,24 @@ class PhdUltra:
         return self._exchange(command, expect_payload=expect_payload, stop_on_fault=False)
 
     def _probe_withdraw(self) -> bool:
-        """An infuse-only pump refuses withdraw commands; the withdrawn counter is the
-        harmless one to ask (``status()`` reads it anyway)."""
+        """The Direction line of ``metrics`` (``Infuse/withdraw`` or ``Infuse only``), as
+        flowchem reads it. A pump that does not say is taken as withdrawing, with a
+        warning: an infuse-only one then refuses the first withdraw command (``wrate
+        lim``, asked before any withdraw rate is set) before anything moves."""
         try:
-            self._query("wvolume")
+            can_withdraw = parse_can_withdraw(self._query("metrics").lines)
+            said = "no Direction line in its 'metrics'"
         except PumpCommandError as exc:
-            log.info("the pump refused 'wvolume' (%s): an infuse-only pump", exc.pump_text)
-            return False
-        return True
+            can_withdraw, said = None, f"it refused 'metrics' ({exc.pump_text})"
+        if can_withdraw is None:
+            warning = (
+                f"the pump does not say whether it withdraws ({said}): withdraw commands "
+                "will be sent, and an infuse-only pump refuses them before anything moves"
+            )
+            log.warning(warning)
+            self.connect_warnings.append(warning)
+            return True
+        return can_withdraw
 
     def close(self) -> None:
         """Release the port. The pump keeps doing what it was doing."""
@@ -356,19 +373,26 @@ class PhdUltra:
         self.connect_warnings.append(warning)
 
     def read_syringe(self) -> Syringe:
-        return Syringe(
-            diameter_mm=parse_diameter_mm(self._query("diameter").text),
-            volume_ml=parse_volume_ml(self._query("svolume").text),
-        )
+        return self._syringe_from(*self._syringe_replies())
+
+    def _syringe_replies(self) -> tuple[str, str]:
+        return self._query("diameter").text, self._query("svolume").text
+
+    @staticmethod
+    def _syringe_from(diameter: str, volume: str) -> Syringe:
+        return Syringe(diameter_mm=parse_diameter_mm(diameter), volume_ml=parse_volume_ml(volume))
 
     def configure_syringe(self, diameter_mm: float, volume_ml: float) -> None:
         """Set the syringe's inner diameter and nominal volume; the rate limits follow."""
         self._limits = {}
-        self._command(f"diameter {diameter_mm:.4f}")
-        self._command(f"svolume {format_volume(volume_ml, smallest='ul')}")
-        self.syringe = self.read_syringe()
-        self._verify("diameter", self.syringe.diameter_mm, diameter_mm, "mm")
-        self._verify("syringe volume", self.syringe.volume_ml, volume_ml, "mL")
+        diameter = f"{diameter_mm:.4f} mm"
+        volume = format_volume(volume_ml, smallest="ul")
+        self._command(f"diameter {diameter.removesuffix(' mm')}")
+        self._command(f"svolume {volume}")
+        diameter_reply, volume_reply = self._syringe_replies()
+        self.syringe = self._syringe_from(diameter_reply, volume_reply)
+        self._verify("diameter", read_diameter, diameter_reply, diameter)
+        self._verify("syringe volume", read_volume, volume_reply, volume)
 
     def rate_limits(self) -> RateLimits:
         """The rate range the pump accepts for the current syringe (each direction asked
@@ -432,8 +456,9 @@ class PhdUltra:
                 f"{name} rate {rate_ml_min:g} mL/min is outside this syringe's limits "
                 f"{low:.6g} to {high:.6g} mL/min ({command} lim); nothing was sent"
             )
-        self._command(f"{command} {format_rate(rate_ml_min)}")
-        self._verify(f"{name} rate", self._read_rate(command), rate_ml_min, "mL/min")
+        rate = format_rate(rate_ml_min)
+        self._command(f"{command} {rate}")
+        self._verify(f"{name} rate", read_rate, self._query(command).text, rate)
 
     def _read_rate(self, command: str) -> float:
         return parse_rate_ml_min(self._query(command).text)
@@ -447,8 +472,9 @@ class PhdUltra:
     def set_target_volume(self, volume_ml: float) -> None:
         if not (math.isfinite(volume_ml) and volume_ml > 0):
             raise PumpLimitError(f"target volume must be > 0 mL, got {volume_ml:g}")
-        self._command(f"tvolume {format_volume(volume_ml)}")
-        self._verify("target volume", self.target_volume_ml(), volume_ml, "mL")
+        volume = format_volume(volume_ml)
+        self._command(f"tvolume {volume}")
+        self._verify("target volume", read_target, self._query("tvolume").text, volume)
 
     def target_volume_ml(self) -> float | None:
         """The target volume, or None when none is set."""
@@ -466,9 +492,15 @@ class PhdUltra:
             self._query("wvolume").text
         ) if self.can_withdraw else 0.0
 
-    def _verify(self, what: str, got: float | None, wanted: float, unit: str) -> None:
-        if got is None or not math.isclose(got, wanted, rel_tol=READBACK_REL_TOL):
-            raise PumpError(f"the pump reports {what} {got} {unit} after being set to {wanted:g}")
+    def _verify(
+        self, what: str, read: Callable[[str], Reading | None], reply: str, sent: str
+    ) -> None:
+        """The readback ``reply`` must be the value ``sent``, to the digits each was
+        printed with: the pump prints in its own unit and precision (``60 ml`` for
+        ``60.0000 ml``). ``read`` reads both texts."""
+        got = read(reply)
+        if got is None or not agrees(got, read(sent)):
+            raise PumpError(f"the pump reports {what} {reply!r} after being set to {sent!r}")
 
     # ---- running -------------------------------------------------------------------
 

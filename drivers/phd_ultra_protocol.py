@@ -56,11 +56,16 @@ _PROMPT_STATES = {
     "*": PumpState.STALLED,
 }
 
-# Unit factors: volumes to mL, time units to minutes.
-_VOLUME_ML = {"ml": 1.0, "ul": 1e-3, "µl": 1e-3, "nl": 1e-6, "pl": 1e-9}
-_TIME_MIN = {"min": 1.0, "hr": 60.0, "h": 60.0, "s": 1 / 60, "sec": 1 / 60}
+# Unit factors: volumes to mL, time units to minutes. Replies are printable ASCII
+# (anything else is a protocol error), so the units are the ASCII forms a pump prints:
+# `ul`, never `µl`; a rate's time base as `min`, `hr` or `sec`, or their one-letter forms.
+_VOLUME_ML = {"ml": 1.0, "ul": 1e-3, "nl": 1e-6, "pl": 1e-9}
+_TIME_MIN = {"min": 1.0, "m": 1.0, "hr": 60.0, "h": 60.0, "sec": 1 / 60, "s": 1 / 60}
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _QUANTITY = re.compile(rf"^\s*(?P<value>{_NUMBER})\s*(?P<unit>[^\s\d]\S*)\s*$")
+# The capability line of `metrics` (flowchem reads it from a Pump 11 Elite):
+# `Direction          Infuse/withdraw`, or `Infuse only` on an infuse-only model.
+_DIRECTION_LINE = re.compile(r"^\s*direction\b\s*(?P<value>.*)$", re.IGNORECASE)
 
 # The pump's refusals, most specific first: "Out of range" comes as the detail line of
 # an "Argument error", "Unknown command" as the detail of a "Command error".
@@ -200,36 +205,82 @@ def check_refusal(reply: Reply, command: str) -> None:
             raise error(command, reply.text)
 
 
-def _quantity(text: str, what: str) -> tuple[float, str]:
+@dataclass(frozen=True)
+class Reading:
+    """A value read from the pump, in mL, mL/min or mm, and half a step of its last
+    printed digit in the same unit: how far the true value may be from it
+    (``'60 ml'``: 0.5 mL; ``'15.3477 ml/min'``: 0.00005 mL/min)."""
+
+    value: float
+    half_step: float
+
+
+def _quantity(text: str, what: str) -> tuple[float, str, float]:
+    """(value, unit, half a step of the last printed digit) of ``'1.5 ml'``."""
     match = _QUANTITY.match(text)
     if match is None:
         raise PumpProtocolError(f"expected a {what} with its unit, got {text!r}")
-    return float(match["value"]), match["unit"].lower()
+    mantissa, _, exponent = match["value"].lower().partition("e")
+    decimals = len(mantissa.partition(".")[2]) - int(exponent or 0)
+    return float(match["value"]), match["unit"].lower(), 0.5 * 10.0**-decimals
+
+
+def read_volume(text: str) -> Reading:
+    """``'1.234 ml'``, ``'0 ul'`` -> mL, with the printed resolution."""
+    value, unit, half_step = _quantity(text, "volume")
+    if unit not in _VOLUME_ML:
+        raise PumpProtocolError(f"unknown volume unit in {text!r}")
+    return Reading(value * _VOLUME_ML[unit], half_step * _VOLUME_ML[unit])
+
+
+def read_rate(text: str) -> Reading:
+    """``'15.3477 ml/min'``, ``'14.7792 nl/min'``, ``'2 ul/hr'`` -> mL/min, with the
+    printed resolution."""
+    value, unit, half_step = _quantity(text, "rate")
+    volume_unit, _, time_unit = unit.partition("/")
+    if volume_unit not in _VOLUME_ML or time_unit not in _TIME_MIN:
+        raise PumpProtocolError(f"unknown rate unit in {text!r}")
+    factor = _VOLUME_ML[volume_unit] / _TIME_MIN[time_unit]
+    return Reading(value * factor, half_step * factor)
+
+
+def read_diameter(text: str) -> Reading:
+    """``'9.5250 mm'`` -> mm, with the printed resolution."""
+    value, unit, half_step = _quantity(text, "diameter")
+    if unit != "mm":
+        raise PumpProtocolError(f"expected a diameter in mm, got {text!r}")
+    return Reading(value, half_step)
 
 
 def parse_volume_ml(text: str) -> float:
     """``'1.234 ml'``, ``'0 ul'`` -> mL."""
-    value, unit = _quantity(text, "volume")
-    if unit not in _VOLUME_ML:
-        raise PumpProtocolError(f"unknown volume unit in {text!r}")
-    return value * _VOLUME_ML[unit]
+    return read_volume(text).value
 
 
 def parse_rate_ml_min(text: str) -> float:
     """``'15.3477 ml/min'``, ``'14.7792 nl/min'``, ``'2 ul/hr'`` -> mL/min."""
-    value, unit = _quantity(text, "rate")
-    volume_unit, _, time_unit = unit.partition("/")
-    if volume_unit not in _VOLUME_ML or time_unit not in _TIME_MIN:
-        raise PumpProtocolError(f"unknown rate unit in {text!r}")
-    return value * _VOLUME_ML[volume_unit] / _TIME_MIN[time_unit]
+    return read_rate(text).value
 
 
 def parse_diameter_mm(text: str) -> float:
     """``'9.5250 mm'`` -> mm."""
-    value, unit = _quantity(text, "diameter")
-    if unit != "mm":
-        raise PumpProtocolError(f"expected a diameter in mm, got {text!r}")
-    return value
+    return read_diameter(text).value
+
+
+def agrees(reading: Reading, sent: Reading) -> bool:
+    """Whether a readback is the value that was sent, to the precision both were
+    printed with (the pump may print fewer digits, or another unit, than were sent)."""
+    tolerance = reading.half_step + sent.half_step + 1e-9 * abs(sent.value)
+    return abs(reading.value - sent.value) <= tolerance
+
+
+def parse_can_withdraw(lines: tuple[str, ...]) -> bool | None:
+    """The ``metrics`` reply's Direction line: True for ``Infuse/withdraw``, False for
+    an infuse-only model, None when the reply has no Direction line."""
+    for line in lines:
+        if match := _DIRECTION_LINE.match(line):
+            return "withdraw" in match["value"].lower()
+    return None
 
 
 def parse_rate_limits(text: str) -> tuple[float, float]:
@@ -261,21 +312,28 @@ def force_limit_pressure_kpa(force_pct: float, rated_force_n: float, diameter_mm
 
 def parse_target_ml(text: str) -> float | None:
     """``'5 ml'`` -> 5.0; ``'Target volume not set'`` -> None."""
+    reading = read_target(text)
+    return None if reading is None else reading.value
+
+
+def read_target(text: str) -> Reading | None:
+    """The ``tvolume`` reply with its printed resolution; None when no target is set."""
     if "not set" in text.lower():
         return None
-    return parse_volume_ml(text)
+    return read_volume(text)
 
 
 @dataclass(frozen=True)
 class StatusLine:
     """The ``status`` reply: rate, time and volume for the current direction, and flags.
 
-    The time field is read as milliseconds (chembot and a second driver on real pumps;
-    the manual says seconds: unverified). Nothing in labrig relies on it.
+    The time field is in seconds: the PHD ULTRA manual, "The second integer is the
+    infuse time in seconds". (chembot parses it as milliseconds, but quotes no reply
+    that shows it.) Nothing in labrig relies on it.
     """
 
     rate_ml_min: float
-    time_ms: int
+    time_s: int
     volume_ml: float
     direction: str  # "i" or "w"
     running: bool
@@ -287,7 +345,7 @@ _STATUS = re.compile(r"^(\d+)\s+(\d+)\s+(\d+)\s+([iIwW][.A-Za-z]{4,5})$")
 
 
 def parse_status_line(text: str) -> StatusLine:
-    """``'16666666667 1500 25000000000 I..TI.'`` -> StatusLine (fL/s, ms, fL, flags).
+    """``'16666666667 15 25000000000 I..TI.'`` -> StatusLine (fL/s, s, fL, flags).
 
     Flags (as chembot reads them from real pumps): direction (upper case while running),
     limit switch, stall ``S``, trigger, direction port, and on newer firmware a sixth
@@ -296,10 +354,10 @@ def parse_status_line(text: str) -> StatusLine:
     match = _STATUS.match(text.strip())
     if match is None:
         raise PumpProtocolError(f"expected 'rate time volume flags' from status, got {text!r}")
-    rate_fl_s, time_ms, volume_fl, flags = match.groups()
+    rate_fl_s, time_s, volume_fl, flags = match.groups()
     return StatusLine(
         rate_ml_min=int(rate_fl_s) * 60 / FL_PER_ML,
-        time_ms=int(time_ms),
+        time_s=int(time_s),
         volume_ml=int(volume_fl) / FL_PER_ML,
         direction=flags[0].lower(),
         running=flags[0].isupper(),

@@ -10,16 +10,20 @@ The load is whatever is attached: ``load_pressure_kpa(t)`` is called with
 non-decreasing clock times, never under this object's lock, so a plant may call
 ``net_volume_ml`` from it.
 
+It answers every command of ``sim.pump_commands.COMMANDS`` (the run, rate, volume,
+time, ramp and syringe commands here; the system, method and I/O settings in
+``sim.pump_panel``; the syringe table in ``sim.pump_syringes``), by its full name or
+its first four letters, with an optional ``@`` before it (chembot) and an address
+before that. Numbers and units are read and printed as the firmware does
+(``sim.pump_units``), refusals in the firmware's error texts (``sim.pump_refusals``).
+
 Models of the real pumps the driver must meet are options: the poll mode
 it was left in (``poll on``: XON after each prompt; ``poll remote``: no prompts),
 strict addressing (one address form is answered, any other ignored, as by a pump that
 reads it as meant for another: the manual's form is none at address 0 and ``N:cmd``
-elsewhere, ``manual_address_form``),
-an infuse-only model (every withdraw command refused as unknown), and the memory
-command the firmware knows (``nvram``, ``rsave`` or neither).
-
-Units, parsing and formatting are written here independently of the driver's protocol
-module on purpose: a shared unit table would hide a unit error from every test.
+elsewhere, ``manual_address_form``; ``"real"``: the forms real pumps are seen to take),
+an infuse-only model (every withdraw command refused as unknown, and ``metrics`` says
+so), and the memory command the firmware knows (``nvram``, ``rsave`` or neither).
 """
 
 from __future__ import annotations
@@ -35,6 +39,16 @@ from labrig.drivers.phd_ultra_protocol import ADDRESS_FORMS, rate_limits_ml_min
 from labrig.rig.devices import PumpState
 from labrig.time.clock import Clock
 
+from .pump_commands import WITHDRAW_COMMANDS
+from .pump_panel import PanelSettings
+from .pump_quantity_commands import DIAMETER_RANGE_MM, QuantityCommands, Ramp
+from .pump_refusals import Refused, argument_error, command_error, range_error, unknown_command
+from .pump_syringes import SyringeChoice, manufacturer_lines
+from .pump_units import (
+    clock_text,
+    number_text,
+    volume_text,
+)
 from .syringe_drive import INFUSE, WITHDRAW, SyringeDrive
 
 log = logging.getLogger(__name__)
@@ -47,64 +61,19 @@ DEFAULT_DIAMETER_MM = 26.7
 DEFAULT_SYRINGE_ML = 60.0
 # PHD ULTRA catalogue: 75 lbf linear force at 100 % force (unverified).
 MAX_FORCE_N = 75 * 4.4482216
-DIAMETER_RANGE_MM = (0.1, 50.0)
-
-_VOLUME_ML = {"ml": 1.0, "ul": 1e-3, "nl": 1e-6, "pl": 1e-9}
-_TIME_MIN = {"min": 1.0, "hr": 60.0}
-_RATE_SCALE = (("ml/min", 1.0), ("ul/min", 1e-3), ("nl/min", 1e-6), ("pl/min", 1e-9))
-_VOLUME_SCALE = (("ml", 1.0), ("ul", 1e-3), ("nl", 1e-6), ("pl", 1e-9))
 _COMMAND = re.compile(
     r"^(?:(?P<address>\d{1,2})(?P<colon>:)?)?@?(?P<word>[A-Za-z]*)\s*(?P<arg>.*)$"
 )
 POLL_MODES = ("off", "on", "remote")
 MEMORY_COMMANDS = ("nvram", "rsave", None)
-# What an infuse-only PHD ULTRA does not know (flowchem: "Unknown command" for a
-# withdraw command sent to an infuse-only pump).
-WITHDRAW_COMMANDS = frozenset(
-    {"wrate", "wrun", "rrun", "wvolume", "cwvolume", "wtime", "cwtime", "wramp"}
-)
-
-
-class _Refused(Exception):
-    """A command the pump answers with an error text (``lines``)."""
-
-    def __init__(self, *lines: str) -> None:
-        super().__init__(lines[0])
-        self.lines = list(lines)
+# The address forms real pumps are seen to answer: at address 0 none (the manual, chembot)
+# or the digits `0`/`00` (flowchem, BioCAT); elsewhere the manual's `N:`.
+REAL_ADDRESSING = "real"
 
 
 def manual_address_form(address: int) -> str:
     """The form the PHD ULTRA manual uses: an address only when it is not 0, as ``N:``."""
     return "none" if address == 0 else "colon"
-
-
-def _argument_error(arg: str, detail: str = "Unknown argument") -> _Refused:
-    # chembot's quote from a real pump: 'Argument error: [on]' then '   Unknown argument'.
-    return _Refused(f"Argument error: [{arg}]", f"   {detail}")
-
-
-def _not_now(word: str, detail: str) -> _Refused:
-    return _Refused(f"Command error: [{word}]", f"   {detail}")
-
-
-def _number(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise _argument_error(text) from None
-    if not math.isfinite(value):
-        raise _argument_error(text)
-    return value
-
-
-def _scaled(value: float, scale) -> str:
-    if value == 0:
-        return f"0 {scale[1][0]}"  # the pump shows an empty counter as '0 ul'
-    for unit, factor in scale:
-        if abs(value) >= factor:
-            return f"{value / factor:.4f} {unit}"
-    unit, factor = scale[-1]
-    return f"{value / factor:.4f} {unit}"
 
 
 @dataclass(frozen=True)
@@ -117,7 +86,7 @@ class Answer:
     state: PumpState
 
 
-class PumpFirmware:
+class PumpFirmware(QuantityCommands):
     """A PHD ULTRA's command interpreter and plunger. Thread-safe."""
 
     def __init__(
@@ -141,8 +110,8 @@ class PumpFirmware:
         force setting and the plunger area (``max_force_n`` at 100 %).
         ``on_target_reached`` is called (under the lock) when a run reaches its target.
         ``poll_mode`` is the mode the pump was left in; ``strict_address_form`` (one of
-        ``ADDRESS_FORMS``) is the only address form answered, None answers any;
-        ``infuse_only`` refuses withdraw commands;
+        ``ADDRESS_FORMS``, or ``REAL_ADDRESSING``) is the only address form answered,
+        None answers any; ``infuse_only`` refuses withdraw commands;
         ``memory_command`` is the command that switches memory writes (or None);
         ``echo_settings``: the memory and force settings are answered with a line of
         text saying what was set (firmware seen to confirm them so), not a bare prompt."""
@@ -152,14 +121,15 @@ class PumpFirmware:
             raise ValueError(f"poll_mode must be one of {POLL_MODES}, got {poll_mode!r}")
         if memory_command not in MEMORY_COMMANDS:
             raise ValueError(f"memory_command must be one of {MEMORY_COMMANDS}")
-        if strict_address_form not in (*ADDRESS_FORMS, None):
-            raise ValueError(f"strict_address_form must be one of {ADDRESS_FORMS} or None")
+        if strict_address_form not in (*ADDRESS_FORMS, REAL_ADDRESSING, None):
+            raise ValueError(
+                f"strict_address_form must be one of {ADDRESS_FORMS}, {REAL_ADDRESSING!r} or None"
+            )
         self.poll_mode = poll_mode
         self.strict_address_form = strict_address_form
         self.infuse_only = infuse_only
         self.echo_settings = echo_settings
         self.clock = clock
-        self.address = address
         self.max_force_n = max_force_n
         self._load = load_pressure_kpa
         self._fixed_stall_kpa = stall_pressure_kpa
@@ -167,32 +137,49 @@ class PumpFirmware:
         self._lock = threading.RLock()
         self._drive = SyringeDrive(clock.now())
         self._generation = 0  # bumped by every change of motion, for the load check
+        self._panel = PanelSettings(address)
         self._diameter_mm = diameter_mm
-        self._syringe = (syringe_ml, "ml")
-        # Set rate per direction in mL/min, with the unit it was set in (the pump shows
-        # a rate in the unit it was given).
-        self._rates = {INFUSE: (1.0, "ml/min"), WITHDRAW: (1.0, "ml/min")}
-        self._target_unit = "ml"
+        self._syringe_ml = syringe_ml
+        self._syringe_choice: SyringeChoice | None = None
+        self._gang = 1
+        # Set rate per direction in mL/min, with the time base it was set in (the pump
+        # shows a rate per minute, hour or second as it was given).
+        self._rates = {INFUSE: (1.0, "min"), WITHDRAW: (1.0, "min")}
+        self._ramps: dict[str, Ramp | None] = {INFUSE: None, WITHDRAW: None}
+        self._ramp_start_s = 0.0
         self._force_pct = 100
         self._nvram = "on"
         self._stall_armed = False
-        self._commands = {
-            "": lambda arg, now: [],
-            "ver": self._ver,
+        handlers = {
+            "ver": lambda arg, now: [FIRMWARE],
             "version": self._version,
+            "metrics": self._metrics,
             "poll": lambda arg, now: self._choice(arg, "poll_mode", POLL_MODES),
             "force": self._force,
             "diameter": self._diameter,
             "svolume": self._svolume,
+            "syrm": self._syrm,
+            "syrmanu": lambda arg, now: manufacturer_lines(arg),
+            "gang": self._gang_command,
             "irate": lambda arg, now: self._rate(INFUSE, arg, now),
             "wrate": lambda arg, now: self._rate(WITHDRAW, arg, now),
+            "crate": self._crate,
+            "iramp": lambda arg, now: self._ramp(INFUSE, arg),
+            "wramp": lambda arg, now: self._ramp(WITHDRAW, arg),
             "tvolume": self._tvolume,
-            "ivolume": lambda arg, now: [self._volume_text(INFUSE, now)],
-            "wvolume": lambda arg, now: [self._volume_text(WITHDRAW, now)],
-            "civolume": lambda arg, now: self._clear((INFUSE,), now),
-            "cwvolume": lambda arg, now: self._clear((WITHDRAW,), now),
-            "cvolume": lambda arg, now: self._clear((INFUSE, WITHDRAW), now),
-            "ctvolume": lambda arg, now: self._set_target(None, now),
+            "ivolume": lambda arg, now: [volume_text(self._drive.counted_ml(INFUSE, now))],
+            "wvolume": lambda arg, now: [volume_text(self._drive.counted_ml(WITHDRAW, now))],
+            "civolume": lambda arg, now: self._clear(self._drive.clear, (INFUSE,), now),
+            "cwvolume": lambda arg, now: self._clear(self._drive.clear, (WITHDRAW,), now),
+            "cvolume": lambda arg, now: self._clear(self._drive.clear, (INFUSE, WITHDRAW), now),
+            "ctvolume": lambda arg, now: self._drive.set_target(None, now) or [],
+            "itime": lambda arg, now: [clock_text(self._drive.run_time_s(INFUSE, now))],
+            "wtime": lambda arg, now: [clock_text(self._drive.run_time_s(WITHDRAW, now))],
+            "ttime": self._ttime,
+            "citime": lambda arg, now: self._clear(self._drive.clear_time, (INFUSE,), now),
+            "cwtime": lambda arg, now: self._clear(self._drive.clear_time, (WITHDRAW,), now),
+            "ctime": lambda arg, now: self._clear(self._drive.clear_time, (INFUSE, WITHDRAW), now),
+            "cttime": lambda arg, now: self._drive.set_target_time(None, now) or [],
             "irun": lambda arg, now: self._run(INFUSE, now),
             "wrun": lambda arg, now: self._run(WITHDRAW, now),
             "run": lambda arg, now: self._run(self._drive.direction, now),
@@ -203,15 +190,31 @@ class PumpFirmware:
             "stp": self._stop,
             "status": self._status,
         }
+        for name, handler in self._panel.handlers.items():
+            handlers[name] = lambda arg, now, handler=handler: handler(arg)
         if memory_command is not None:
             words = ("on", "off", "none") if memory_command == "nvram" else ("on", "off")
-            self._commands[memory_command] = lambda arg, now: self._echoed(
+            handlers[memory_command] = lambda arg, now: self._echoed(
                 self._choice(arg, "_nvram", words), f"{memory_command.upper()} {arg}"
             )
-        # The manual: any command can be shortened to its first 4 letters.
-        self._aliases = {name[:4]: name for name in self._commands if len(name) > 4}
+        self._commands = handlers
+        # The manual: any command can be shortened to its first 4 letters (where that
+        # is not itself a command: `syrm` is not `syrmanu`).
+        self._aliases = {
+            name[:4]: name for name in handlers if len(name) > 4 and name[:4] not in handlers
+        }
 
     # ---- what the plant, the server and tests read ---------------------------------
+
+    @property
+    def address(self) -> int:
+        """The pump's address (the ``address`` command changes it)."""
+        return self._panel.address
+
+    @property
+    def commands(self) -> frozenset[str]:
+        """Every command this firmware answers, by its full name."""
+        return frozenset(self._commands)
 
     def net_volume_ml(self, t_s: float) -> float:
         """Infused minus withdrawn at clock time ``t_s`` since the pump was made: the
@@ -232,7 +235,7 @@ class PumpFirmware:
 
     @property
     def target_stop_s(self) -> float:
-        """When the current motion reaches its target volume (inf: it does not)."""
+        """When the current motion reaches its target volume or time (inf: it does not)."""
         with self._lock:
             return self._drive.end_s()
 
@@ -262,9 +265,11 @@ class PumpFirmware:
                 self._stall_armed = True
 
     def tick(self, now: float) -> None:
-        """Let time pass to ``now``: the target stop, then the load check."""
+        """Let time pass to ``now``: the target stop, a ramp's next step, then the load
+        check."""
         with self._lock:
             self._advance(now)
+            self._step_ramp(now)
         self._check_load(now)
 
     def execute(self, line: str) -> Answer | None:
@@ -290,17 +295,21 @@ class PumpFirmware:
             return False
         else:
             form = "colon" if match["colon"] else "digits"
+        if self.strict_address_form == REAL_ADDRESSING:
+            return form in (("none", "digits") if self.address == 0 else ("colon",))
         return self.strict_address_form in (None, form)
 
     def _dispatch(self, name: str, arg: str, now: float) -> list[str]:
         handler = self._commands.get(name)
         if self.infuse_only and name in WITHDRAW_COMMANDS:
             handler = None
-        if handler is None or (not name and arg):
-            return [f"Command error: [{name or arg}]", "   Unknown command"]
         try:
+            if handler is None:
+                if name or arg:
+                    raise unknown_command(name or arg)
+                return []  # an empty line: the prompt alone (flowchem's status check)
             return handler(arg, now)
-        except _Refused as refusal:
+        except Refused as refusal:
             return refusal.lines
 
     def _state(self) -> PumpState:
@@ -321,6 +330,14 @@ class PumpFirmware:
     def _halt(self, t_s: float, *, stalled: bool = False) -> None:
         self._drive.halt(max(t_s, self._drive.t0_s), stalled=stalled)
         self._generation += 1
+
+    def _step_ramp(self, now: float) -> None:
+        drive = self._drive
+        ramp = self._ramps[drive.direction]
+        if drive.running and ramp is not None:
+            rate = ramp.rate_ml_min(now - self._ramp_start_s)
+            if rate != drive.rate_ml_min:
+                drive.change_rate(rate, now)
 
     def _check_load(self, now: float) -> None:
         """Stall if the load pushes back harder than the force limit. The load function
@@ -350,10 +367,7 @@ class PumpFirmware:
                 log.info("stalled at t=%.3f s: load %.1f kPa, limit %.1f kPa", now, load_kpa, limit)
                 self._halt(now, stalled=True)
 
-    # ---- commands ----------------------------------------------------------------
-
-    def _ver(self, arg: str, now: float) -> list[str]:
-        return [FIRMWARE]
+    # ---- system commands ---------------------------------------------------------
 
     def _version(self, arg: str, now: float) -> list[str]:
         return [
@@ -362,12 +376,29 @@ class PumpFirmware:
             f"Serial number: {SERIAL_NUMBER}",
         ]
 
+    def _metrics(self, arg: str, now: float) -> list[str]:
+        """The layout flowchem quotes from a Pump 11 Elite, with the PHD ULTRA's figures;
+        the Direction line is what tells a client whether the pump withdraws."""
+        direction = "Infuse only" if self.infuse_only else "Infuse/withdraw"
+        model = f"{FIRMWARE.rsplit(' ', 1)[0]} {'I' if self.infuse_only else 'I/W'}"
+        rows = (
+            ("Pump type", FIRMWARE.rsplit(" ", 1)[0]),
+            ("Pump type string", model),
+            ("Min syringe size", f"{number_text(DIAMETER_RANGE_MM[0])} mm"),
+            ("Max syringe size", f"{number_text(DIAMETER_RANGE_MM[1])} mm"),
+            ("Direction", direction),
+            ("Programmable", "Yes"),
+            ("Limit switches", "No"),
+        )
+        return [f"{name:<19}{value}" for name, value in rows]
+
     def _choice(self, arg: str, attribute: str, allowed: tuple[str, ...]) -> list[str]:
-        """A command that shows or sets one of a few words (``poll``, ``nvram``, ``rsave``)."""
+        """A command that shows (capitalised: ``Off``) or sets one of a few words
+        (``poll``, ``nvram``, ``rsave``)."""
         if not arg:
-            return [getattr(self, attribute)]
+            return [getattr(self, attribute).capitalize()]
         if arg.lower() not in allowed:
-            raise _argument_error(arg)
+            raise argument_error(arg)
         setattr(self, attribute, arg.lower())
         return []
 
@@ -375,9 +406,9 @@ class PumpFirmware:
         if not arg:
             return [f"{self._force_pct}%"]
         if not arg.isdigit():
-            raise _argument_error(arg)
+            raise argument_error(arg)
         if not 1 <= int(arg) <= 100:
-            raise _argument_error(arg, "Out of range")
+            raise range_error(arg, "Force", "1%", "100%")
         self._force_pct = int(arg)
         return self._echoed([], f"Force = {self._force_pct}%")
 
@@ -386,93 +417,17 @@ class PumpFirmware:
         ``text`` with ``echo_settings``."""
         return [text] if self.echo_settings and not lines else lines
 
-    def _diameter(self, arg: str, now: float) -> list[str]:
-        if not arg:
-            return [f"{self._diameter_mm:.4f} mm"]
-        self._refuse_while_running("diameter")
-        value = _number(arg)
-        if not DIAMETER_RANGE_MM[0] <= value <= DIAMETER_RANGE_MM[1]:
-            raise _argument_error(arg, "Out of range")
-        self._diameter_mm = value
-        # The new syringe's limits apply to the rates already set.
-        low, high = self.rate_limits_ml_min
-        for direction, (rate, unit) in self._rates.items():
-            self._rates[direction] = (min(max(rate, low), high), unit)
-        return []
-
-    def _svolume(self, arg: str, now: float) -> list[str]:
-        if not arg:
-            value, unit = self._syringe
-            return [f"{value / _VOLUME_ML[unit]:.4f} {unit}"]
-        self._refuse_while_running("svolume")
-        value_ml, unit = self._quantity(arg, {"ml", "ul"})
-        self._syringe = (value_ml, unit)
-        return []
-
-    def _refuse_while_running(self, word: str) -> None:
-        if self._drive.running:
-            raise _not_now(word, "Not allowed while running")
-
-    def _quantity(self, arg: str, units: set[str]) -> tuple[float, str]:
-        """'5 ml' -> (5.0 mL, 'ml'); positive values in one of ``units`` only."""
-        parts = arg.split()
-        if len(parts) != 2 or parts[1].lower() not in units:
-            raise _argument_error(arg)
-        value = _number(parts[0])
-        if value <= 0:
-            raise _argument_error(arg, "Out of range")
-        unit = parts[1].lower()
-        return value * _VOLUME_ML[unit], unit
-
-    def _rate(self, direction: str, arg: str, now: float) -> list[str]:
-        rate, unit = self._rates[direction]
-        low, high = self.rate_limits_ml_min
-        if not arg:
-            factor = _VOLUME_ML[unit.split("/")[0]] / _TIME_MIN[unit.split("/")[1]]
-            return [f"{rate / factor:.4f} {unit}"]
-        if arg.lower() == "lim":
-            return [f"{_scaled(low, _RATE_SCALE)} to {_scaled(high, _RATE_SCALE)}"]
-        if arg.lower() in ("max", "min"):
-            new_rate = high if arg.lower() == "max" else low
-        else:
-            parts = arg.split()
-            if len(parts) != 2:
-                raise _argument_error(arg)
-            volume_unit, _, time_unit = parts[1].lower().partition("/")
-            if volume_unit not in _VOLUME_ML or time_unit not in _TIME_MIN:
-                raise _argument_error(parts[1])
-            unit = parts[1].lower()
-            new_rate = _number(parts[0]) * _VOLUME_ML[volume_unit] / _TIME_MIN[time_unit]
-            if not low * (1 - 1e-9) <= new_rate <= high * (1 + 1e-9):
-                raise _argument_error(parts[0], "Out of range")
-        self._rates[direction] = (new_rate, unit)
-        if self._drive.running and self._drive.direction == direction:
-            self._drive.change_rate(new_rate, now)
-        return []
-
-    def _tvolume(self, arg: str, now: float) -> list[str]:
-        target = self._drive.target_ml
-        if not arg:
-            if target is None:
-                return ["Target volume not set"]
-            return [f"{target / _VOLUME_ML[self._target_unit]:.4f} {self._target_unit}"]
-        target_ml, self._target_unit = self._quantity(arg, set(_VOLUME_ML))
-        return self._set_target(target_ml, now)
-
-    def _set_target(self, target_ml: float | None, now: float) -> list[str]:
-        self._drive.set_target(target_ml, now)
-        return []
-
-    def _volume_text(self, direction: str, now: float) -> str:
-        return _scaled(self._drive.counted_ml(direction, now), _VOLUME_SCALE)
-
-    def _clear(self, directions: tuple[str, ...], now: float) -> list[str]:
-        for direction in directions:
-            self._drive.clear(direction, now)
-        return []
+    # ---- running -------------------------------------------------------------------
 
     def _run(self, direction: str, now: float) -> list[str]:
-        self._drive.start(direction, self._rates[direction][0], now)
+        if not self._panel.allows(direction):
+            raise command_error(
+                f"{direction}run", f"Not allowed in Quick Start {self._panel.quick_start}"
+            )
+        ramp = self._ramps[direction]
+        self._ramp_start_s = now
+        rate = ramp.start_ml_min if ramp else self._rates[direction][0]
+        self._drive.start(direction, rate, now)
         return []
 
     def _stop(self, arg: str, now: float) -> list[str]:
@@ -480,11 +435,14 @@ class PumpFirmware:
         return []
 
     def _status(self, arg: str, now: float) -> list[str]:
+        """Rate (fL/s), time (whole seconds, as the manual gives it), volume (fL) for
+        the current direction, and six flags (five in the manual; a real PHD ULTRA 3.0.5
+        is quoted with a sixth, target reached)."""
         drive = self._drive
         direction = drive.direction
         # The rate field is the motor's rate: 0 when it stands (the real '0 0 0 w..TI.').
         rate_fl_s = round(drive.rate_ml_min * 1e12 / 60) if drive.running else 0
-        time_ms = round(drive.run_time_s(direction, now) * 1e3)
+        time_s = math.floor(drive.run_time_s(direction, now) + 1e-9)
         volume_fl = round(drive.counted_ml(direction, now) * 1e12)
         flags = (
             (direction.upper() if drive.running else direction)
@@ -494,4 +452,4 @@ class PumpFirmware:
             + "I"  # direction port
             + ("T" if drive.target_reached else ".")
         )
-        return [f"{rate_fl_s} {time_ms} {volume_fl} {flags}"]
+        return [f"{rate_fl_s} {time_s} {volume_fl} {flags}"]

@@ -29,6 +29,7 @@ class SyringeDrive:
         self.stalled = False
         self.target_reached = False
         self.target_ml: float | None = None
+        self.target_s: float | None = None  # target time: run time in the direction
         self.rate_ml_min = 0.0
         self.t0_s = t_s
         self._counted0_ml = {INFUSE: 0.0, WITHDRAW: 0.0}
@@ -40,11 +41,17 @@ class SyringeDrive:
     # ---- reading ----------------------------------------------------------------
 
     def end_s(self) -> float:
-        """When the current motion reaches the target (inf with no target or no motion)."""
-        if not self.running or self.target_ml is None:
+        """When the current motion reaches its target volume or target time, whichever
+        comes first (inf with neither or no motion)."""
+        if not self.running or (self.target_ml is None and self.target_s is None):
             return math.inf
-        remaining_ml = self.target_ml - self._counted0_ml[self.direction]
-        end_s = self.t0_s + max(remaining_ml, 0.0) / (self.rate_ml_min / 60.0)
+        end_s = math.inf
+        if self.target_ml is not None:
+            remaining_ml = self.target_ml - self._counted0_ml[self.direction]
+            end_s = self.t0_s + max(remaining_ml, 0.0) / (self.rate_ml_min / 60.0)
+        if self.target_s is not None:
+            remaining_s = self.target_s - self._run0_s[self.direction]
+            end_s = min(end_s, self.t0_s + max(remaining_s, 0.0))
         # on the virtual clock's nanosecond grid, so a stop and a poll due at the same
         # instant coincide exactly instead of by the luck of floating-point rounding
         return round(end_s * 1e9) / 1e9
@@ -110,15 +117,24 @@ class SyringeDrive:
             self.target_reached = False
 
     def set_target(self, target_ml: float | None, t_s: float) -> None:
-        """A new target (None clears it). Anchoring first means a target below the
-        volume already moved ends the motion at the next ``settle``, not in the past."""
+        """A new target volume (None clears it). Anchoring first means a target below
+        the volume already moved ends the motion at the next ``settle``, not in the past."""
         self._anchor(t_s)
         self.target_ml = target_ml
 
+    def set_target_time(self, target_s: float | None, t_s: float) -> None:
+        """A new target time (None clears it), against the run time counter."""
+        self._anchor(t_s)
+        self.target_s = target_s
+
     def clear(self, direction: str, t_s: float) -> None:
-        """Zero one counter and its run time; the net volume is physical and stays."""
+        """Zero one volume counter; the net volume is physical and stays."""
         self._anchor(t_s)
         self._counted0_ml[direction] = 0.0
+
+    def clear_time(self, direction: str, t_s: float) -> None:
+        """Zero one run time counter."""
+        self._anchor(t_s)
         self._run0_s[direction] = 0.0
 
     def _anchor(self, t_s: float) -> None:

@@ -162,12 +162,22 @@ class ActuatorPath:
 
     @property
     def transitions(self) -> pd.DataFrame:
-        """One row per transition, the JSON's fields: v_ml (supplied volume just before
+        """One row per event of the path (every peak crossing and every snap), the
+        JSON's ``transitions``: v_ml (supplied volume just before
         it, mL), alpha, beta, stable (False: a snap at constant volume), dE, dv, dl, dp
         (normalised), direction."""
         import pandas as pd
 
         return pd.DataFrame(self.document["transitions"])
+
+    @property
+    def paper_transitions(self) -> pd.DataFrame:
+        """The transitions as the paper counts them (a peak crossing and the snap it
+        sets off are one): the JSON's ``paper_transitions``, each with ``events``, the
+        rows of ``transitions`` it is made of."""
+        import pandas as pd
+
+        return pd.DataFrame(self.document["paper_transitions"])
 
     def plot(self, ax: Axes | Sequence[Axes] | None = None) -> Axes | list[Axes]:
         """Draw what ``labrig model path --plot`` draws (p-v and l-v with the

@@ -465,6 +465,15 @@ class Run:
         return pd.DataFrame(self.comparison_document["transitions"])
 
     @property
+    def paper_comparison(self) -> pd.DataFrame:
+        """``comparison`` with the model's transitions counted as the paper counts them
+        (a peak crossing and the snap it sets off are one): ``labrig compare --json``'s
+        ``paper_transitions``."""
+        import pandas as pd
+
+        return pd.DataFrame(self.comparison_document["paper_transitions"])
+
+    @property
     def rmse(self) -> pd.Series:
         """RMSE of the mean against the model per phase and quantity (kPa, mm)."""
         import pandas as pd

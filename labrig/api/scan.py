@@ -20,6 +20,13 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
 
+def h5py_file(path: Path):
+    """The scan file, read-only and unlocked (a scan may be writing it)."""
+    import h5py
+
+    return h5py.File(path, "r", locking=False)
+
+
 def open_scan(path: str | Path) -> Scan:
     """Open a scan file, complete or cut short; ``InputError`` if it is not one."""
     from labrig.model.scan.scan_file import read_scan
@@ -62,13 +69,12 @@ class Scan:
         combination's rank), ``segment1`` ... ``segmentN`` (names), and the fields of
         ``labrig model path --json``: direction (+1 inflate, -1 deflate), v_ml (mL),
         alpha, beta, stable, dE, dv, dl, dp (normalised)."""
-        import h5py
         import pandas as pd
 
         from labrig.model.scan.scan import TRANSITION_FIELDS
 
         stop = len(self) if stop is None else min(stop, len(self))
-        with h5py.File(self.path, "r", locking=False) as h5:
+        with h5py_file(self.path) as h5:
             rows = h5["transitions"]
             table = {"actuator": rows["actuator"][start:stop]}
             indices = rows["segments"][start:stop]
@@ -81,15 +87,35 @@ class Scan:
 
     @property
     def transitions(self) -> pd.DataFrame:
-        """Every transition of the scan (``table()``)."""
+        """Every row of the scan: the paths' events (``table()``)."""
         return self.table()
+
+    @property
+    def paper_transitions(self) -> pd.DataFrame:
+        """The transitions as the paper counts them (a peak crossing and the snap it
+        sets off are one; what ``labrig model scan-summary`` counts and Fig. 4 draws):
+        ``actuator``, ``segment1`` ... ``segmentN``, the event fields (dE, dv, dl, dp
+        summed over the events) and ``first``, the row of its first event in
+        ``transitions``."""
+        import pandas as pd
+
+        from labrig.model.scan.scan_summary import paper_columns
+
+        columns = dict(paper_columns(self.data))
+        table = {"actuator": columns.pop("actuator")}
+        with h5py_file(self.path) as h5:
+            indices = h5["transitions/segments"][:][columns["first"]]
+        names = np.asarray(self.names, dtype=object)
+        for i in range(self.n):
+            table[f"segment{i + 1}"] = names[indices[:, i]]
+        return pd.DataFrame({**table, **columns})
 
     def plot(self, ax: Axes | Sequence[Axes] | None = None) -> Axes | list[Axes]:
         """Draw what ``labrig model scan --plot`` draws (the paper's Fig. 4 A-C: dv, dl,
-        dp against dE, coloured by (alpha, beta)) on ``ax``: one Axes (dv), three, or
-        None (a new figure)."""
-        from labrig.model.scan.scan_summary import draw_fig4
+        dp against dE of the paper's transitions, coloured by (alpha, beta)) on ``ax``:
+        one Axes (dv), three, or None (a new figure)."""
+        from labrig.model.scan.scan_summary import draw_fig4, paper_columns
 
         axes, shown = panel_axes(ax, 3)
-        draw_fig4(axes, self.data)
+        draw_fig4(axes, paper_columns(self.data))
         return shown

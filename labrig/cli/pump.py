@@ -229,7 +229,8 @@ def _follow(driver) -> None:
     type=click.Choice(["plain", "prefixed"]),
     default="plain",
     show_default=True,
-    help="plain: PHD ULTRA lines; prefixed: each line starts with the prompt.",
+    help="plain: PHD ULTRA lines; prefixed: each line starts with the address and prompt "
+    "(00:), as a Pump 11 Elite answers flowchem.",
 )
 @click.option(
     "--poll",
@@ -241,7 +242,8 @@ def _follow(driver) -> None:
 @click.option(
     "--strict-address",
     is_flag=True,
-    help="Answer only the manual's address form (none at 0, N:cmd otherwise).",
+    help="Answer only the address forms real pumps take (none, 0 or 00 at address 0; "
+    "N:cmd elsewhere) and ignore the others.",
 )
 @click.option("--infuse-only", is_flag=True, help="An infuse-only model: refuse withdraw commands.")
 @click.pass_context
@@ -256,9 +258,23 @@ def emulate(
 ) -> None:
     """Serve an emulated PHD ULTRA on a pseudo-terminal.
 
-    Prints the device path to connect to, then serves until Ctrl-C."""
+    Prints the device path (/dev/pts/N) on stdout, then serves until Ctrl-C or SIGTERM.
+    Any program that opens a serial port can drive it: open that path at 115200 baud,
+    8N1, no flow control (a pseudo-terminal takes any baud rate) and send the Ultra
+    command set, each command ended by CR, LF or CR LF.
+
+    \b
+    A terminal:  picocom -b 115200 /dev/pts/N      (Enter sends CR)
+                 screen /dev/pts/N 115200
+                 python -m serial.tools.miniterm /dev/pts/N 115200
+    flowchem:    labrig pump emulate --reply-style prefixed, then
+                 port = "/dev/pts/N" in its Elite11 device configuration
+    LabVIEW:     VISA resource ASRL/dev/pts/N::INSTR (Linux), termination CR
+
+    The full list of commands it answers, and a worked example, are in
+    docs/reference/pump.md and docs/how-to/pointing-a-program-at-the-pump-emulator.md."""
     from labrig.sim.pump import PumpEmulator
-    from labrig.sim.pump_firmware import manual_address_form
+    from labrig.sim.pump_firmware import REAL_ADDRESSING
     from labrig.time.clock import RealClock, ScaledClock
 
     address = ctx.obj["address"] if emulated_address is None else emulated_address
@@ -270,7 +286,7 @@ def emulate(
         address=address,
         reply_style=reply_style,
         poll_mode=poll,
-        strict_address_form=manual_address_form(address) if strict_address else None,
+        strict_address_form=REAL_ADDRESSING if strict_address else None,
         infuse_only=infuse_only,
     ) as emulator:
         click.echo(emulator.port)

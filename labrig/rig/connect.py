@@ -14,7 +14,7 @@ def set_up_pump(pump, config: PumpConfig, protocol: Protocol) -> None:
     syringe, and the force limit (the hardware backstop, read back)."""
     if not pump.can_withdraw and plan(protocol).withdrawn_ml > 0:
         raise DeviceError(
-            f"the pump on {config.port} is infuse-only (it refused 'wvolume') but the "
+            f"the pump on {config.port} is infuse-only (its 'metrics' says so) but the "
             "protocol withdraws: use a pump that withdraws, or a protocol without withdraw steps"
         )
     pump.configure_syringe(config.syringe.diameter_mm, config.syringe.volume_ml)

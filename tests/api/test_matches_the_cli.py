@@ -31,6 +31,8 @@ def test_comparison_is_compare_json(quick_run, capsys):
     assert list(table.columns) == list(printed["transitions"][0])
     assert _nulls(table.to_dict("records")) == printed["transitions"]
     assert run.rmse.to_dict() == printed["rmse"]
+    paper = run.paper_comparison
+    assert _nulls(paper.to_dict("records")) == printed["paper_transitions"]
     assert "snap" in set(table["type"])
 
 
@@ -42,6 +44,7 @@ def test_path_is_model_path_json(capsys):
     path = labrig.actuator(*segments).path(deflate=True)
     assert path.document == printed
     assert path.transitions.to_dict("records") == printed["transitions"]
+    assert path.paper_transitions.to_dict("records") == printed["paper_transitions"]
     table = path.path
     for name in ("v_ml", "p_kpa", "l_mm"):
         assert table[name].tolist() == printed["path"][name]

@@ -88,6 +88,13 @@ def test_a_scan_is_its_files_rows_with_names(gent_scan):
     assert list(table["segment2"]) == [names[i] for i in index[:, 1]]
     part = scan.table(1, 3)
     assert part.reset_index(drop=True).equals(table.iloc[1:3].reset_index(drop=True))
+    # counted as the paper counts them: fewer rows, the same sums (the counting's invariant)
+    paper = scan.paper_transitions
+    assert 0 < len(paper) <= len(table)
+    for name in ("dv", "dl", "dp"):
+        assert paper[name].sum() == pytest.approx(table[name].sum(), abs=1e-9)
+    first = paper["first"].to_numpy()
+    assert list(paper["segment1"]) == list(table["segment1"].to_numpy()[first])
     axes = scan.plot()
     assert len(axes) == 3 and axes[0].get_xlabel() == "energy change ΔÊ"
     with pytest.raises(InputError, match="no such file"):

@@ -6,12 +6,16 @@ from __future__ import annotations
 import subprocess
 import sys
 import threading
+import time
 
 import pytest
+import serial
+from support.pump_clients import FLOWCHEM_ELITE11, WAIT
 
 from labrig import cli as cli_module
 from labrig.cli import pump as pump_cli
 from labrig.drivers.phd_ultra import PhdUltra
+from labrig.drivers.phd_ultra_protocol import parse_reply
 from labrig.rig.devices import PumpState
 from labrig.sim.pump import PumpEmulator
 from labrig.time.clock import ScaledClock
@@ -193,3 +197,52 @@ def test_emulate_serves_the_driver_and_another_cli_process():
         watchdog.cancel()
         if emulate.poll() is None:
             emulate.kill()
+
+
+def test_flowchems_elite11_sequence_runs_against_labrig_pump_emulate():
+    """flowchem's own byte sequence (initialise, set a rate, infuse, poll, stop) through
+    the pseudo-terminal that ``labrig pump emulate`` prints, as flowchem would open it:
+    every answer complete, no error text, the prompts it expects."""
+    emulate = subprocess.Popen(
+        [
+            *(sys.executable, "-m", "labrig", "pump", "emulate", "--speed", "50"),
+            *("--reply-style", "prefixed", "--strict-address"),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    watchdog = threading.Timer(20.0, emulate.kill)
+    watchdog.start()
+    try:
+        port_name = emulate.stdout.readline().strip()
+        with serial.Serial(port_name, 115200, timeout=0.1) as port:
+            for sent, expected in FLOWCHEM_ELITE11:
+                if sent == WAIT:
+                    time.sleep(expected / 50)
+                    continue
+                port.reset_input_buffer()  # as flowchem does before each command
+                port.write(sent)
+                reply = read_reply(port, expect_payload=expected.count(b"\r") > 0)
+                assert b"error" not in reply.lower(), (sent, reply)
+                # the prompt flowchem reads (address 00, state) ends every reply
+                assert reply[-3:] == expected[-3:], (sent, reply)
+                if b"ivolume" not in sent and b"crate" not in sent:
+                    assert reply == expected, sent
+        emulate.terminate()
+        assert emulate.wait(timeout=10) == 0
+    finally:
+        watchdog.cancel()
+        if emulate.poll() is None:
+            emulate.kill()
+
+
+def read_reply(port, *, expect_payload: bool) -> bytes:
+    """Bytes until the driver's parser finds a complete reply (2 s at most)."""
+    raw = b""
+    deadline = time.monotonic() + 2.0
+    while time.monotonic() < deadline:
+        raw += port.read(port.in_waiting or 1)
+        if parse_reply(raw, expect_payload=expect_payload) is not None:
+            return raw
+    raise AssertionError(f"incomplete reply {raw!r}")

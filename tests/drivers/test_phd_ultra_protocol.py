@@ -24,12 +24,14 @@ from labrig.drivers.phd_ultra_errors import (
     PumpUnknownCommand,
 )
 from labrig.drivers.phd_ultra_protocol import (
+    agrees,
     candidate_address_forms,
     check_refusal,
     force_limit_pressure_kpa,
     format_rate,
     format_volume,
     frame_command,
+    parse_can_withdraw,
     parse_diameter_mm,
     parse_force_pct,
     parse_rate_limits,
@@ -38,6 +40,8 @@ from labrig.drivers.phd_ultra_protocol import (
     parse_status_line,
     parse_target_ml,
     parse_volume_ml,
+    read_rate,
+    read_volume,
 )
 from labrig.rig.devices import PumpState
 
@@ -341,10 +345,10 @@ def test_other_values():
 
 def test_status_line_fields_in_femtolitres():
     # 1 mL = 1e12 fL: 1 mL/min = 1e12 fL / 60 s; 2.5 mL = 2.5e12 fL.
-    line = parse_status_line("16666666667 1500 2500000000000 I..TI.")
+    line = parse_status_line("16666666667 150 2500000000000 I..TI.")
     assert line.rate_ml_min == pytest.approx(1.0, rel=1e-9)
     assert line.volume_ml == pytest.approx(2.5)
-    assert line.time_ms == 1500
+    assert line.time_s == 150  # seconds: the manual's "infuse time in seconds"
     assert (line.direction, line.running, line.stalled, line.target_reached) == (
         "i",
         True,
@@ -408,7 +412,7 @@ CONNECT = [
     (b"00poll off\r", b"\n:"),
     (b"00ver\r", b"\nPHD ULTRA 3.0.5\r\n:"),
     (b"00nvram off\r", b"\n:"),
-    (b"00wvolume\r", b"\n0 ul\r\n:"),
+    (b"00metrics\r", b"\nPump type          PHD ULTRA\r\nDirection          Infuse/withdraw\r\n:"),
     (b"00diameter\r", b"\n26.7000 mm\r\n:"),
     (b"00svolume\r", b"\n60 ml\r\n:"),
 ]
@@ -456,10 +460,9 @@ def test_connect_warns_and_goes_on_when_no_nvram_form_is_accepted():
 
 
 def test_an_infuse_only_pump_is_asked_nothing_about_withdrawing():
-    refused = b"\nCommand error: [wvolume]\r\n   Unknown command\r\n:"
     table = [
         *CONNECT[:3],
-        (b"00wvolume\r", refused),
+        (b"00metrics\r", b"\nPump type          PHD ULTRA\r\nDirection          Infuse only\r\n:"),
         *CONNECT[4:],
         INFUSE_LIMITS,
         (b"00irate 10.0000 ml/min\r", b"\n:"),
@@ -513,7 +516,7 @@ def test_a_readback_that_differs_from_the_setting_is_an_error():
     ]
     with (
         expected_protocol(table) as pump,
-        pytest.raises(PumpError, match=r"reports infuse rate 1\.0"),
+        pytest.raises(PumpError, match=r"reports infuse rate '1\.0000 ml/min'"),
     ):
         pump.set_infuse_rate(10.0)
 
@@ -634,3 +637,99 @@ def test_a_value_where_none_belongs_is_a_protocol_error():
     table = [(b"00cvolume\r", b"\n12.5 ml\r\n:"), (b"00stop\r", b"\n:")]
     with expected_protocol(table) as pump, pytest.raises(PumpProtocolError, match="unexpected"):
         pump.clear_volumes()
+
+
+# ---- what was unverified: units, status time, withdraw capability, readbacks ---------
+
+
+@pytest.mark.parametrize(
+    ("text", "value", "half_step"),
+    [
+        ("60 ml", 60.0, 0.5),
+        ("60.0000 ml", 60.0, 0.00005),
+        ("500 ul", 0.5, 0.0005),
+        ("1.5e-3 ml", 0.0015, 0.05e-3),
+    ],
+)
+def test_a_volume_is_read_with_the_resolution_it_was_printed_with(text, value, half_step):
+    reading = read_volume(text)
+    assert reading.value == pytest.approx(value, rel=1e-12)
+    assert reading.half_step == pytest.approx(half_step, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("text", "ml_min"),
+    [("2 ml/hr", 2 / 60), ("2 ml/h", 2 / 60), ("3 ul/sec", 0.18), ("0.5 ml/s", 30.0)],
+)
+def test_the_time_bases_a_pump_prints(text, ml_min):
+    assert read_rate(text).value == pytest.approx(ml_min, rel=1e-12)
+
+
+def test_units_are_ascii_a_micro_sign_is_a_protocol_error():
+    # 'ul' is how the pump writes microlitres; a non-ASCII byte is line noise.
+    assert parse_volume_ml(parse_reply(b"\n834.5 ul\r\n:", expect_payload=True).text) == 0.8345
+    with pytest.raises(PumpProtocolError):
+        parse_reply("\n834.5 µl\r\n:".encode("latin-1"), expect_payload=True)
+
+
+@pytest.mark.parametrize(
+    ("sent", "reply", "agreed"),
+    [
+        ("60.0000 ml", "60 ml", True),  # fewer digits printed
+        ("250.0000 ul/min", "0.25 ml/min", True),  # another unit
+        ("123.4500 ul/min", "0.12 ml/min", True),  # it shows no more digits
+        ("10.0000 ml/min", "10.005 ml/min", False),  # 5e-4 relative: a real difference
+        ("5.0000 ml", "5.0002 ml", False),
+    ],
+)
+def test_a_readback_agrees_to_the_digits_both_were_printed_with(sent, reply, agreed):
+    reader = read_rate if "/" in sent else read_volume
+    assert agrees(reader(reply), reader(sent)) is agreed
+
+
+def test_a_readback_with_more_precision_than_a_fixed_tolerance_is_refused():
+    table = [
+        INFUSE_LIMITS,
+        (b"00irate 10.0000 ml/min\r", b"\n:"),
+        (b"00irate\r", b"\n10.005 ml/min\r\n:"),
+    ]
+    with expected_protocol(table) as pump, pytest.raises(PumpError, match=r"10\.005 ml/min"):
+        pump.set_infuse_rate(10.0)
+
+
+@pytest.mark.parametrize(
+    ("lines", "can_withdraw"),
+    [
+        (("Pump type          Pump 11", "Direction          Infuse/withdraw"), True),
+        (("Direction          Infuse only",), False),
+        (("Direction          Infuse",), False),
+        (("Pump type          Pump 11",), None),
+    ],
+)
+def test_the_direction_line_of_metrics(lines, can_withdraw):
+    assert parse_can_withdraw(lines) is can_withdraw
+
+
+def test_a_pump_that_does_not_say_whether_it_withdraws_is_asked_and_warned_about():
+    table = [
+        *CONNECT[:3],
+        (b"00metrics\r", b"\nCommand error: [metrics]\r\n   Unknown command\r\n:"),
+        *CONNECT[4:],
+        WITHDRAW_LIMITS,  # an infuse-only pump would refuse this: before anything moves
+        (b"00wrate 1.0000 ml/min\r", b"\n:"),
+        (b"00wrate\r", b"\n1 ml/min\r\n:"),
+    ]
+    with expected_protocol(table) as pump:
+        pump.connect()
+        assert pump.can_withdraw
+        [warning] = pump.connect_warnings
+        assert "does not say whether it withdraws" in warning
+        assert "refused 'metrics'" in warning
+        pump.set_withdraw_rate(1.0)
+
+
+def test_the_status_time_is_in_seconds_as_the_manual_gives_it():
+    # 30 s at 1 mL/min: 0.5 mL; read as ms it would be 0.03 s for 0.5 mL (1000 mL/min)
+    line = parse_status_line("16666666667 30 500000000000 I..TI.")
+    assert line.time_s == 30
+    assert line.volume_ml / (line.time_s / 60) == pytest.approx(line.rate_ml_min, rel=1e-9)

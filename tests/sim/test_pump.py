@@ -119,17 +119,20 @@ def test_replies_follow_the_pump_framing_at_address_0(port):
         (b"\r", b"\n:"),
         (b"diam\r", b"\n26.7000 mm\r\n:"),
         (b"irate 6 ml/min\r\n", b"\n:"),  # CR LF ends one command, not two
-        (b"irat\r", b"\n6.0000 ml/min\r\n:"),
+        (b"irat\r", b"\n6 ml/min\r\n:"),
         (b"00wrate 90 ul/hr\n", b"\n:"),
-        (b"wrate\r", b"\n90.0000 ul/hr\r\n:"),
+        (b"wrate\r", b"\n90 ul/hr\r\n:"),
         (b"ivolume\r", b"\n0 ul\r\n:"),
         (b"tvolume\r", b"\nTarget volume not set\r\n:"),
         (b"tvol 2 ml\r", b"\n:"),
-        (b"tvolume\r", b"\n2.0000 ml\r\n:"),
+        (b"tvolume\r", b"\n2 ml\r\n:"),
         (b"force\r", b"\n100%\r\n:"),
         (b"status\r", b"\n0 0 0 i..TI.\r\n:"),
         (b"bogus\r", b"\nCommand error: [bogus]\r\n   Unknown command\r\n:"),
-        (b"irate 500 ml/min\r", b"\nArgument error: [500]\r\n   Out of range\r\n:"),
+        (
+            b"irate 500 ml/min\r",
+            b"\nRange error: 500\r\n   Rate out of range of 116.13 nl/min to 120.597 ml/min.\r\n:",
+        ),
         (
             b"irate 5 furlongs/min\r",
             b"\nArgument error: [furlongs/min]\r\n   Unknown argument\r\n:",
@@ -164,10 +167,10 @@ def test_the_status_line_while_running_counts_femtolitres(port, clock):
     assert reply.endswith(b"\r\n>")
     # 6 mL/min = 0.1 mL/s = 1e11 fL/s; the volume is 1e11 fL per second of running.
     assert int(fields[0]) == 100_000_000_000
-    volume_fl, time_ms = int(fields[2]), int(fields[1])
+    volume_fl, time_s = int(fields[2]), int(fields[1])
     assert 5.0e11 <= volume_fl <= 1e11 * (end_s - start_s)
-    # Same run time in both fields, up to the rounding of the time to whole ms.
-    assert volume_fl == pytest.approx(1e11 * time_ms / 1e3, abs=1e11 * 0.5e-3)
+    # The time field counts whole seconds of running (the manual: "in seconds").
+    assert time_s == math.floor(volume_fl / 1e11)
     assert fields[3] == "I..TI."
 
 
@@ -183,8 +186,8 @@ def test_the_target_ends_the_run_with_an_unsolicited_prompt():
         clock.sleep(2.5)  # the target is reached after 2 s
         # Nothing sent: the pump announces it by itself.
         assert port.read(16) == b"\nT*"
-        assert exchange(port, b"ivolume\r") == b"\n1.0000 ml\r\nT*"
-        assert exchange(port, b"status\r") == b"\n0 2000 1000000000000 i..TIT\r\nT*"
+        assert exchange(port, b"ivolume\r") == b"\n1 ml\r\nT*"
+        assert exchange(port, b"status\r") == b"\n0 2 1000000000000 i..TIT\r\nT*"
         assert emulator.state is PumpState.TARGET_REACHED
         assert exchange(port, b"stop\r") == b"\n:"
         assert emulator.net_volume_ml(clock.now()) == pytest.approx(1.0, abs=1e-12)
@@ -283,17 +286,17 @@ def test_poll_modes_frame_the_replies_and_the_target_event():
         serial.Serial(emulator.port, 115200, timeout=QUIET_S) as port,
     ):
         assert exchange(port, b"ver\r") == b"\nPHD ULTRA 3.0.5\r\n:\x11"
-        assert exchange(port, b"poll\r") == b"\non\r\n:\x11"
+        assert exchange(port, b"poll\r") == b"\nOn\r\n:\x11"
         exchange(port, b"irate 30 ml/min\r")
         exchange(port, b"tvolume 1 ml\r")
         assert exchange(port, b"irun\r") == b"\n>\x11"
         clock.sleep(2.5)
         assert silence(port, b"") == b""  # poll on: no event prompt at the target
         assert exchange(port, b"poll remote\r") == b"\nT*\x11"  # framed as it arrived
-        assert exchange(port, b"ivolume\r") == b"\n1.0000 ml\r"  # remote: no prompt
+        assert exchange(port, b"ivolume\r") == b"\n1 ml\r"  # remote: no prompt
         assert silence(port, b"stop\r") == b""
         assert exchange(port, b"poll off\r") == b""
-        assert exchange(port, b"poll\r") == b"\noff\r\n:"
+        assert exchange(port, b"poll\r") == b"\nOff\r\n:"
 
 
 @pytest.mark.parametrize(
@@ -329,5 +332,5 @@ def test_an_infuse_only_model_and_firmware_memory_commands(clock):
         assert exchange(port, b"irate lim\r").endswith(b"ml/min\r\n:")
         assert exchange(port, b"nvram off\r") == b"\nCommand error: [nvram]" + unknown
         assert exchange(port, b"rsave off\r") == b"\n:"
-        assert exchange(port, b"rsave\r") == b"\noff\r\n:"
+        assert exchange(port, b"rsave\r") == b"\nOff\r\n:"
         assert exchange(port, b"rsave none\r").startswith(b"\nArgument error: [none]")

@@ -253,6 +253,13 @@ def run_file_reference() -> str:
     return "\n".join(lines) + "\n"
 
 
+def pump_command_reference() -> str:
+    """The commands the pump emulator answers, from its command table."""
+    from labrig.sim.pump_commands import markdown_table
+
+    return markdown_table()
+
+
 # --- the Python API (docs/reference/python-api.md) -------------------------------------
 # Every public name of ``labrig`` (``labrig.__all__``) with its signature and docstring;
 # for a class, each public property and method in the order the class defines them.
@@ -349,6 +356,7 @@ def undocumented() -> list[str]:
 PAGES: dict[str, Callable[[], str]] = {
     "docs/reference/cli.md": cli_reference,
     "docs/reference/python-api.md": api_reference,
+    "docs/reference/pump.md": pump_command_reference,
     "docs/reference/protocol.md": protocol_reference,
     "docs/reference/rig-file.md": rig_file_reference,
     "docs/reference/run-file.md": run_file_reference,
