@@ -29,7 +29,7 @@ from labrig.recording.run_layout import LOG_DESCRIPTION, LOG_FIELDS, repetition_
 from labrig.recording.run_reader import decode
 
 from .axes import panel_axes
-from .reading import open_readonly, open_run_file, writer_state
+from .reading import LIVE_WINDOW_S, open_readonly, open_run_file, writer_state
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -98,47 +98,23 @@ class Run:
     def __init__(self, path: Path) -> None:
         self.path = path
         with open_run_file(path) as h5:
-            entry = h5["entry"]
-
-            def text(name: str) -> str:
-                return decode(entry[name][()]) if name in entry else ""
-
-            self.title: str = text("title")
-            #: how the run ended: running, complete, aborted or faulted
-            self.status: str = text("status") or "unknown"
-            #: why it ended so (a tripped interlock names itself); empty when complete
-            self.reason: str = text("reason")
-            self.start_time: str = text("start_time")
-            self.end_time: str = text("end_time")
-            #: the protocol's YAML text as run
-            self.protocol_text: str = text("protocol")
-            self.rig_config_text: str = text("rig_config")
-            self.versions: dict[str, str] = (
-                {k: decode(v[()]) for k, v in entry["versions"].items()}
-                if "versions" in entry
-                else {}
-            )
-            reps = entry["repetitions"]
-            self._rep_status = [decode(s) for s in reps["status"][()]]
-            self._rep_reason = [decode(s) for s in reps["reason"][()]]
-            n = len(self._rep_status)
-            self._t_start = reps["t_start"][()] if "t_start" in reps else np.full(n, np.nan)
-            self._t_end = reps["t_end"][()] if "t_end" in reps else np.full(n, np.nan)
-            self._rows: dict[tuple[int, str], int] = {}
-            for index in range(1, n + 1):
-                group = reps.get(repetition_name(index))
-                for log in LOGS if group is not None else ():
-                    if log in group:
-                        self._rows[index, log] = _complete_rows(group[log])
-            self.has_video: bool = "video" in entry
+            try:
+                self._read_metadata(h5["entry"])
+            except (KeyError, OSError, ValueError) as exc:
+                raise InputError(f"{path}: not a readable labrig run file ({exc})") from None
         if not self.protocol_text:
             raise InputError(f"{path}: missing /entry/protocol")
         self.writer_open, self.live = writer_state(path, self.status)
         if self.writer_open:
-            how = "being recorded" if self.live else "left open by a writer that was killed"
+            how = (
+                "being recorded"
+                if self.live
+                else "still flagged open by its writer, unchanged for over "
+                f"{LIVE_WINDOW_S:.0f} s (its writer was killed?)"
+            )
             warnings.warn(
                 f"{path} is {how}: read as of its last flush (status {self.status!r})"
-                + ("" if self.live else f"; `labrig recover {path}` closes it"),
+                + ("" if self.live else f"; `labrig recover {path}` closes a killed run's file"),
                 RunOpenWarning,
                 stacklevel=3,
             )
@@ -151,6 +127,41 @@ class Run:
         )
 
     # --- metadata -----------------------------------------------------------------
+    def _read_metadata(self, entry) -> None:
+        """The metadata and the logs' sizes, from the open file's ``/entry``."""
+
+        def text(name: str) -> str:
+            return decode(entry[name][()]) if name in entry else ""
+
+        self.title: str = text("title")
+        #: how the run ended: running, complete, aborted or faulted
+        self.status: str = text("status") or "unknown"
+        #: why it ended so (a tripped interlock names itself); empty when complete
+        self.reason: str = text("reason")
+        self.start_time: str = text("start_time")
+        self.end_time: str = text("end_time")
+        #: the protocol's YAML text as run
+        self.protocol_text: str = text("protocol")
+        self.rig_config_text: str = text("rig_config")
+        self.versions: dict[str, str] = (
+            {k: decode(v[()]) for k, v in entry["versions"].items()} if "versions" in entry else {}
+        )
+        if "repetitions" not in entry:
+            raise InputError(f"{entry.file.filename}: missing /entry/repetitions")
+        reps = entry["repetitions"]
+        self._rep_status = [decode(s) for s in reps["status"][()]]
+        self._rep_reason = [decode(s) for s in reps["reason"][()]]
+        n = len(self._rep_status)
+        self._t_start = reps["t_start"][()] if "t_start" in reps else np.full(n, np.nan)
+        self._t_end = reps["t_end"][()] if "t_end" in reps else np.full(n, np.nan)
+        self._rows: dict[tuple[int, str], int] = {}
+        for index in range(1, n + 1):
+            group = reps.get(repetition_name(index))
+            for log in LOGS if group is not None else ():
+                if log in group:
+                    self._rows[index, log] = _complete_rows(group[log])
+        self.has_video: bool = "video" in entry
+
     @property
     def complete(self) -> bool:
         """True when the run finished with status ``complete``."""

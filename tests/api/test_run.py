@@ -67,6 +67,10 @@ def test_bad_requests_are_one_line_errors(tiny_file, tmp_path):
     (tmp_path / "text.h5").write_text("not hdf5")
     with pytest.raises(InputError, match="not an HDF5 file"):
         labrig.open_run(tmp_path / "text.h5")
+    with h5py.File(tmp_path / "foreign.h5", "w") as h5:
+        h5["entry/title"] = "someone else's"
+    with pytest.raises(InputError, match=r"foreign\.h5: missing /entry/repetitions"):
+        labrig.open_run(tmp_path / "foreign.h5")
 
 
 def _csv(path):
