@@ -130,3 +130,13 @@ def test_labrig_starts_without_pandas_or_xarray():
     )
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True).stdout
     assert out.splitlines()[-1] == "[]"
+
+
+def test_runs_prints_each_run_with_its_snaps_measured_and_predicted(campaign, capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")  # a wide terminal: one line a snap
+    code, out, err = cli(["runs", campaign / "a_*.h5", campaign / "b_tiny.h5"], capsys)
+    assert code == 0, err
+    row = labrig.open_runs([campaign / "a_quick.h5"]).iloc[0]
+    assert "a_quick.h5" in out and "b_tiny.h5" in out and "c_broken" not in out
+    assert f"v {row['snap1_v_ml']:.2f} ({row['snap1_v_model_ml']:.2f})" in out
+    assert len(labrig.open_runs(str(campaign / "[ab]_*.h5"))) == 2
