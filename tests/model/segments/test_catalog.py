@@ -56,8 +56,21 @@ def test_a_name_is_its_geometry_and_its_library_and_is_built_once():
             library_names("paper"),
             [  # contact (or straight braids) before any peak, as measured
                 f"paper:{name}"
-                for name in "B40-T24 B40-T26 B40-T28 B40-T30 B42-T26 B42-T28 B42-T30 "
-                "B44-T26 B44-T28 B44-T30 B46-T28 B46-T30 B48-T30".split()
+                for name in [
+                    "B40-T24",
+                    "B40-T26",
+                    "B40-T28",
+                    "B40-T30",
+                    "B42-T26",
+                    "B42-T28",
+                    "B42-T30",
+                    "B44-T26",
+                    "B44-T28",
+                    "B44-T30",
+                    "B46-T28",
+                    "B46-T30",
+                    "B48-T30",
+                ]
             ],
         ),
     ],
