@@ -11,7 +11,11 @@ The comparison is made on the analysis grid, per phase (inflation, deflation): t
 of pressure and length between the averaged measurement and the prediction where both
 exist, and the predicted snap-throughs paired with the measured transitions (same
 direction, nearest volume within ``match_ml``). Predicted stable transitions (a segment
-crossing its peak smoothly) are listed but not paired: nothing jumps there. A measured
+crossing its peak smoothly) are listed but not paired: nothing jumps there. The pairing
+is made twice: for the path's events (``matches``: every peak crossing and every snap,
+what the run file's analysis stores) and for the transitions as the paper counts them
+(``paper_matches``: a peak crossing and the snap it sets off are one,
+``labrig.model.actuator.paper_counting``), which the report and the plots show. A measured
 transition that no predicted snap explains may still be on the model's curve: a steep
 stable stretch (a bulge's drop, taken while the other segments absorb the volume, or
 the braids' wall) changes the pressure within a millilitre, which the detector sees as a
@@ -20,6 +24,7 @@ snap; ``follows_model`` tells those apart from transitions the model lacks.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -28,6 +33,7 @@ import numpy as np
 from labrig.analysis.curves import DEFLATE, INFLATE, PHASES
 from labrig.analysis.transitions import AgreedTransition
 from labrig.errors import LabrigError
+from labrig.model.actuator.paper_counting import EVENT_FIELDS, paper_transitions
 from labrig.model.segments.curve import SegmentCurve
 
 SAMPLE_DV_ML = 0.05
@@ -55,6 +61,20 @@ class PredictedTransition:
     @property
     def type(self) -> str:
         return f"{'stable' if self.stable else 'snap'} ({self.alpha},{self.beta})"
+
+
+def paper_counted(predicted: Sequence[PredictedTransition]) -> tuple[PredictedTransition, ...]:
+    """The path's events ``predicted`` counted as the paper counts transitions
+    (``paper_transitions``); the jumps in kPa and mm are summed like the normalised
+    ones."""
+    return tuple(
+        PredictedTransition(
+            **{name: getattr(t, name) for name in EVENT_FIELDS},
+            dp_kpa=math.fsum(e.dp_kpa for e in t.events),
+            dl_mm=math.fsum(e.dl_mm for e in t.events),
+        )
+        for t in paper_transitions(predicted)
+    )
 
 
 @dataclass(frozen=True)
@@ -177,8 +197,9 @@ class Comparison:
     model_l_mm: dict[int, np.ndarray]
     rmse_p_kpa: dict[int, float]  # NaN where the phase has no overlap
     rmse_l_mm: dict[int, float]
-    matches: tuple[TransitionMatch, ...]
+    matches: tuple[TransitionMatch, ...]  # the path's events
     match_ml: float
+    paper_matches: tuple[TransitionMatch, ...] = ()  # as the paper counts transitions
 
 
 def rmse(measured: np.ndarray, model: np.ndarray) -> float:
@@ -249,6 +270,7 @@ def compare(
         rmse_l,
         match_transitions(prediction.transitions, measured, match_ml),
         match_ml,
+        match_transitions(paper_counted(prediction.transitions), measured, match_ml),
     )
 
 

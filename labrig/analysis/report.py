@@ -194,11 +194,16 @@ def matches_table(result: AnalysisResult) -> RenderableType | None:
     if comparison is None:
         return None
     title = "transitions: predicted against measured"
-    if not comparison.matches:
+    if not comparison.paper_matches:
         return f"{title}: none predicted, none measured"
     columns = ("phase", "type", "v", "v meas", "dv", "dp", "dp meas", "dl", "dl meas")
-    table = _table(f"{title} (v mL, dp kPa, dl mm)", columns, right=columns[2:])
-    for match in comparison.matches:
+    table = _table(
+        f"{title} (as the paper counts them: a peak crossing and the snap it sets off are "
+        "one; v mL, dp kPa, dl mm)",
+        columns,
+        right=columns[2:],
+    )
+    for match in comparison.paper_matches:
         p, m = match.predicted, match.measured
         smooth = p is not None and p.stable
         if p is not None:
@@ -229,15 +234,31 @@ def _finite(value: float | None) -> float | None:
 def comparison_json(result: AnalysisResult) -> dict:
     """The comparison as one JSON-ready object (``labrig compare --json``): the RMSE per
     phase and quantity, and each predicted transition with the measured one paired to
-    it (null where none was); measured transitions the model does not predict are
-    listed under ``unpredicted``."""
+    it (null where none was): under ``transitions`` the path's events (every peak
+    crossing and every snap), under ``paper_transitions`` the transitions as the paper
+    counts them (a peak crossing and the snap it sets off are one); measured
+    transitions the model does not predict (its events) are listed under
+    ``unpredicted``."""
     comparison = result.comparison
     rmse = {}
     for phase, name in PHASES.items():
         rmse[f"{name}_pressure_kpa"] = _finite(comparison.rmse_p_kpa[phase])
         rmse[f"{name}_length_mm"] = _finite(comparison.rmse_l_mm[phase])
+    transitions, unpredicted = _matched(comparison.matches, result)
+    paper, _ = _matched(comparison.paper_matches, result)
+    return {
+        "rmse": rmse,
+        "transitions": transitions,
+        "paper_transitions": paper,
+        "unpredicted": unpredicted,
+    }
+
+
+def _matched(matches, result: AnalysisResult) -> tuple[list[dict], list[dict]]:
+    """The JSON rows of ``matches``: (predicted transitions with their measured pair,
+    measured transitions alone)."""
     transitions, unpredicted = [], []
-    for match in comparison.matches:
+    for match in matches:
         p, m = match.predicted, match.measured
         if p is None:
             unpredicted.append(
@@ -264,7 +285,7 @@ def comparison_json(result: AnalysisResult) -> dict:
                 "dl_meas_mm": _finite(m.dl_mm) if m else None,
             }
         )
-    return {"rmse": rmse, "transitions": transitions, "unpredicted": unpredicted}
+    return transitions, unpredicted
 
 
 def comparison_tables(result: AnalysisResult) -> list[RenderableType]:

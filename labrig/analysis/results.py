@@ -27,6 +27,8 @@ from labrig.analysis.compare import (
     Prediction,
     TransitionMatch,
     follows_model,
+    match_transitions,
+    paper_counted,
 )
 from labrig.analysis.curves import PHASES, MeanCurve
 from labrig.analysis.transitions import AgreedTransition, DetectionSettings, MeasuredTransition
@@ -437,6 +439,9 @@ def _read_model(model: h5py.Group, agreed: tuple[AgreedTransition, ...]) -> Comp
         rmse_l_mm={p: float(rmse[f"{n}_length_mm"][()]) for p, n in PHASES.items()},
         matches=rows,
         match_ml=float(matches.attrs["match_ml"]),
+        paper_matches=match_transitions(
+            paper_counted(predicted), agreed, float(matches.attrs["match_ml"])
+        ),
     )
 
 

@@ -4,7 +4,10 @@ and its transitions, as a table, JSON or a plot.
 With ``--deflate`` the path is inflation to the end volume followed by deflation back to
 zero (the rig withdraws between repetitions, so the hysteresis matters): the path arrays
 run up and then down in volume, and every transition says in which direction it
-happened. Without ``--v-end-ml`` inflation ends where no further transition is possible
+happened. The table counts transitions as the paper does (a peak crossing and the snap
+it sets off are one, ``labrig.model.actuator.paper_counting``); ``--json`` gives both the
+path's events (``transitions``) and that counting (``paper_transitions``). Without
+``--v-end-ml`` inflation ends where no further transition is possible
 (``labrig.model.actuator.path.default_end_volume_ml``).
 """
 
@@ -16,7 +19,7 @@ from pathlib import Path
 
 import click
 
-from labrig.cli.options import plot_option
+from labrig.cli.options import plot_option, table_console
 from labrig.errors import InputError
 
 
@@ -28,10 +31,30 @@ def _significant(x: float) -> float:
     return float(f"{x:.6g}")
 
 
+def _numbers(t) -> dict:
+    return {
+        "v_ml": round(t.v_ml, 6),
+        "alpha": t.alpha,
+        "beta": t.beta,
+        "stable": t.stable,
+        "dE": _significant(t.dE),
+        "dv": _significant(t.dv),
+        "dl": _significant(t.dl),
+        "dp": _significant(t.dp),
+        "direction": t.direction_name,
+    }
+
+
 def path_document(names, sampled, found) -> dict:
     """The JSON scripts read from ``labrig model path --json``: segments, path arrays,
-    transitions, each transition with its ``direction`` ("inflate" or "deflate").
-    ``v_i_ml`` holds one list per segment, parallel to ``v_ml``."""
+    ``transitions`` (the path's events: every peak crossing and every snap) and
+    ``paper_transitions`` (those counted as the paper counts them, each with
+    ``events``, the indices into ``transitions`` it is made of), each with its
+    ``direction`` ("inflate" or "deflate"). ``v_i_ml`` holds one list per segment,
+    parallel to ``v_ml``."""
+    from labrig.model.actuator.paper_counting import paper_transitions
+
+    index = {id(t): k for k, t in enumerate(found)}
     return {
         "segments": list(names),
         "path": {
@@ -40,50 +63,48 @@ def path_document(names, sampled, found) -> dict:
             "l_mm": _round(sampled.l_mm),
             "v_i_ml": [_round(v) for v in sampled.v_i_ml],
         },
-        "transitions": [
-            {
-                "v_ml": round(t.v_ml, 6),
-                "alpha": t.alpha,
-                "beta": t.beta,
-                "stable": t.stable,
-                "dE": _significant(t.dE),
-                "dv": _significant(t.dv),
-                "dl": _significant(t.dl),
-                "dp": _significant(t.dp),
-                "direction": t.direction_name,
-            }
-            for t in found
+        "transitions": [_numbers(t) for t in found],
+        "paper_transitions": [
+            {**_numbers(t), "events": [index[id(e)] for e in t.events]}
+            for t in paper_transitions(found)
         ],
     }
 
 
 def _table(names, found, v_end_ml: float, seconds: float) -> None:
     from rich import box
-    from rich.console import Console
     from rich.table import Table
 
+    from labrig.model.actuator.paper_counting import paper_transitions
+
+    counted = paper_transitions(found)
     table = Table(
         title=f"{' + '.join(names)}: transitions (inflation to {v_end_ml:.2f} mL)",
         box=box.SIMPLE_HEAD,
         pad_edge=False,
     )
-    for heading in ("direction", "v (mL)", "(α, β)", "kind", "dE", "dv", "dl", "dp"):
-        left = heading in ("direction", "kind")
+    headings = ("direction", "v (mL)", "(α, β)", "kind", "events", "dE", "dv", "dl", "dp")
+    for heading in headings:
+        left = heading in ("direction", "kind", "events")
         table.add_column(heading, justify="left" if left else "right", no_wrap=True)
-    for t in found:
+    for t in counted:
         table.add_row(
             t.direction_name,
             f"{t.v_ml:.3f}",
             f"({t.alpha}, {t.beta})",
-            "stable" if t.stable else "snap",
+            "stable" if t.stable else "unstable",
+            "+".join("crossing" if e.stable else "snap" for e in t.events),
             f"{t.dE:+.2e}",
             f"{t.dv:+.3f}",
             f"{t.dl:+.4f}",
             f"{t.dp:+.4f}",
         )
-    console = Console()
+    console = table_console()
     console.print(table)
-    console.print(f"{len(found)} transitions; path computed in {seconds * 1e3:.1f} ms")
+    console.print(
+        f"{len(counted)} transitions as the paper counts them (a peak crossing and the snap "
+        f"it sets off are one; {len(found)} events); path computed in {seconds * 1e3:.1f} ms"
+    )
 
 
 @click.command("path")

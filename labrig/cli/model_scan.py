@@ -11,19 +11,10 @@ from pathlib import Path
 
 import click
 
-from labrig.cli.options import plot_option
+from labrig.cli.options import plot_option, table_console
 from labrig.errors import InputError
 
-_TYPE_NAMES = {True: "stable", False: "snap"}
-
-
-def _console():
-    """A console; when the output is not a terminal (a pipe, a file, a test) it is wide
-    enough for the tables, which rich would otherwise squeeze into 80 columns."""
-    from rich.console import Console
-
-    console = Console()
-    return console if console.is_terminal else Console(width=160)
+_TYPE_NAMES = {True: "stable", False: "unstable"}
 
 
 def print_summary(data, plot_png: Path | None = None) -> None:
@@ -34,12 +25,14 @@ def print_summary(data, plot_png: Path | None = None) -> None:
     from labrig.model.scan.scan_summary import METRICS, summarise
 
     summary = summarise(data)
-    console = _console()
+    console = table_console()
     state = "complete" if data.complete else "INCOMPLETE (--resume continues it)"
     console.print(
         f"{data.path}: n = {data.n}, {summary.actuators_done:,} of "
         f"{summary.actuators_total:,} actuators ({state}), {summary.transitions:,} "
-        f"transitions, {summary.actuators_with_snap:,} actuators snap, {summary.failed} failed"
+        f"transitions (a peak crossing and the snap it sets off count as one; "
+        f"{summary.events:,} path events), "
+        f"{summary.actuators_with_snap:,} actuators snap, {summary.failed} failed"
     )
     table = Table(box=box.SIMPLE_HEAD, pad_edge=False)
     for heading in ("direction", "(α, β)", "kind", "count", "actuators"):
@@ -163,7 +156,7 @@ def scan(
     )
     # no refresh thread: the pool forks after the bar exists, and a fork must not copy a
     # running thread; the bar is redrawn on every finished chunk instead
-    with Progress(*columns, auto_refresh=False, console=_console(), transient=False) as bar:
+    with Progress(*columns, auto_refresh=False, console=table_console(), transient=False) as bar:
         task = bar.add_task("scan", total=None, rate="")
         # said at the first progress, once the scan's input is accepted and before it
         # compiles; through sys.stderr, which rich redirects above the bar on a terminal
@@ -233,8 +226,8 @@ def _compile_for_the_next_scan() -> None:
 @click.argument("scan_file", type=click.Path(dir_okay=False, path_type=Path))
 @PLOT_OPTION
 def scan_summary(scan_file: Path, plot_png: Path | None) -> None:
-    """Per transition type of the scan in SCAN_FILE: the count and the ranges of dE,
-    dv, dl, dp."""
+    """Per transition type of the scan in SCAN_FILE (as the paper counts transitions):
+    the count and the ranges of dE, dv, dl, dp."""
     from labrig.model.scan.scan_file import read_scan
 
     print_summary(read_scan(scan_file), plot_png)
@@ -246,7 +239,7 @@ def scan_summary(scan_file: Path, plot_png: Path | None) -> None:
 @click.option("--top", type=int, default=20, show_default=True)
 def rank(scan_file: Path, by: str, top: int) -> None:
     """The designs of SCAN_FILE with the largest snap by a metric (its magnitude): one
-    row per actuator, with the transition that has it."""
+    row per actuator, with the transition (as the paper counts them) that has it."""
     from rich import box
     from rich.table import Table
 
@@ -278,4 +271,4 @@ def rank(scan_file: Path, by: str, top: int) -> None:
             _TYPE_NAMES[d.stable],
             *(f"{d.metrics[m]:+.2e}" if m == "dE" else f"{d.metrics[m]:+.4f}" for m in METRICS),
         )
-    _console().print(table)
+    table_console().print(table)

@@ -26,3 +26,12 @@ def plot_option(help_text: str):
         callback=_existing_folder,
         help=help_text,
     )
+
+
+def table_console():
+    """A console for tables; when the output is not a terminal (a pipe, a file, a test)
+    it is wide enough for them, which rich would otherwise squeeze into 80 columns."""
+    from rich.console import Console
+
+    console = Console()
+    return console if console.is_terminal else Console(width=160)

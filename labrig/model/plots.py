@@ -1,7 +1,8 @@
 """Pictures of an actuator's path, like the paper's figures.
 
-- p-v and l-v of the combined actuator with its transitions marked (Fig. 2C / 3E);
-  deflation dashed, so hysteresis shows;
+- p-v and l-v of the combined actuator with its events marked (Fig. 2C / 3E) and each
+  transition, as the paper counts them, labelled with its (alpha, beta); deflation
+  dashed, so hysteresis shows;
 - for two segments, the v1-v2 plane (Fig. 3D): every equilibrium of the pressure grid,
   stable and unstable, with the path on top and each snap as an arrow;
 - a library's segments side by side (Fig. 1C and D): p-v and the length change, with
@@ -17,6 +18,7 @@ from pathlib import Path as FilePath
 
 import numpy as np
 
+from labrig.model.actuator.paper_counting import paper_transitions
 from labrig.model.actuator.path import DEFLATE, INFLATE, Path, SampledPath
 from labrig.model.actuator.transitions import Transition
 
@@ -70,7 +72,17 @@ def plot_path(
             ax_l.plot([t.v_ml, t.v_ml], [l_pre, l_post], "-", color="tab:red", linewidth=2)
             ax_p.plot(t.v_ml, t.pre.p_kpa, "v", color="tab:red", markersize=7)
             ax_l.plot(t.v_ml, l_pre, "v", color="tab:red", markersize=7)
-    ax_p.plot([], [], "o", mfc="none", color="tab:green", label="stable transition")
+    for t in paper_transitions(found):
+        ax_p.annotate(
+            f"({t.alpha}, {t.beta})",
+            xy=(t.v_ml, t.events[0].pre.p_kpa),
+            xytext=(0, 6),
+            textcoords="offset points",
+            ha="center",
+            fontsize=7,
+            color="tab:green" if t.stable else "tab:red",
+        )
+    ax_p.plot([], [], "o", mfc="none", color="tab:green", label="stable peak crossing")
     ax_p.plot([], [], "v-", color="tab:red", label="snap at constant volume")
     ax_p.set_ylabel("pressure p (kPa)")
     ax_l.set_ylabel("length l (mm)")

@@ -11,6 +11,7 @@ from labrig.analysis.compare import (
     TransitionMatch,
     follows_model,
     match_transitions,
+    paper_counted,
     predict,
     rmse,
 )
@@ -62,6 +63,24 @@ def test_snaps_pair_with_the_nearest_measurement_of_their_direction():
     ]
     assert rows[1].dv_ml == pytest.approx(0.4)
     assert np.isnan(TransitionMatch(INFLATE, None, measured[0]).dv_ml)
+
+
+def test_the_paper_counts_a_crossing_and_its_snap_as_one_snap_paired_once():
+    crossing = PredictedTransition(INFLATE, 7.47, 0, 1, True, 2e-5, 1e-5, 1e-6, -1e-9, -1e-7, 0.0)
+    snap = PredictedTransition(INFLATE, 7.52, 1, 1, False, -0.03, 0.23, -0.001, -0.43, -30.0, -0.05)
+    later = PredictedTransition(INFLATE, 22.0, 1, 2, True, 7e-6, 4e-6, 1e-6, -2e-9, -1e-7, 0.0)
+    counted = paper_counted([crossing, snap, later])
+    assert [(t.alpha, t.beta, t.stable) for t in counted] == [(0, 1, False), (1, 2, True)]
+    one = counted[0]
+    assert one.v_ml == 7.47
+    assert one.dp_kpa == pytest.approx(-30.0 - 1e-7) and one.dl_mm == pytest.approx(-0.05)
+    assert one.dE == pytest.approx(-0.03 + 2e-5) and one.dv == pytest.approx(0.23 + 1e-5)
+    rows = match_transitions(counted, [_measured(INFLATE, 7.6)], match_ml=2.0)
+    assert [(r.predicted.type, r.measured is not None) for r in rows] == [
+        ("snap (0,1)", True),
+        ("stable (1,2)", False),
+    ]
+    assert paper_counted([]) == ()
 
 
 def test_a_steep_stretch_of_the_models_curve_is_told_from_a_transition_it_lacks():
@@ -131,3 +150,9 @@ def test_library_actuator_run_matches_the_model(library_run):
         assert abs(match.dv_ml) < 0.6
         assert match.measured.dp_kpa == pytest.approx(match.predicted.dp_kpa, rel=0.15)
         assert match.measured.dl_mm == pytest.approx(match.predicted.dl_mm, abs=0.15)
+    # counted as the paper counts, every event is in one transition and the snaps are
+    # paired with the same measurements
+    counted = [m.predicted for m in comparison.paper_matches if m.predicted is not None]
+    assert counted == list(paper_counted(comparison.prediction.transitions))
+    paired = {m.measured for m in comparison.paper_matches if m.measured is not None}
+    assert paired == {m.measured for m in snaps}

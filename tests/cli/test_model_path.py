@@ -22,7 +22,7 @@ def test_json_follows_the_design_contract(capsys):
     code, out, err = run(["model", "path", "SI-B48-T30", "SI-B50-T20", "--json"], capsys)
     assert code == 0 and err == ""
     doc = json.loads(out)
-    assert list(doc) == ["segments", "path", "transitions"]
+    assert list(doc) == ["segments", "path", "transitions", "paper_transitions"]
     assert doc["segments"] == ["SI-B48-T30", "SI-B50-T20"]
     path = doc["path"]
     assert list(path) == ["v_ml", "p_kpa", "l_mm", "v_i_ml"]
@@ -41,6 +41,9 @@ def test_json_follows_the_design_contract(capsys):
     assert kinds == [(0, 1, True), (1, 2, True), (2, 1, False), (1, 2, True)]
     snap = doc["transitions"][2]
     assert snap["direction"] == "inflate" and snap["dE"] < 0 and snap["dv"] > 0.3
+    # the snap follows the crossing before it by 3.1 mL: each is a transition of its own
+    assert [t.pop("events") for t in doc["paper_transitions"]] == [[0], [1], [2], [3]]
+    assert doc["paper_transitions"] == doc["transitions"]
     # a snap is two points of the path at the same volume
     jumps = np.flatnonzero(np.diff(path["v_ml"]) == 0)
     assert len(jumps) == 1 and path["v_ml"][jumps[0]] == pytest.approx(snap["v_ml"], abs=1e-6)
@@ -70,7 +73,7 @@ def test_the_table_lists_every_transition(capsys):
         line.split() for line in out.splitlines() if line.strip().startswith(("inflate", "deflate"))
     ]
     assert len(rows) == 8
-    assert rows[2][:5] == ["inflate", "18.894", "(2,", "1)", "snap"]
+    assert rows[2][:6] == ["inflate", "18.894", "(2,", "1)", "unstable", "snap"]
     assert "8 transitions" in out
 
 

@@ -53,7 +53,9 @@ from labrig.model.segments.resolution import NOISE_PROMINENCE
 
 
 @dataclass(frozen=True)
-class Transition:
+class TransitionNumbers:
+    """What the paper reports of a transition (module docstring)."""
+
     v_ml: float  # supplied volume just before the transition
     alpha: int
     beta: int
@@ -63,12 +65,18 @@ class Transition:
     dl: float
     dp: float
     direction: int  # INFLATE (+1) or DEFLATE (-1)
-    pre: State
-    post: State
 
     @property
     def direction_name(self) -> str:
         return "inflate" if self.direction == INFLATE else "deflate"
+
+
+@dataclass(frozen=True)
+class Transition(TransitionNumbers):
+    """An event of the path, with its states on either side."""
+
+    pre: State
+    post: State
 
 
 # the default distance between pre and post of a stable transition (module docstring)

@@ -1,10 +1,13 @@
 """What a scan found: counts and ranges per transition type, the designs with the
 largest snap, and the paper's Fig. 4 A-C for the scan.
 
-A transition's type is (alpha, beta) — segments right of their pressure peak before and
-after — with its stability (a snap at constant volume or a stable change) and its
-direction; the paper's Fig. 4 colours (0, 1) blue, (1, 1) red and (1, 2) green. This
-module works on ``ScanData`` arrays and leaves files and terminals to others.
+Transitions are counted as the paper counts them: the scan file's rows are the path's
+fine-grained events, and a peak crossing with the snap it sets off is one transition
+(``labrig.model.actuator.paper_counting``). A transition's type is (alpha, beta) —
+segments right of their pressure peak before and after — with its stability (unstable
+if it holds a snap at constant volume) and its direction; the paper's Fig. 4 colours
+(0, 1) blue, (1, 1) red and (1, 2) green. This module works on ``ScanData`` arrays and
+leaves files and terminals to others.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from labrig.model.actuator.paper_counting import group_paper_transitions
 from labrig.model.scan.scan_file import BLOCK_ROWS, ScanData
 
 METRICS = ("dE", "dv", "dl", "dp")
@@ -39,22 +43,55 @@ class ScanSummary:
     actuators_done: int
     actuators_total: int
     failed: int
-    transitions: int
+    transitions: int  # as the paper counts them
+    events: int  # the scan file's rows: the paths' fine-grained events
     actuators_with_snap: int
     types: list[TypeSummary]
     ranges: dict[str, tuple[float, float]]  # over every transition
 
 
+def paper_columns(data: ScanData) -> dict[str, np.ndarray]:
+    """The scan's transitions as the paper counts them, as columns (with ``actuator``
+    and ``first``, the row of each one's first event)."""
+    return group_paper_transitions(data.columns, data.actuator)
+
+
+def paper_blocks(data: ScanData, block_rows: int = BLOCK_ROWS):
+    """``paper_columns`` block by block (memory bounded by the block): the rows of the
+    last actuator of a block wait for the next block, so no transition is split."""
+    held: dict[str, np.ndarray] | None = None
+    for actuator, c in data.row_blocks(block_rows):
+        rows = {"actuator": actuator, **c}
+        if held is not None:
+            rows = {name: np.concatenate([held[name], rows[name]]) for name in rows}
+        last = rows["actuator"][-1]
+        whole = rows["actuator"] != last
+        held = {name: values[~whole] for name, values in rows.items()}
+        if whole.any():
+            yield _grouped({name: values[whole] for name, values in rows.items()})
+    if held is not None and len(held["actuator"]):
+        yield _grouped(held)
+
+
+def _grouped(rows: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    grouped = group_paper_transitions(rows, rows["actuator"])
+    grouped.pop("first")
+    return grouped
+
+
 def summarise(data: ScanData, block_rows: int = BLOCK_ROWS) -> ScanSummary:
-    """Counts and ranges per transition type, read block by block (memory bounded by
-    the block, not by the scan). Rows are sorted by actuator, so an actuator is counted
-    once per type even when its rows straddle two blocks."""
+    """Counts and ranges per transition type, as the paper counts transitions, read
+    block by block (memory bounded by the block, not by the scan). Rows are sorted by
+    actuator, so an actuator is counted once per type even when its rows straddle two
+    blocks."""
     types: dict[tuple, _TypeTally] = {}
     overall = {m: (math.inf, -math.inf) for m in METRICS}
     snapping = _ActuatorTally()
-    transitions = 0
-    for actuator, c in data.row_blocks(block_rows):
+    transitions = events = 0
+    for c in paper_blocks(data, block_rows):
+        actuator = c["actuator"]
         transitions += len(actuator)
+        events += int(c["events"].sum())
         for m in METRICS:
             overall[m] = _merge(overall[m], c[m])
         snapping.add(actuator[~c["stable"]])
@@ -83,6 +120,7 @@ def summarise(data: ScanData, block_rows: int = BLOCK_ROWS) -> ScanSummary:
         actuators_total=data.n_combinations,
         failed=len(data.failed_actuator),
         transitions=transitions,
+        events=events,
         actuators_with_snap=snapping.count,
         types=[
             TypeSummary(
@@ -148,23 +186,25 @@ class RankedDesign:
 
 
 def rank_designs(data: ScanData, by: str, top: int) -> list[RankedDesign]:
-    """The ``top`` actuators whose largest transition by |metric| is largest (dE: the
-    energy released, dv: the volume that changes segment, dl: the length jump, dp: the
-    pressure jump, each relative). One row per actuator, with that transition; ties go
-    to the lower combination rank, so the table is deterministic."""
+    """The ``top`` actuators whose largest transition (as the paper counts them) by
+    |metric| is largest (dE: the energy released, dv: the volume that changes segment,
+    dl: the length jump, dp: the pressure jump, each relative). One row per actuator,
+    with that transition; ties go to the lower combination rank, so the table is
+    deterministic."""
     if by not in METRICS:
         raise ValueError(f"rank by one of {METRICS}, not {by!r}")
-    c = data.columns
+    c = paper_columns(data)
+    actuators = c["actuator"]
     size = np.abs(c[by])
-    order = np.lexsort((np.arange(len(size)), data.actuator, -size))
-    # the first row of each actuator in that order is its largest transition
-    _, first = np.unique(data.actuator[order], return_index=True)
+    order = np.lexsort((np.arange(len(size)), actuators, -size))
+    # the first transition of each actuator in that order is its largest
+    _, first = np.unique(actuators[order], return_index=True)
     best = order[np.sort(first)][:top]
     return [
         RankedDesign(
             rank=k + 1,
-            actuator=int(data.actuator[i]),
-            segments=data.segment_names(data.segments[i]),
+            actuator=int(actuators[i]),
+            segments=data.segment_names(data.segments[c["first"][i]]),
             v_ml=float(c["v_ml"][i]),
             direction=int(c["direction"][i]),
             alpha=int(c["alpha"][i]),
@@ -187,14 +227,15 @@ def type_colour(alpha: int, beta: int, others: dict[tuple[int, int], str]) -> st
 
 
 def plot_fig4(data: ScanData, png: Path) -> None:
-    """Fig. 4 A-C: dv, dl and dp against dE for every transition of the scan, coloured
-    by (alpha, beta); snaps filled, stable transitions open, deflation as triangles."""
+    """Fig. 4 A-C: dv, dl and dp against dE for every transition of the scan as the
+    paper counts them, coloured by (alpha, beta); unstable filled, stable open,
+    deflation as triangles."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    c = data.columns
+    c = paper_columns(data)
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.8), constrained_layout=True)
     others: dict[tuple[int, int], str] = {}
     types = sorted(
@@ -213,7 +254,7 @@ def plot_fig4(data: ScanData, png: Path) -> None:
         )
         colour = type_colour(alpha, beta, others)
         label = (
-            f"({alpha}, {beta}) {'stable' if stable else 'snap'}"
+            f"({alpha}, {beta}) {'stable' if stable else 'unstable'}"
             f"{'' if direction > 0 else ', deflating'} ({int(rows.sum())})"
         )
         style = {
@@ -240,7 +281,7 @@ def plot_fig4(data: ScanData, png: Path) -> None:
     names = f"{len(data.names)} segments"
     fig.suptitle(
         f"All transitions of the {data.actuators_done:,} actuators of n = {data.n} from {names}"
-        f" ({data.row_stop:,} transitions)"
+        f" ({len(c['v_ml']):,} transitions as the paper counts them)"
     )
     fig.savefig(png, dpi=110)
     plt.close(fig)

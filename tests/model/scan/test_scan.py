@@ -13,6 +13,7 @@ from support.scan_helpers import SMALL, assert_same_contents, small_library
 import labrig.model.scan.scan as scan_module
 from labrig.errors import InputError
 from labrig.model.actuator.equilibria import Actuator
+from labrig.model.actuator.paper_counting import paper_transitions
 from labrig.model.actuator.path import quasi_static_path
 from labrig.model.actuator.transitions import transitions
 from labrig.model.scan.run import run_scan
@@ -221,12 +222,15 @@ def pair_scan(tmp_path_factory):
 # one block, and blocks of 7 rows: most actuators' rows straddle two blocks
 @pytest.mark.parametrize("block_rows", [1 << 20, 7])
 def test_the_summary_counts_what_the_paths_have(pair_scan, block_rows):
-    """Counts and ranges per type, recomputed from the paths themselves, whatever the
-    blocks the file is read in."""
+    """Counts and ranges per type (as the paper counts transitions), recomputed from the
+    paths themselves, whatever the blocks the file is read in."""
     expected = {}
+    events = 0
     for combo in itertools.combinations(SMALL, 2):
         actuator = Actuator([analytical_segment(n) for n in combo])
-        for t in transitions(quasi_static_path(actuator, deflate=True)):
+        found = transitions(quasi_static_path(actuator, deflate=True))
+        events += len(found)
+        for t in paper_transitions(found):
             expected.setdefault((t.direction, t.alpha, t.beta, t.stable), []).append(t)
     summary = summarise(pair_scan, block_rows)
     assert summary.actuators_done == 28 and summary.failed == 0
@@ -239,6 +243,7 @@ def test_the_summary_counts_what_the_paths_have(pair_scan, block_rows):
             values = [getattr(x, metric) for x in found]
             assert t.ranges[metric] == (min(values), max(values))
     assert summary.transitions == sum(len(f) for f in expected.values())
+    assert summary.events == events == pair_scan.row_stop
     snapping = {
         c
         for c in itertools.combinations(SMALL, 2)
@@ -257,7 +262,7 @@ def test_rank_is_the_largest_transition_of_each_design(pair_scan, by):
     best = {}
     for combo in itertools.combinations(SMALL, 2):
         actuator = Actuator([analytical_segment(n) for n in combo])
-        found = transitions(quasi_static_path(actuator, deflate=True))
+        found = paper_transitions(transitions(quasi_static_path(actuator, deflate=True)))
         best[combo] = max(abs(getattr(t, by)) for t in found)
     ranked = rank_designs(pair_scan, by, top=5)
     expected = sorted(best.items(), key=lambda item: -item[1])[:5]
