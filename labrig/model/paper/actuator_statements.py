@@ -1,13 +1,14 @@
 """The paper's statements about its combined actuators: Movies S3-S6 (with Fig. 2C),
 Fig. 3's pattern and Fig. 4 (n = 2), with transitions counted as the paper counts them
-(``labrig.model.paper.counting``): one per supplied volume, unstable if a snap is part
-of it; its volume is the supplied volume before it, the fluid it moves dv * v."""
+(``labrig.model.actuator.paper_counting``): a peak crossing and the snap it sets off
+are one, unstable if a snap is part of it; its volume is the supplied volume before
+it, the fluid it moves dv * v."""
 
 from __future__ import annotations
 
 from collections import Counter
 
-from labrig.model.actuator.transitions import Transition
+from labrig.model.actuator.paper_counting import PaperTransition as Transition
 from labrig.model.paper.pair_scan import PairScan, actuator_transitions, scan_pairs
 from labrig.model.paper.statements import (
     MOVIE_S3,
@@ -115,10 +116,11 @@ def _movie_s4(transitions: list[Transition]) -> list[Outcome]:
     ]
 
 
-def _gainer(t: Transition) -> int:
-    """The segment that gains most in transition ``t``."""
-    flows = [b - a for a, b in zip(t.pre.v_i_ml, t.post.v_i_ml, strict=True)]
-    return max(range(len(flows)), key=flows.__getitem__)
+def _flows_ml(t: Transition) -> list[float]:
+    """What each segment gains in transition ``t``, from before its first event to
+    after its last."""
+    pre, post = t.events[0].pre, t.events[-1].post
+    return [b - a for a, b in zip(pre.v_i_ml, post.v_i_ml, strict=True)]
 
 
 def _movie_s5(transitions: list[Transition]) -> list[Outcome]:
@@ -132,8 +134,9 @@ def _movie_s5(transitions: list[Transition]) -> list[Outcome]:
     if both:
         t1 = next(t for t in unstable if t.v_ml == first.v_ml)
         t2 = next(t for t in unstable if t.v_ml == second.v_ml)
-        k = _gainer(t1)
-        back = t2.post.v_i_ml[k] < t2.pre.v_i_ml[k] - MIN_FLOW_ML
+        gained = _flows_ml(t1)
+        k = max(range(len(gained)), key=gained.__getitem__)
+        back = _flows_ml(t2)[k] < -MIN_FLOW_ML
     why = snaps_text(snaps)
     return [
         _outcome(
@@ -344,21 +347,15 @@ def _fig4(scan: PairScan) -> list[Outcome]:
     ]
 
 
-def evaluate(library: Library, prefix: str, scan: bool, progress=None) -> list[Outcome]:
-    """Movies S3-S6 and, with ``scan``, Fig. 3 and Fig. 4 from all 630 pairs of the
-    library's names (``prefix`` + ``B46-T20``); the movies' pairs are read from the scan
-    when there is one."""
-    pairs = scan_pairs(library, library_names(prefix), progress) if scan else None
+def evaluate(library: Library, prefix: str) -> list[Outcome]:
+    """Movies S3-S6, Fig. 3 and Fig. 4 from the library's names (``prefix`` +
+    ``B46-T20``); the two-segment movies are pairs of the scan."""
+    pairs = scan_pairs(library, library_names(prefix))
 
-    def movie(names):
-        named = tuple(prefix + n for n in names)
-        if pairs is not None and named in pairs.transitions:
-            return pairs.transitions[named]
-        return actuator_transitions(library, named)
+    def pair(names):
+        return pairs.transitions.get(tuple(prefix + n for n in names), [])
 
-    out = _movie_s3(movie(MOVIE_S3)) + _movie_s4(movie(MOVIE_S4)) + _movie_s5(movie(MOVIE_S5))
-    out.append(_movie_s6(movie(MOVIE_S6)))
-    if pairs is not None:
-        out.append(_fig3(pairs))
-        out += _fig4(pairs)
-    return out
+    out = _movie_s3(pair(MOVIE_S3)) + _movie_s4(pair(MOVIE_S4)) + _movie_s5(pair(MOVIE_S5))
+    out.append(_movie_s6(actuator_transitions(library, [prefix + n for n in MOVIE_S6])))
+    out.append(_fig3(pairs))
+    return out + _fig4(pairs)

@@ -9,7 +9,7 @@ fitted to; ``prediction``: the rest) and the library it was computed on
 
 The statements live in ``segment_statements`` (Fig. 1C, D, Fig. S4, the paper's
 constants) and ``actuator_statements`` (Movies S3-S6, Fig. 3, Fig. 4); transitions are
-counted as the paper counts them (``labrig.model.paper.counting``).
+counted as the paper counts them (``labrig.model.actuator.paper_counting``).
 
 The calibration's objective (``labrig.model.paper.fit``) reads a library through the
 helpers here with the path's fine-grained events, as when it was fitted.
@@ -103,7 +103,9 @@ def inflation_transitions(library: Library, names, prefix: str = "") -> list:
 def snaps_of(transitions) -> list[Snap]:
     """The unstable ones of ``transitions`` as snaps."""
     return [
-        Snap(t.v_ml, t.alpha, t.beta, t.dE, t.dl, t.dv * t.v_ml) for t in transitions if not t.stable
+        Snap(t.v_ml, t.alpha, t.beta, t.dE, t.dl, t.dv * t.v_ml)
+        for t in transitions
+        if not t.stable
     ]
 
 
@@ -128,16 +130,15 @@ def snaps_text(snaps: list[Snap]) -> str:
     return "; ".join(s.describe() for s in snaps) or "no snap on inflation"
 
 
-def evaluate(library_name: str, *, scan: bool = True, progress=None) -> list[Outcome]:
+def evaluate(library_name: str) -> list[Outcome]:
     """Every statement for the library ``library_name`` (``paper``, ``calibrated``,
-    ``si``). ``scan`` False leaves out Fig. 3 and Fig. 4, which need all 630 pairs (a
-    few minutes); ``progress(done)`` is called after each pair."""
+    ``si``): a few seconds, most of them the 630 pairs of Fig. 3 and Fig. 4."""
     from labrig.model.paper import actuator_statements, segment_statements
     from labrig.model.segments.catalog import analytical_segment
 
     prefix = f"{library_name}:"
     outcomes = segment_statements.evaluate(analytical_segment, prefix)
-    outcomes += actuator_statements.evaluate(analytical_segment, prefix, scan, progress)
+    outcomes += actuator_statements.evaluate(analytical_segment, prefix)
     fitted = FITTED_KEYS.get(library_name, frozenset())
     return [
         Outcome(
