@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from collections import Counter
 
+import numpy as np
+
 from labrig.model.actuator.paper_counting import PaperTransition as Transition
 from labrig.model.paper.pair_scan import PairScan, actuator_transitions, scan_pairs
 from labrig.model.paper.statements import (
@@ -215,6 +217,11 @@ def _fig3(scan: PairScan) -> Outcome:
     )
 
 
+def _up_to(value: float, spec: str) -> str:
+    """ "up to" a largest value, or "none" where no transition had one (NaN)."""
+    return "none" if np.isnan(value) else f"up to {value:{spec}}"
+
+
 def _extreme(ts: list[Transition], key, default=float("nan")) -> float:
     return max((key(t) for t in ts), default=default)
 
@@ -271,7 +278,7 @@ def _fig4(scan: PairScan) -> list[Outcome]:
             "fig4-01-small",
             "Fig. 4: a (0,1) transition changes energy, length, pressure and flow by ~0",
             "~0",
-            "largest |dE|, |dl|, |dp|, dv: "
+            "largest size of dE, dl, dp, dv: "
             + ", ".join(
                 f"{_extreme(zero_one, f, 0.0):.2%}"
                 for f in (
@@ -296,7 +303,7 @@ def _fig4(scan: PairScan) -> list[Outcome]:
             "fig4-11-release",
             "Fig. 4: (1,1) releases up to 10 % of the stored energy",
             "up to 10 %",
-            f"up to {release_11:.1%}",
+            _up_to(release_11, ".1%"),
             within(release_11, 0.05, 0.20),
             "largest release 5-20 %",
         ),
@@ -304,7 +311,7 @@ def _fig4(scan: PairScan) -> list[Outcome]:
             "fig4-11-flow",
             "Fig. 4: (1,1) moves up to 80 % of the volume between the segments",
             "up to 80 %",
-            f"up to {flow_11:.0%}",
+            _up_to(flow_11, ".0%"),
             within(flow_11, 0.40, 1.0),
             "largest flow 40-100 %",
         ),
@@ -320,7 +327,7 @@ def _fig4(scan: PairScan) -> list[Outcome]:
             "fig4-12-release",
             "Fig. 4: an unstable (1,2) releases up to 2.5 % of the stored energy",
             "up to 2.5 %",
-            f"up to {release_12:.1%}",
+            _up_to(release_12, ".1%"),
             within(release_12, 0.0125, 0.05),
             "largest release 1.25-5 %",
         ),
@@ -328,9 +335,9 @@ def _fig4(scan: PairScan) -> list[Outcome]:
             "fig4-12-length",
             "Fig. 4: an unstable (1,2) changes the length by up to 14 %",
             "up to 14 %",
-            f"up to {length_12:.1%}",
+            _up_to(length_12, ".1%"),
             within(length_12, 0.07, 0.28),
-            "largest |dl| 7-28 %",
+            "largest length change 7-28 % (either sign)",
         ),
         (
             "fig4-energy-range",
