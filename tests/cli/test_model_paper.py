@@ -166,3 +166,45 @@ def test_plot_draws_the_library_beside_the_papers_peak_range(tmp_path, capsys):
     code, _, err = run(["model", "paper", "--plot", str(tmp_path / "nope" / "a.png")], capsys)
     assert code == 2
     assert "does not exist" in err
+
+
+def synthetic_scan(release_11: float):
+    """630 pairs with the paper's Fig. 4 as its text describes it, the (1,1) releasing
+    ``release_11``: (0,1) stable and tiny, (1,1) unstable moving 80 %, (1,2) stable in
+    half the pairs and unstable (2.5 %, +14 %) in the other half."""
+    from labrig.model.actuator.paper_counting import PaperTransition
+    from labrig.model.paper.pair_scan import PairScan
+
+    def transition(v, alpha, beta, stable, dE, dv=0.0, dl=0.0, dp=0.0):
+        return PaperTransition(v, alpha, beta, stable, dE, dv, dl, dp, 1, events=())
+
+    found = {}
+    for k, pair in enumerate(combinations([f"test:S{i}" for i in range(36)], 2)):
+        unstable_12 = k % 2 == 0
+        found[pair] = [
+            transition(5.0, 0, 1, True, 4e-5),
+            transition(19.0, 1, 1, False, -release_11, dv=0.8, dl=0.05, dp=-0.3),
+            transition(
+                22.0,
+                1,
+                2,
+                not unstable_12,
+                -0.025 if unstable_12 else 1e-5,
+                dl=0.14 if unstable_12 else 0.0,
+            ),
+        ]
+    return PairScan(found, {})
+
+
+def test_fig4_holds_for_the_papers_own_numbers_and_not_for_a_43_percent_release():
+    from labrig.model.paper.actuator_statements import _fig3, _fig4
+
+    as_described = {o.key: o for o in _fig4(synthetic_scan(0.10))}
+    assert all(o.holds for o in as_described.values()), [
+        o for o in as_described.values() if not o.holds
+    ]
+    assert _fig3(synthetic_scan(0.10)).holds
+    too_much = {o.key: o for o in _fig4(synthetic_scan(0.43))}
+    assert not too_much["fig4-11-release"].holds and not too_much["fig4-energy-range"].holds
+    too_little = {o.key: o for o in _fig4(synthetic_scan(0.01))}
+    assert not too_little["fig4-11-release"].holds  # "up to 10 %" is not 1 %
