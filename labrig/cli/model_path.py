@@ -112,7 +112,11 @@ def _table(names, found, v_end_ml: float, seconds: float) -> None:
 @click.option("--deflate", is_flag=True, help="After inflating, deflate back to zero (hysteresis).")
 @click.option("--v-end-ml", type=float, default=None, help="End volume of inflation (mL).")
 @click.option(
-    "--json", "as_json", is_flag=True, help="Print the path and transitions as one JSON object."
+    "--json",
+    "as_json",
+    is_flag=True,
+    help="Print the path, its events (transitions) and the transitions as the paper counts "
+    "them (paper_transitions) as one JSON object.",
 )
 @plot_option("Write p-v, l-v (and for two segments the v1-v2 plane) to this PNG.")
 def path(
@@ -123,7 +127,8 @@ def path(
     plot_png: Path | None,
 ) -> None:
     """The quasi-static path of the actuator made of the segments SEG (library names
-    such as B46-T20, gent-a/b/c, or CSV files), with its transitions."""
+    such as B46-T20, gent-a/b/c, or CSV files), with its transitions (as the paper
+    counts them: a peak crossing and the snap it sets off are one)."""
     if len(segs) < 2:
         raise InputError(
             f"model path needs at least two segments, got {len(segs)}: e.g. B46-T20 B46-T22"

@@ -118,8 +118,9 @@ def scan(
     deflate: bool,
     plot_png: Path | None,
 ) -> None:
-    """Every actuator of N segments from a library: the transitions of each, streamed to
-    the HDF5 file OUT as they are computed, then a summary per transition type."""
+    """Every actuator of N segments from a library: the transitions of each (its path's
+    events), streamed to the HDF5 file OUT as they are computed, then a summary per
+    transition type, counted as the paper counts them."""
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,

@@ -151,7 +151,10 @@ def export(file: Path, directory: Path) -> None:
     "--json",
     "as_json",
     is_flag=True,
-    help='Print the comparison as one JSON object: {"rmse": {...}, "transitions": [...]}.',
+    help='Print the comparison as one JSON object: {"rmse": {...}, "transitions": [...], '
+    '"paper_transitions": [...], "unpredicted": [...]} (the model\'s events, and its '
+    "transitions as the paper counts them: a peak crossing and the snap it sets off are "
+    "one).",
 )
 def compare_command(
     file: Path, segments: tuple[str, ...], library: Path | None, store: bool, as_json: bool

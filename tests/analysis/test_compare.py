@@ -16,6 +16,7 @@ from labrig.analysis.compare import (
     rmse,
 )
 from labrig.analysis.curves import DEFLATE, INFLATE
+from labrig.analysis.report import comparison_json
 from labrig.analysis.transitions import AgreedTransition
 from labrig.model.segments.catalog import analytical_segment
 
@@ -156,3 +157,9 @@ def test_library_actuator_run_matches_the_model(library_run):
     assert counted == list(paper_counted(comparison.prediction.transitions))
     paired = {m.measured for m in comparison.paper_matches if m.measured is not None}
     assert paired == {m.measured for m in snaps}
+    # compare --json: the events as before, the paper's counting beside them
+    doc = comparison_json(result)
+    assert list(doc) == ["rmse", "transitions", "paper_transitions", "unpredicted"]
+    assert len(doc["transitions"]) == len(comparison.prediction.transitions)
+    assert len(doc["paper_transitions"]) == len(counted)
+    assert all(list(t) == list(doc["transitions"][0]) for t in doc["paper_transitions"])

@@ -14,14 +14,13 @@ supplied volume after the event before it (a crossing, or a snap it lands in) be
 that event's transition; a crossing always starts a transition of its own, as does
 anything after a change of actuator or of direction. So a crossing and the snap it sets
 off are one unstable transition, a crossing that sets off nothing stays a stable one,
-and two crossings stay two. On the 630 pairs of the library the snaps a crossing sets
-off follow it by 0.003-1.0 mL (the stable stretch down a smooth peak's falling side
-before the fold, which measured curves do not resolve); the counts of (0, 1), (1, 1)
-and (1, 2) do not change for any tolerance from 1.01 to 5 mL, and only four snaps that
-follow another snap by 1.0-5.1 mL move with it. ``SAME_VOLUME_ML`` is 1.5 mL, inside
-that range and half the 3 mL between the two instabilities of Fig. 3 (19 and 22 mL),
-which the paper counts as two (docs/explanation/scans.md has the counts against the
-tolerance).
+and two crossings stay two. The tolerance is needed because a smooth peak's falling
+side starts flat, so the fold the crossing leads to comes a little further on (0.003-1.0
+mL on the calibrated library's 630 pairs), never at exactly the crossing's volume.
+``SAME_VOLUME_ML`` is 1.5 mL: on that library the counts of (0, 1), (1, 1) and (1, 2)
+are the same for any tolerance from 1.01 to 5 mL, and it is half the 3 mL between the
+two instabilities of Fig. 3 (19 and 22 mL), which the paper counts as two
+(docs/explanation/scans.md has the counts against the tolerance).
 
 A transition's numbers are:
 - ``v_ml``: the supplied volume just before its first event; ``direction`` its events'.

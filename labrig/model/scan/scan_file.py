@@ -260,6 +260,10 @@ class ScanData:
     def segment_names(self, row_segments) -> list[str]:
         return [self.names[i] for i in row_segments]
 
+    def names_at_row(self, row: int) -> list[str]:
+        """The segment names of one row, read alone (not the whole column)."""
+        return self.segment_names(self._read("segments", row, row + 1)[0])
+
     def _read(self, name: str, start: int = 0, stop: int | None = None) -> np.ndarray:
         import h5py
 

@@ -58,14 +58,16 @@ def paper_columns(data: ScanData) -> dict[str, np.ndarray]:
 
 def paper_blocks(data: ScanData, block_rows: int = BLOCK_ROWS):
     """``paper_columns`` block by block (memory bounded by the block): the rows of the
-    last actuator of a block wait for the next block, so no transition is split."""
+    last actuator of a block wait for the next block, so every actuator's transitions
+    come whole in one block."""
     held: dict[str, np.ndarray] | None = None
+    start = 0
     for actuator, c in data.row_blocks(block_rows):
-        rows = {"actuator": actuator, **c}
+        rows = {"actuator": actuator, "row": np.arange(start, start + len(actuator)), **c}
+        start += len(actuator)
         if held is not None:
             rows = {name: np.concatenate([held[name], rows[name]]) for name in rows}
-        last = rows["actuator"][-1]
-        whole = rows["actuator"] != last
+        whole = rows["actuator"] != rows["actuator"][-1]
         held = {name: values[~whole] for name, values in rows.items()}
         if whole.any():
             yield _grouped({name: values[whole] for name, values in rows.items()})
@@ -74,8 +76,9 @@ def paper_blocks(data: ScanData, block_rows: int = BLOCK_ROWS):
 
 
 def _grouped(rows: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The transitions of whole actuators' rows, ``first`` numbered in the file."""
     grouped = group_paper_transitions(rows, rows["actuator"])
-    grouped.pop("first")
+    grouped["first"] = rows["row"][grouped["first"]]
     return grouped
 
 
@@ -185,7 +188,9 @@ class RankedDesign:
     metrics: dict[str, float]
 
 
-def rank_designs(data: ScanData, by: str, top: int) -> list[RankedDesign]:
+def rank_designs(
+    data: ScanData, by: str, top: int, block_rows: int = BLOCK_ROWS
+) -> list[RankedDesign]:
     """The ``top`` actuators whose largest transition (as the paper counts them) by
     |metric| is largest (dE: the energy released, dv: the volume that changes segment,
     dl: the length jump, dp: the pressure jump, each relative). One row per actuator,
@@ -193,18 +198,22 @@ def rank_designs(data: ScanData, by: str, top: int) -> list[RankedDesign]:
     deterministic."""
     if by not in METRICS:
         raise ValueError(f"rank by one of {METRICS}, not {by!r}")
-    c = paper_columns(data)
-    actuators = c["actuator"]
-    size = np.abs(c[by])
-    order = np.lexsort((np.arange(len(size)), actuators, -size))
-    # the first transition of each actuator in that order is its largest
-    _, first = np.unique(actuators[order], return_index=True)
-    best = order[np.sort(first)][:top]
+    # each actuator's largest transition, block by block (an actuator is whole in one)
+    best_parts = []
+    for c in paper_blocks(data, block_rows):
+        size = np.abs(c[by])
+        order = np.lexsort((np.arange(len(size)), c["actuator"], -size))
+        _, first = np.unique(c["actuator"][order], return_index=True)
+        best_parts.append({name: values[order[first]] for name, values in c.items()})
+    if not best_parts:
+        return []
+    c = {name: np.concatenate([part[name] for part in best_parts]) for name in best_parts[0]}
+    best = np.lexsort((c["actuator"], -np.abs(c[by])))[:top]
     return [
         RankedDesign(
             rank=k + 1,
-            actuator=int(actuators[i]),
-            segments=data.segment_names(data.segments[c["first"][i]]),
+            actuator=int(c["actuator"][i]),
+            segments=data.names_at_row(int(c["first"][i])),
             v_ml=float(c["v_ml"][i]),
             direction=int(c["direction"][i]),
             alpha=int(c["alpha"][i]),
