@@ -208,3 +208,24 @@ def test_fig4_holds_for_the_papers_own_numbers_and_not_for_a_43_percent_release(
     assert not too_much["fig4-11-release"].holds and not too_much["fig4-energy-range"].holds
     too_little = {o.key: o for o in _fig4(synthetic_scan(0.01))}
     assert not too_little["fig4-11-release"].holds  # "up to 10 %" is not 1 %
+
+
+@pytest.mark.parametrize(
+    ("peak_of", "rises", "independent"),
+    [
+        (lambda braid, tube: 60 + braid - 40, True, True),  # the paper's trends
+        (lambda braid, tube: 90 - tube, False, False),  # L_tube sets the peak
+        (lambda braid, tube: 80 - (braid - 40), False, True),  # falls with L_braid
+    ],
+)
+def test_the_trend_statements_on_synthetic_peaks(peak_of, rises, independent):
+    from labrig.model.paper.segment_statements import _trend_outcomes
+
+    peaks = {
+        f"x:B{braid}-T{tube}": float(peak_of(braid, tube))
+        for braid in range(40, 51, 2)
+        for tube in range(20, 31, 2)
+    }
+    by_key = {o.key: o for o in _trend_outcomes(peaks, "x:")}
+    assert by_key["peaks-rise-with-braid"].holds == rises
+    assert by_key["peaks-independent-of-tube"].holds == independent
