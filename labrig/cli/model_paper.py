@@ -1,9 +1,12 @@
 """``labrig model paper`` and ``labrig model calibrate``: the model against the paper.
 
-``paper`` prints the paper's nine statements (Fig. 1C, Movies S3-S6) beside what the
-library gives, whether each holds and, where not, what the model does instead; ``--si``
-makes the same table for the SI's uncalibrated segments. ``calibrate`` repeats the fit
-that produced the calibrated library (``labrig.model.paper.fit``) and prints the fitted
+``paper`` prints every checkable statement of the paper (the constants it gives, Fig. 1C
+and D, Fig. S4's trends, Movies S3-S6, Fig. 3, Fig. 4) beside what a library gives:
+the paper's value, labrig's, the two-sided tolerance, whether it holds, its role (input,
+fitted, prediction) and, where it does not hold, what the model does instead.
+``--library`` picks the library (``paper``, ``calibrated``, ``si``; the default
+library's otherwise), ``--si`` is ``--library si``. ``calibrate`` repeats the fit that
+produced the calibrated library (``labrig.model.paper.fit``) and prints the fitted
 constants and the objective; it changes nothing on disk.
 """
 
@@ -16,11 +19,7 @@ import click
 
 from labrig.cli.options import plot_option
 
-
-def _library(si: bool):
-    from labrig.model.segments.catalog import SI_PREFIX, analytical_segment
-
-    return analytical_segment, (SI_PREFIX if si else "")
+_LIBRARY_HELP = "paper (the paper's numbers), calibrated or si (the SI as printed)"
 
 
 def _table(outcomes, title: str) -> None:
@@ -29,33 +28,57 @@ def _table(outcomes, title: str) -> None:
     from rich.table import Table
 
     table = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False)
-    for heading in ("statement", "paper", "labrig", "holds", "role", "why not"):
+    for heading in ("statement", "paper", "labrig", "tolerance", "holds", "role", "why not"):
         table.add_column(heading, overflow="fold")
     for o in outcomes:
-        table.add_row(o.statement, o.paper, o.labrig, "yes" if o.holds else "NO", o.role, o.why)
+        table.add_row(
+            o.statement,
+            o.paper,
+            o.labrig,
+            o.tolerance,
+            "yes" if o.holds else "NO",
+            o.role,
+            o.why,
+        )
     Console().print(table)
+
+
+def _fitted(library: str) -> dict | None:
+    """The library's fitted constants, None where it fits none."""
+    from labrig.model.segments.calibrated import CALIBRATION
+
+    return CALIBRATION.as_dict() if library == "calibrated" else None
 
 
 @click.command("paper")
 @click.option("--json", "as_json", is_flag=True, help="Print the table as one JSON object.")
-@click.option("--si", is_flag=True, help="Check the SI's uncalibrated segments (SI-B46-T20 ...).")
+@click.option(
+    "--library",
+    "library",
+    type=click.Choice(["paper", "calibrated", "si"], case_sensitive=False),
+    default=None,
+    help=f"The segment library to check: {_LIBRARY_HELP}. Default: the default library's.",
+)
+@click.option("--si", is_flag=True, help="Check the SI's segments as printed (--library si).")
 @plot_option("Also draw the 36 segments' p-v and l-v beside the paper's peak range (Fig. 1C, D).")
-def paper(as_json: bool, si: bool, plot_png: Path | None) -> None:
-    """The paper's statements about its segments and actuators, and whether the model's
-    library reproduces each (fitted ones and predictions)."""
-    from labrig.model.paper.statements import PEAK_RANGE_KPA, evaluate, library_names
-    from labrig.model.segments.calibrated import CALIBRATION
+def paper(as_json: bool, library: str | None, si: bool, plot_png: Path | None) -> None:
+    """The paper's statements about its segments and actuators, and whether a segment
+    library reproduces each (inputs, fitted ones and predictions)."""
+    from labrig.model.paper.statements import PEAK_RANGE_KPA, evaluate
+    from labrig.model.segments.catalog import DEFAULT_LIBRARY, analytical_segment, library_names
 
-    library, prefix = _library(si)
-    outcomes = evaluate(library, prefix)
+    if si and library not in (None, "si"):
+        raise click.UsageError("--si is --library si: give one of them")
+    name = "si" if si else (library or DEFAULT_LIBRARY).lower()
+    outcomes = evaluate(name)
     holding = int(sum(bool(o.holds) for o in outcomes))
-    name = "SI (uncalibrated)" if si else "calibrated"
+    fitted = _fitted(name)
     if plot_png is not None:
         from labrig.model.plots import plot_library
 
         peaks = next(o for o in outcomes if o.key == "peaks-range")
         plot_library(
-            [library(n) for n in library_names(prefix)],
+            [analytical_segment(n) for n in library_names(name)],
             plot_png,
             peak_range_kpa=PEAK_RANGE_KPA,
             title=f"the {name} library: peaks {peaks.labrig}; the paper: {peaks.paper}",
@@ -65,13 +88,19 @@ def paper(as_json: bool, si: bool, plot_png: Path | None) -> None:
     if as_json:
         document = {
             "library": name,
-            "calibration": None if si else CALIBRATION.as_dict(),
+            "default_library": DEFAULT_LIBRARY,
+            "calibration": fitted,
+            "fitted_constants": len(fitted or {}),
             "holding": holding,
             "statements": [o.as_dict() for o in outcomes],
         }
         click.echo(json.dumps(document))
         return
-    _table(outcomes, f"the {name} library against the paper: {holding} of {len(outcomes)} hold")
+    _table(
+        outcomes,
+        f"the {name} library ({len(fitted or {})} fitted constants) against the paper: "
+        f"{holding} of {len(outcomes)} hold",
+    )
 
 
 @click.command("calibrate")

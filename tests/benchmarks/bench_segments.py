@@ -1,5 +1,6 @@
-"""Benchmark: build time of the 36 analytical library segments, and of loading a raw
-measured curve (1 kHz samples at 60 mL/min). Prints numbers; asserts nothing.
+"""Benchmark: build time of the 36 analytical library segments (the default library's,
+then the paper-numbers and the SI's), and of loading a raw measured curve (1 kHz samples
+at 60 mL/min). Prints numbers; asserts nothing.
 
 Run: python tests/benchmarks/bench_segments.py [--write-docs]
 """
@@ -30,6 +31,18 @@ def main() -> None:
         catalog.analytical_segment(name)
     t_cached = time.perf_counter() - t0
     samples = [len(c.v_ml) for c in curves]
+    others = []
+    for library in (catalog.PAPER, catalog.SI):
+        t0 = time.perf_counter()
+        built = [catalog.analytical_segment(name) for name in catalog.library_names(library)]
+        sizes = [len(c.v_ml) for c in built]
+        others.append(
+            (
+                f"build the 36 of `{library}:` (cold)",
+                f"{(time.perf_counter() - t0) * 1e3:.1f}",
+                f"{min(sizes)}-{max(sizes)} samples per table",
+            )
+        )
 
     from labrig.model.segments.measured import load_csv
 
@@ -48,11 +61,13 @@ def main() -> None:
     rows = [
         ("import labrig.model.segments.catalog", f"{t_import * 1e3:.1f}", ""),
         (
-            f"build all {len(curves)} analytical segments (cold)",
+            f"build all {len(curves)} analytical segments of the default library "
+            f"`{catalog.DEFAULT_LIBRARY}:` (cold)",
             f"{t_cold * 1e3:.1f}",
             f"{min(samples)}-{max(samples)} samples per table",
         ),
         ("the same again (cached)", f"{t_cached * 1e3:.3f}", ""),
+        *others,
         (
             f"load + fit a raw CSV of {len(v):,} rows (1 kHz at 60 mL/min)",
             f"{t_load * 1e3:.1f}",

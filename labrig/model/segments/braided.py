@@ -145,6 +145,10 @@ class BraidedSegment:
                 raise ValueError(f"{field} must be > 0, got {getattr(self, field)}")
         if not self.shear_modulus_mpa > 0 or self.axial_force_n < 0:
             raise ValueError("the shear modulus must be > 0 and the braid force >= 0")
+        self.check_braids_enclose_tube()
+
+    def check_braids_enclose_tube(self) -> None:
+        """The SI's segment needs buckled braids at p = 0 (ValueError otherwise)."""
         if self.lambda_z0 * self.l_tube_mm >= self.l_braid_mm:
             raise ValueError(
                 f"braids of {self.l_braid_mm} mm cannot enclose a tube stretched to "
@@ -167,6 +171,12 @@ class BraidedSegment:
     def end_radius_mm(self) -> float:
         """Radius of the braid envelope at the couplings (S40's R)."""
         return self.radius_mm if self.envelope_radius_mm is None else self.envelope_radius_mm
+
+    @property
+    def wall_volume_mm3(self) -> float:
+        """Volume of the tube's wall that the braids' envelope must also hold at contact:
+        none for the SI's thin membrane, which meets the envelope with its own radius."""
+        return 0.0
 
     @property
     def pressure_scale_kpa(self) -> float:
@@ -249,14 +259,15 @@ class BraidedSegment:
         """(supplied v_ml, p_kpa, l_mm) after contact, at braid angle theta between the
         contact angle and the wall angle.
 
-        The tube fills the envelope: V = braid volume, l = L_braid cos(theta),
+        The tube fills the envelope: V = braid volume (less the tube's wall, where it has
+        one: ``wall_volume_mm3``), l = L_braid cos(theta),
         lambda_theta^2 = V/(pi R^2 l). The pressure is dPi/dV along this path, Pi the
         tube's membrane energy (``membrane_gradient``, thin membrane) plus the braids'
         energy F (L_braid - l) of a constant force F (S31).
         """
         th = np.asarray(theta, dtype=float)
         r, lt, lb = self.radius_mm, self.l_tube_mm, self.l_braid_mm
-        enclosed = self.braid_volume_mm3(th)
+        enclosed = self.braid_volume_mm3(th) - self.wall_volume_mm3
         d_enclosed = self._braid_volume_slope(th)
         length = lb * np.cos(th)
         d_length = -lb * np.sin(th)

@@ -1,12 +1,21 @@
-"""Segments by name: the 36 braided segments (calibrated and the SI's), the Gent
-membranes, CSV files.
+"""Segments by name: the 36 braided segments of three libraries, the Gent membranes,
+measured segments and CSV files.
 
-``load_segment`` is what every command that takes a ``SEG`` argument calls: a library
-name (``B46-T20``: L_braid = 46 mm, L_tube = 20 mm, the calibrated segment of
-``labrig.model.segments.calibrated``), the SI's uncalibrated segment of the same
-geometry (``SI-B46-T20``), a Gent membrane of Fig. S1 (``gent-a``, ``gent-b``,
-``gent-c``) or a path to a measured curve (CSV). Analytical curves are built once per
-process and cached, because scans build all 36 again and again.
+``load_segment`` is what every command that takes a ``SEG`` argument calls. A braided
+segment's name is its geometry (``B46-T20``: L_braid = 46 mm, L_tube = 20 mm) with the
+library as a prefix (docs/reference/segments.md):
+
+- ``paper:B46-T20``: the SI's segment from the paper's own numbers, tubing read as
+  diameters, nothing fitted (``labrig.model.segments.paper_braided``);
+- ``calibrated:B46-T20``: the calibrated form, eight fitted constants
+  (``labrig.model.segments.calibrated``);
+- ``si:B46-T20`` (also ``SI-B46-T20``): the SI as printed, R = 6.35 mm
+  (``labrig.model.segments.braided``).
+
+A bare ``B46-T20`` is the default library's (``DEFAULT_LIBRARY``). The others are a Gent
+membrane of Fig. S1 (``gent-a``, ``gent-b``, ``gent-c``) or a measured curve (CSV).
+Analytical curves are built once per process and cached, because scans build all 36 again
+and again.
 """
 
 from __future__ import annotations
@@ -24,32 +33,63 @@ TUBE_LENGTHS_MM = tuple(range(20, 31, 2))
 LIBRARY_NAMES: tuple[str, ...] = tuple(
     f"B{braid}-T{tube}" for braid in BRAID_LENGTHS_MM for tube in TUBE_LENGTHS_MM
 )
+PAPER, CALIBRATED, SI = "paper", "calibrated", "si"
+LIBRARIES = (PAPER, CALIBRATED, SI)
+# The library bare names resolve to, and so the simulated rig's and the demo's: the one
+# that holds more of the paper's statements with fewer fitted constants
+# (docs/explanation/calibration.md).
+DEFAULT_LIBRARY = CALIBRATED
 SI_PREFIX = "SI-"
 SI_NAMES: tuple[str, ...] = tuple(SI_PREFIX + name for name in LIBRARY_NAMES)
-_NAME = re.compile(r"(?:SI-)?B(\d+)-T(\d+)")
+_NAME = re.compile(r"(?:(paper|calibrated|si):|(si-))?(B(\d+)-T(\d+))", re.IGNORECASE)
 MEASURED_ENV_VAR = "LABRIG_LIBRARY"
 MEASURED_DEFAULT_DIR = Path("library")
 _MEASURED_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 _VALID = (
     f"B{BRAID_LENGTHS_MM[0]}..B{BRAID_LENGTHS_MM[-1]} x T{TUBE_LENGTHS_MM[0]}.."
-    f"T{TUBE_LENGTHS_MM[-1]} in steps of 2, e.g. B46-T20 (calibrated) or SI-B46-T20 (the SI's)"
+    f"T{TUBE_LENGTHS_MM[-1]} in steps of 2, e.g. B46-T20, or with a library: paper:B46-T20, "
+    "calibrated:, si:"
 )
+
+
+def library_names(library: str | None = None) -> tuple[str, ...]:
+    """The 36 names of ``library`` (``paper``, ``calibrated``, ``si``) with its prefix;
+    bare names (the default library) for None."""
+    if library is None:
+        return LIBRARY_NAMES
+    return tuple(f"{library}:{name}" for name in LIBRARY_NAMES)
+
+
+def parse_library_name(name: str) -> tuple[str, int, int] | None:
+    """(library, L_braid, L_tube) of a braided segment's name, or None."""
+    found = _NAME.fullmatch(name.strip())
+    if found is None:
+        return None
+    prefix, legacy, geometry, braid, tube = found.groups()
+    if geometry.upper() not in LIBRARY_NAMES:
+        return None
+    library = prefix.lower() if prefix else (SI if legacy else DEFAULT_LIBRARY)
+    return library, int(braid), int(tube)
 
 
 def library_geometry(name: str) -> tuple[int, int]:
     """(L_braid, L_tube) in mm of a library name; InputError for anything else."""
-    canonical = name.strip().upper()
-    if canonical not in LIBRARY_NAMES and canonical not in SI_NAMES:
+    parsed = parse_library_name(name)
+    if parsed is None:
         raise InputError(f"unknown segment {name!r}: library names are {_VALID}")
-    braid, tube = _NAME.fullmatch(canonical).groups()
-    return int(braid), int(tube)
+    return parsed[1], parsed[2]
 
 
 def library_segment(name: str):
-    """The segment object behind a library name: ``SI-B46-T20`` the SI's
-    ``BraidedSegment``, ``B46-T20`` the calibrated one."""
+    """The segment object behind a library name (``paper:`` a ``PaperBraidedSegment``,
+    ``si:`` the SI's ``BraidedSegment``, ``calibrated:`` an ``OgdenBraidedSegment``)."""
     braid, tube = library_geometry(name)
-    if name.strip().upper().startswith(SI_PREFIX):
+    library = parse_library_name(name)[0]
+    if library == PAPER:
+        from labrig.model.segments.paper_braided import PaperBraidedSegment
+
+        return PaperBraidedSegment(braid, tube)
+    if library == SI:
         from labrig.model.segments.braided import BraidedSegment
 
         return BraidedSegment(braid, tube)
@@ -59,22 +99,34 @@ def library_segment(name: str):
 
 
 def is_library_name(name: str) -> bool:
-    canonical = name.strip().upper()
-    return canonical in LIBRARY_NAMES or canonical in SI_NAMES
+    return parse_library_name(name) is not None
+
+
+def _canonical(name: str) -> str:
+    """``paper:B46-T20``, ``SI-B46-T20``, ``B46-T20``: the prefix as the library spells
+    it, the geometry in capitals."""
+    found = _NAME.fullmatch(name.strip())
+    prefix, legacy, geometry = found.group(1), found.group(2), found.group(3).upper()
+    if prefix:
+        return f"{prefix.lower()}:{geometry}"
+    return (SI_PREFIX if legacy else "") + geometry
 
 
 @cache
 def _analytical(canonical: str) -> SegmentCurve:
-    if canonical.startswith(SI_PREFIX):
-        return library_segment(canonical).curve(canonical)
-    from labrig.model.segments.calibrated import calibrated_curve
+    library, braid, tube = parse_library_name(canonical)
+    if library == CALIBRATED:
+        from labrig.model.segments.calibrated import calibrated_curve
 
-    return calibrated_curve(*library_geometry(canonical), canonical)
+        return calibrated_curve(braid, tube, canonical)
+    return library_segment(canonical).curve(canonical)
 
 
 def analytical_segment(name: str) -> SegmentCurve:
-    """The braided segment ``name`` (case-insensitive; calibrated or ``SI-``), built once."""
-    return _analytical(name.strip().upper())
+    """The braided segment ``name`` (case-insensitive, any library), built once."""
+    if not is_library_name(name):
+        raise InputError(f"unknown segment {name!r}: library names are {_VALID}")
+    return _analytical(_canonical(name))
 
 
 def resolve_library_dir(explicit: str | Path | None = None) -> Path:

@@ -1,0 +1,153 @@
+"""The segment from the paper's numbers against independent computations: the envelope
+of S40 by quadrature, the fixed-length branch's pressure as the derivative of the
+membrane energy, the straight braids' force in the uniaxial limit, pressure continuity
+at both kinds of contact, the energy after contact by quadrature of p dv, and the peak
+by a second parametrisation (hoop stretch, bisection) of the same membrane."""
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+
+from labrig.model.segments.braided import braid_force_n
+from labrig.model.segments.ogden_braided import OgdenBraidedSegment
+from labrig.model.segments.paper_braided import (
+    BRAID_INNER_RADIUS_MM,
+    TUBE_INNER_RADIUS_MM,
+    TUBE_THICKNESS_MM,
+    PaperBraidedSegment,
+)
+
+R, H, MU = TUBE_INNER_RADIUS_MM, TUBE_THICKNESS_MM, 0.49
+GEOMETRIES = [(b, t) for b in range(40, 51, 2) for t in range(20, 31, 2)]
+
+
+def membrane_energy_mj(seg, stretch_theta, stretch_z):
+    """Neo-Hookean energy S14 of the thin wall, volume 2 pi R H L_tube."""
+    invariant = stretch_theta**2 + stretch_z**2 + 1 / (stretch_theta * stretch_z) ** 2 - 3
+    return 0.5 * MU * invariant * 2 * np.pi * R * H * seg.l_tube_mm
+
+
+@pytest.fixture(scope="module")
+def library():
+    return {g: PaperBraidedSegment(*g) for g in GEOMETRIES}
+
+
+def test_the_braid_tubing_fits_snugly_over_the_latex_tube():
+    # read as diameters, the latex tube's outer radius is the braid tubing's inner one
+    assert abs(R + H - BRAID_INNER_RADIUS_MM) < 0.01
+
+
+def test_all_36_segments_build_and_rise_to_the_wall(library):
+    for seg in library.values():
+        curve = seg.curve()
+        assert np.all(np.diff(curve.v_ml) > 0)
+        assert curve.p_kpa[0] == 0 and curve.p_kpa[-1] == pytest.approx(300.0, rel=1e-6)
+        assert curve.l_mm[-1] < curve.l_mm.max()  # the braids shorten it after contact
+
+
+def test_short_braids_on_long_tubes_are_straight_at_rest(library):
+    # F alone would stretch the tube past L_braid: the uniaxial neo-Hookean law
+    # 2 pi R H mu (lambda - lambda^-2) = F, solved independently on a fine grid
+    for (braid, tube), seg in library.items():
+        grid = np.linspace(1.0, 3.0, 200001)
+        force = 2 * np.pi * R * H * MU * (grid - grid**-2)
+        stretch = grid[np.argmin(np.abs(force - braid_force_n(braid)))]
+        if abs(stretch * tube - braid) > 0.01:
+            assert seg.straight_at_rest == (stretch * tube > braid)
+    assert sum(s.straight_at_rest for s in library.values()) == 6
+
+
+def test_envelope_volume_is_the_double_cone_by_quadrature(library):
+    seg = library[(46, 20)]
+    for theta in [1e-3, 0.2, 0.6, 1.0]:
+        half = 0.5 * seg.l_braid_mm * np.cos(theta)
+        slope = np.tan(theta)
+        cone, _ = quad(lambda x, s=slope: np.pi * (BRAID_INNER_RADIUS_MM + x * s) ** 2, 0, half)
+        assert seg.braid_volume_mm3(theta) == pytest.approx(2 * cone, rel=1e-9)
+
+
+def test_fixed_length_pressure_is_the_derivative_of_the_membrane_energy(library):
+    seg = library[(40, 30)]
+    lz = seg.cap_stretch
+    for hoop in [0.9, 1.0, 1.1]:
+        step = 1e-6
+        dw = membrane_energy_mj(seg, hoop + step, lz) - membrane_energy_mj(seg, hoop - step, lz)
+        dv = np.pi * R**2 * seg.l_braid_mm * ((hoop + step) ** 2 - (hoop - step) ** 2)
+        assert seg.capped_state(hoop)[1] == pytest.approx(dw / dv * 1000, rel=1e-6)
+
+
+def test_straight_braids_carry_the_tubes_tension_and_never_more_than_f(library):
+    seg = library[(40, 30)]
+    lz = seg.cap_stretch
+    uniaxial = 2 * np.pi * R * H * MU * (lz - lz**-2)
+    assert seg.braid_compression_n(lz**-0.5) == pytest.approx(uniaxial, rel=1e-12)
+    for straight in (s for s in library.values() if s.meets_straight_braids):
+        hoops = np.linspace(straight.capped_start_hoop, straight.contact_hoop, 50)
+        assert np.all(straight.braid_compression_n(hoops) <= straight.axial_force_n * (1 + 1e-9))
+        if not straight.straight_at_rest:  # the free branch ends in equilibrium with F
+            start = straight.braid_compression_n(straight.capped_start_hoop)
+            assert start == pytest.approx(straight.axial_force_n, rel=1e-6)
+
+
+def test_pressure_is_continuous_at_both_kinds_of_contact(library):
+    kinds = set()
+    for seg in library.values():
+        before = (
+            seg.capped_state(seg.contact_hoop)
+            if seg.meets_straight_braids
+            else seg.tube_state(seg.free_end_stretch)
+        )
+        after = seg.contact_state(seg.contact_angle)
+        assert after[0] == pytest.approx(before[0], abs=1e-6)
+        # straight braids: the contact branch starts at 1e-4 rad, where the braids' own
+        # energy already moves p by F L sin(theta) / (dV/dtheta), a few 1e-3 kPa
+        assert after[1] == pytest.approx(before[1], abs=5e-3)
+        kinds.add(seg.meets_straight_braids)
+    assert kinds == {True, False}
+
+
+def energy_after_contact_mj(seg, theta):
+    """Membrane plus braid energy of the state at braid angle theta, from (v, l) alone."""
+    v_ml, _, l_mm = seg.contact_state(theta)
+    stretch_z = l_mm / seg.l_tube_mm
+    hoop = np.sqrt((v_ml + seg.V0_ml) * 1000 / (np.pi * R**2 * l_mm))
+    braids = seg.axial_force_n * (seg.l_braid_mm - l_mm)
+    return membrane_energy_mj(seg, hoop, stretch_z) + braids
+
+
+def pressure_times_volume_slope(seg, theta, step=1e-7):
+    """p dv/dtheta after contact (the volume's slope by central differences)."""
+    dv = seg.contact_state(theta + step)[0] - seg.contact_state(theta - step)[0]
+    return seg.contact_state(theta)[1] * dv / (2 * step)  # kPa mL = mJ
+
+
+@pytest.mark.parametrize("geometry", [(50, 20), (40, 30)])
+def test_energy_after_contact_is_the_integral_of_p_dv(library, geometry):
+    seg = library[geometry]
+    th0, th1 = seg.contact_angle, 0.5 * (seg.contact_angle + seg.end_angle)
+    work, _ = quad(lambda th: pressure_times_volume_slope(seg, th), th0, th1, limit=200)
+    expected = energy_after_contact_mj(seg, th1) - energy_after_contact_mj(seg, th0)
+    assert work == pytest.approx(expected, rel=1e-5)
+
+
+def test_peak_by_a_second_parametrisation(library):
+    # the same neo-Hookean tube parametrised by its hoop stretch (axial equilibrium by
+    # bisection): its pressure maximum before contact
+    for (braid, _), seg in library.items():
+        if seg.peak_stretch is None:
+            continue
+        other = OgdenBraidedSegment(braid, 20, radius_mm=R, thickness_mm=H, ogden_alpha=2.0)
+        hoops = other.hoop_stretch0 * np.linspace(1.0, 2.5, 150001)
+        expected = other.hoop_state(hoops)[1].max()
+        assert seg.curve().peak.p_kpa == pytest.approx(expected, rel=1e-6)
+
+
+def test_peaks_rise_with_l_braid_and_do_not_depend_on_l_tube(library):
+    peaks = {g: s.curve().peak for g, s in library.items()}
+    by_braid = {}
+    for (braid, _), peak in peaks.items():
+        if peak is not None:
+            by_braid.setdefault(braid, set()).add(round(peak.p_kpa, 6))
+    assert all(len(values) == 1 for values in by_braid.values())
+    ordered = [next(iter(by_braid[b])) for b in sorted(by_braid)]
+    assert np.all(np.diff(ordered) > 0)
