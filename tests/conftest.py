@@ -46,6 +46,7 @@ LONG_FIRST = (
     "tests/live/test_api_state.py::",  # 15
     "tests/live/test_live_page.py::",  # 16
     "tests/analysis/test_compare.py::",  # the simulated runs' group: ~25
+    "tests/api/test_tutorial.py::test_the_tutorial_runs_top_to_bottom",  # 15-35: 3 runs
     "tests/model/baselines/test_nelder_mead.py::test_the_papers_named_combinations",  # 12
     "tests/cli/test_model_scan.py::test_ctrl_c_keeps",  # 8
     "tests/rig/test_video_and_frames.py::",  # 10
@@ -79,6 +80,9 @@ GROUPS = {
     "tests/cli/test_review.py::": "simulated_runs",
     "tests/cli/test_library_add.py::": "simulated_runs",
     "tests/docs/test_run_file_doc.py::": "simulated_runs",
+    "tests/api/test_run.py::": "api_quick_run",
+    "tests/api/test_matches_the_cli.py::": "api_quick_run",
+    "tests/api/test_frames.py::": "api_video_run",
 }
 
 

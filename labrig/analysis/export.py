@@ -82,19 +82,19 @@ def export_csv(record: RunRecord, result: AnalysisResult, directory: Path) -> li
         pump_before = last_reading(rep.pump.time_s, rep.pump.fields["value"]) or pump_before
     for phase, name in PHASES.items():
         path = directory / f"curves_{name}.csv"
-        write_columns(path, _curve_columns(result, phase))
+        write_columns(path, curve_columns(result, phase))
         written.append(path)
     path = directory / "transitions.csv"
-    write_columns(path, _transition_columns(result))
+    write_columns(path, transition_columns(result))
     written.append(path)
     if result.comparison is not None:
         path = directory / "comparison.csv"
-        write_columns(path, _comparison_columns(result))
+        write_columns(path, comparison_columns(result))
         written.append(path)
     return written
 
 
-def _curve_columns(result: AnalysisResult, phase: int) -> dict[str, np.ndarray]:
+def curve_columns(result: AnalysisResult, phase: int) -> dict[str, np.ndarray]:
     columns = {"volume_ml": result.grid_ml}
     for rep in result.repetitions:
         columns[f"{rep.name}_pressure_kpa"] = rep.p_kpa[phase]
@@ -110,14 +110,14 @@ def _curve_columns(result: AnalysisResult, phase: int) -> dict[str, np.ndarray]:
     return columns
 
 
-def _transition_columns(result: AnalysisResult) -> dict[str, np.ndarray]:
+def transition_columns(result: AnalysisResult) -> dict[str, np.ndarray]:
     found = [t for rep in result.repetitions for t in rep.transitions]
     names = ("repetition", "direction", "t_s", "v_ml", "v_start_ml", "v_end_ml", "dp_kpa",
              "dl_mm", "by_pressure", "by_length")  # fmt: skip
     return {name: np.array([getattr(t, name) for t in found]) for name in names}
 
 
-def _comparison_columns(result: AnalysisResult) -> dict[str, np.ndarray]:
+def comparison_columns(result: AnalysisResult) -> dict[str, np.ndarray]:
     matches = result.comparison.matches
     nan = float("nan")
 

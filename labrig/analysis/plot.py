@@ -28,6 +28,12 @@ def _at(grid: np.ndarray, curve: np.ndarray, v_ml: float) -> float:
     return float(np.interp(v_ml, grid, curve))
 
 
+def run_panels(result: AnalysisResult, force=None) -> int:
+    """How many panels the run's figure has: pressure, length (with a camera), force
+    (with a load cell)."""
+    return 1 + result.with_length + (force is not None)
+
+
 def plot_run(result: AnalysisResult, path: Path, dpi: int = 130, force=None) -> None:
     """Write the figure to ``path`` (PNG, or any format matplotlib knows by suffix);
     ``force`` (``labrig.analysis.experiments.ForceResult``) adds the blocked actuator's
@@ -37,10 +43,20 @@ def plot_run(result: AnalysisResult, path: Path, dpi: int = 130, force=None) -> 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    with_length = result.with_length
-    rows = 1 + with_length + (force is not None)
+    rows = run_panels(result, force)
     fig, axes = plt.subplots(rows, 1, sharex=True, figsize=(7.5, 1.5 + 3 * rows), squeeze=False)
-    axes = axes[:, 0]
+    draw_run(list(axes[:, 0]), result, force)
+    averaged = ", ".join(str(i) for i in result.averaged) or "none"
+    fig.suptitle(f"{result.title}\nmean of repetitions {averaged}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+
+
+def draw_run(axes: list, result: AnalysisResult, force=None) -> None:
+    """The figure's panels on ``axes`` (``run_panels`` of them): p-v, l-v (with a
+    camera), force (with ``force``)."""
+    bottom = axes[-1]
     if force is not None:
         _force_panel(axes[-1], force)
         axes = axes[:-1]
@@ -54,20 +70,16 @@ def plot_run(result: AnalysisResult, path: Path, dpi: int = 130, force=None) -> 
             label="model, blocked",
         )
     grid = result.grid_ml
+    with_length = result.with_length
     quantities = [("p", "pressure p (kPa)")] + ([("l", "length l (mm)")] if with_length else [])
     for ax, (quantity, label) in zip(axes, quantities, strict=True):
         _panel(ax, result, quantity, grid)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
         ax.margins(x=0)
-    fig.axes[-1].set_xlabel("supplied volume v (mL)")
+    bottom.set_xlabel("supplied volume v (mL)")
     axes[0].set_xlim(0, float(grid[-1]) if len(grid) else 1.0)
     axes[0].legend(loc="lower right", fontsize=8, framealpha=0.9)
-    averaged = ", ".join(str(i) for i in result.averaged) or "none"
-    fig.suptitle(f"{result.title}\nmean of repetitions {averaged}", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
 
 
 def _force_panel(ax, force) -> None:

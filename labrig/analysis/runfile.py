@@ -11,6 +11,7 @@ flag is still set, so commands can say that ``labrig recover`` applies.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -118,13 +119,19 @@ def _read(group: h5py.Group, name: str, where: str):
         raise InputError(f"{where}: cannot read {group.name}/{name} ({exc})") from None
 
 
-def _read_log(rep: h5py.Group, log: str, where: str) -> LogSeries:
+def _read_log(rep: h5py.Group, log: str, where: str, growing: bool) -> LogSeries:
+    """One NXlog; ``growing``: its writer may be appending (the file is flagged open), so
+    its fields, grown one after another, are cut to the rows all of them hold."""
     group = rep[log]
     for field in REQUIRED_FIELDS[log]:
         if field not in group:
             raise InputError(f"{where}: missing {group.name}/{field}")
     fields = {name: np.asarray(_read(group, name, where)) for name in group if name != "time"}
     time_s = np.asarray(_read(group, "time", where), dtype=float)
+    if growing:
+        rows = min(len(values) for values in (time_s, *fields.values()))
+        time_s = time_s[:rows]
+        fields = {name: values[:rows] for name, values in fields.items()}
     for name, values in fields.items():
         if len(values) != len(time_s):
             raise InputError(
@@ -133,7 +140,7 @@ def _read_log(rep: h5py.Group, log: str, where: str) -> LogSeries:
     return LogSeries(time_s, fields)
 
 
-def _read_repetitions(entry: h5py.Group, where: str) -> tuple[Repetition, ...]:
+def _read_repetitions(entry: h5py.Group, where: str, growing: bool) -> tuple[Repetition, ...]:
     if "repetitions" not in entry:
         raise InputError(f"{where}: missing /entry/repetitions")
     reps = entry["repetitions"]
@@ -160,9 +167,9 @@ def _read_repetitions(entry: h5py.Group, where: str) -> tuple[Repetition, ...]:
                 reason=decode(reasons[index - 1]),
                 t_start_s=float(t_start[index - 1]),
                 t_end_s=float(t_end[index - 1]),
-                pressure=_read_log(rep, "pressure", where),
-                pump=_read_log(rep, "pump", where),
-                length=_read_log(rep, "length", where) if "length" in rep else None,
+                pressure=_read_log(rep, "pressure", where, growing),
+                pump=_read_log(rep, "pump", where, growing),
+                length=_read_log(rep, "length", where, growing) if "length" in rep else None,
             )
         )
     return tuple(out)
@@ -172,26 +179,40 @@ def _text(entry: h5py.Group, name: str, where: str) -> str:
     return decode(_read(entry, name, where)) if name in entry else ""
 
 
-def load_run(path: str | Path) -> RunRecord:
-    """Read a run file for analysis; InputError (one line) for anything missing."""
-    path = Path(path)
+def open_checked(path: Path, opener: Callable[[Path], h5py.File] = open_run) -> h5py.File:
+    """The run file opened by ``opener``, checked to be a labrig run file; InputError
+    (one line) saying why not: not HDF5, truncated, no ``/entry``."""
     facts = superblock_facts(path) if path.is_file() else None
     if facts is not None and facts[2] > path.stat().st_size:
         # SWMR read mode would open it, and fail somewhere in the middle of the data
         raise _diagnose_unopenable(path, InputError(f"{path}: truncated"))
     try:
-        run = open_run(path)
+        run = opener(path)
     except InputError as exc:
         if path.exists():
             raise _diagnose_unopenable(path, exc) from None
         raise
+    if "entry" not in run:
+        found = ", ".join(sorted(run)) or "nothing"
+        run.close()
+        raise InputError(f"{path}: not a labrig run file: missing /entry (the file holds {found})")
+    return run
+
+
+def writer_flag_set(path: Path) -> bool:
+    """Whether the file still carries its writer's "open for writing" flag (a run being
+    recorded, or one whose writer was killed)."""
+    facts = superblock_facts(path) if path.is_file() else None
+    return facts is not None and facts[1] != 0
+
+
+def load_run(path: str | Path, opener: Callable[[Path], h5py.File] = open_run) -> RunRecord:
+    """Read a run file for analysis; InputError (one line) for anything missing.
+    ``opener`` opens the file (the Python API's opens it without HDF5's file lock)."""
+    path = Path(path)
     where = str(path)
-    with run:
-        if "entry" not in run:
-            found = ", ".join(sorted(run)) or "nothing"
-            raise InputError(
-                f"{where}: not a labrig run file: missing /entry (the file holds {found})"
-            )
+    flagged = writer_flag_set(path)
+    with open_checked(path, opener) as run:
         entry = run["entry"]
         protocol_text = _text(entry, "protocol", where)
         if not protocol_text:
@@ -215,6 +236,6 @@ def load_run(path: str | Path) -> RunRecord:
             rig_config_text=_text(entry, "rig_config", where),
             versions=versions,
             zero_offset_kpa=zero,
-            repetitions=_read_repetitions(entry, where),
-            writer_flag_set=facts is not None and facts[1] != 0,
+            repetitions=_read_repetitions(entry, where, flagged),
+            writer_flag_set=flagged,
         )

@@ -33,6 +33,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "recover": ("labrig.cli.review", "recover"),
     "rig": ("labrig.cli.rig", "rig"),
     "run": ("labrig.cli.run", "run"),
+    "runs": ("labrig.cli.runs", "runs"),
     "show": ("labrig.cli.review", "show"),
     "track": ("labrig.cli.track", "track"),
     "watch": ("labrig.cli.watch", "watch"),

@@ -95,7 +95,16 @@ def plot_curve(curve, contact_ml: float | None, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (ax_p, ax_l) = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
+    draw_curve(list(axes), curve, contact_ml)
+    fig.suptitle(curve.name)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def draw_curve(axes: list, curve, contact_ml: float | None) -> None:
+    """The figure's two panels on ``axes``: p-v and l-v."""
+    ax_p, ax_l = axes
     if curve.measured is not None:
         raw = curve.measured.raw[:: max(1, len(curve.measured.raw) // RAW_POINTS_PLOTTED)]
         ax_p.plot(raw[:, 0], raw[:, 1], ".", color="grey", markersize=2, label="raw rows")
@@ -123,9 +132,6 @@ def plot_curve(curve, contact_ml: float | None, path: Path) -> None:
     for ax in (ax_p, ax_l):
         ax.set_xlim(0, curve.v_max_ml)
         ax.grid(alpha=0.3)
-    fig.suptitle(curve.name)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 @click.command("curve")

@@ -25,6 +25,11 @@ from labrig.model.actuator.transitions import Transition
 _STYLE = {INFLATE: ("tab:blue", "-", "inflation"), DEFLATE: ("tab:orange", "--", "deflation")}
 
 
+def path_panels(path: Path) -> int:
+    """How many panels a path's figure has: p-v, l-v and, for two segments, v1-v2."""
+    return 3 if path.actuator.n == 2 else 2
+
+
 def plot_path(
     path: Path,
     sampled: SampledPath,
@@ -38,11 +43,27 @@ def plot_path(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    actuator = path.actuator
-    pair = actuator.n == 2
+    pair = path_panels(path) == 3
     fig, axes = plt.subplots(
-        1, 3 if pair else 2, figsize=(15 if pair else 10, 4.5), constrained_layout=True
+        1, path_panels(path), figsize=(15 if pair else 10, 4.5), constrained_layout=True
     )
+    draw_path(list(axes), path, sampled, found, grid_points=grid_points)
+    fig.suptitle(" + ".join(path.actuator.names))
+    fig.savefig(png, dpi=120)
+    plt.close(fig)
+
+
+def draw_path(
+    axes: list,
+    path: Path,
+    sampled: SampledPath,
+    found: Sequence[Transition],
+    *,
+    grid_points: int = 1000,
+) -> None:
+    """The figure's panels on ``axes`` (``path_panels`` of them): p-v, l-v and, for
+    two segments, the v1-v2 plane."""
+    actuator = path.actuator
     ax_p, ax_l = axes[0], axes[1]
     for direction, (color, style, label) in _STYLE.items():
         on = sampled.direction == direction
@@ -92,11 +113,8 @@ def plot_path(
         ax.grid(alpha=0.3)
     ax_p.set_ylim(0, 1.05 * np.max(sampled.p_kpa))
     ax_p.legend(loc="lower right", fontsize=8)
-    if pair:
+    if actuator.n == 2:
         _plane(axes[2], path, sampled, found, grid_points)
-    fig.suptitle(" + ".join(actuator.names))
-    fig.savefig(png, dpi=120)
-    plt.close(fig)
 
 
 def _plane(

@@ -52,3 +52,23 @@ def test_the_schema_pages_list_every_field_of_every_model():
 def test_a_region_without_markers_is_named():
     with pytest.raises(ValueError, match=r"docs/x\.md: no region"):
         with_region("no markers here", "generated", "docs/x.md")
+
+
+def test_every_public_name_of_the_python_api_is_documented():
+    from support.docs_reference import undocumented
+
+    assert undocumented() == []
+
+
+def test_the_python_api_page_lists_every_public_name_and_nothing_private():
+    import labrig
+
+    text = (REPO / "docs/reference/python-api.md").read_text(encoding="utf-8")
+    public = [name for name in labrig.__all__ if not name.startswith("__")]
+    assert {"open_run", "open_runs", "segment", "actuator", "open_scan"} <= set(public)
+    for name in public:
+        assert f"### `labrig.{name}" in text
+    assert not any(name.startswith("_") for name in public)
+    assert "labrig.api." not in text.split("<!-- generated")[1]
+    with pytest.raises(AttributeError, match="no attribute 'api_internals'"):
+        labrig.api_internals  # noqa: B018

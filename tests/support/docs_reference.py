@@ -14,9 +14,11 @@ Regenerate after changing a command, a schema or the run file's layout::
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import json
 import sys
 from collections.abc import Callable
+from functools import cached_property
 from pathlib import Path
 
 import click
@@ -258,8 +260,102 @@ def pump_command_reference() -> str:
     return markdown_table()
 
 
+# --- the Python API (docs/reference/python-api.md) -------------------------------------
+# Every public name of ``labrig`` (``labrig.__all__``) with its signature and docstring;
+# for a class, each public property and method in the order the class defines them.
+def _doc(obj) -> str:
+    return inspect.cleandoc(inspect.getdoc(obj) or "")
+
+
+def _signature(name: str, function) -> str:
+    """``name(a: int, *, b: str = 'x') -> T`` with the annotations as written (they are
+    strings under ``from __future__ import annotations``, shown without quotes)."""
+    signature = inspect.signature(function)
+    parts, keyword_only = [], False
+    for parameter in signature.parameters.values():
+        if parameter.kind is parameter.KEYWORD_ONLY and not keyword_only:
+            parts.append("*")
+            keyword_only = True
+        text = parameter.name
+        if parameter.kind is parameter.VAR_POSITIONAL:
+            text, keyword_only = f"*{text}", True
+        if parameter.annotation is not parameter.empty:
+            text += f": {parameter.annotation}"
+        if parameter.default is not parameter.empty:
+            text += f" = {parameter.default!r}"
+        parts.append(text)
+    returns = signature.return_annotation
+    arrow = "" if returns is signature.empty else f" -> {returns}"
+    return f"{name}({', '.join(parts)}){arrow}"
+
+
+def _members(cls) -> list[tuple[str, object]]:
+    """Public properties and methods defined on the class itself, in source order."""
+    return [
+        (name, value)
+        for name, value in vars(cls).items()
+        if not name.startswith("_")
+        and (callable(value) or isinstance(value, property | cached_property))
+    ]
+
+
+def _member_text(cls, name: str, value) -> list[str]:
+    if isinstance(value, property | cached_property):
+        function = value.fget if isinstance(value, property) else value.func
+        returns = inspect.signature(function).return_annotation
+        kind = f" -> {returns}" if returns is not inspect.Signature.empty else ""
+        heading = f"#### `{cls.__name__}.{name}`{kind.replace('->', '→')} (property)"
+        return [heading, "", _doc(function), ""]
+    signature = _signature(name, value).replace("(self, ", "(").replace("(self)", "()")
+    return [f"#### `{cls.__name__}.{signature}`", "", _doc(value), ""]
+
+
+def api_reference() -> str:
+    """The Python API's reference: ``labrig.__all__`` with signatures and docstrings."""
+    import labrig
+
+    parts: list[str] = []
+    for name in labrig.__all__:
+        if name.startswith("__"):
+            continue
+        obj = getattr(labrig, name)
+        if inspect.isclass(obj):
+            parts += [f"### `labrig.{name}`", "", _doc(obj), ""]
+            for member, value in _members(obj):
+                parts += _member_text(obj, member, value)
+        else:
+            parts += [f"### `labrig.{_signature(name, obj)}`", "", _doc(obj), ""]
+    return "\n".join(parts)
+
+
+def undocumented() -> list[str]:
+    """Public names and members without a docstring of their own."""
+    import labrig
+
+    missing = []
+    for name in labrig.__all__:
+        if name.startswith("__"):
+            continue
+        obj = getattr(labrig, name)
+        if not inspect.getdoc(obj):
+            missing.append(name)
+        if inspect.isclass(obj):
+            for member, value in _members(obj):
+                function = (
+                    value.fget
+                    if isinstance(value, property)
+                    else value.func
+                    if isinstance(value, cached_property)
+                    else value
+                )
+                if not function.__doc__:
+                    missing.append(f"{name}.{member}")
+    return missing
+
+
 PAGES: dict[str, Callable[[], str]] = {
     "docs/reference/cli.md": cli_reference,
+    "docs/reference/python-api.md": api_reference,
     "docs/reference/pump.md": pump_command_reference,
     "docs/reference/protocol.md": protocol_reference,
     "docs/reference/rig-file.md": rig_file_reference,

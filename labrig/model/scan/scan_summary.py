@@ -246,6 +246,19 @@ def plot_fig4(data: ScanData, png: Path) -> None:
 
     c = paper_columns(data)
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.8), constrained_layout=True)
+    draw_fig4(list(axes), c)
+    names = f"{len(data.names)} segments"
+    fig.suptitle(
+        f"All transitions of the {data.actuators_done:,} actuators of n = {data.n} from {names}"
+        f" ({len(c['v_ml']):,} transitions as the paper counts them)"
+    )
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+
+
+def draw_fig4(axes: list, c: dict[str, np.ndarray]) -> None:
+    """The figure's three panels on ``axes``: dv, dl and dp against dE of the
+    transitions ``c`` (``paper_columns``)."""
     others: dict[tuple[int, int], str] = {}
     types = sorted(
         {
@@ -287,10 +300,3 @@ def plot_fig4(data: ScanData, png: Path) -> None:
         ax.axhline(0.0, color="0.7", lw=0.6, zorder=0)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8, loc="upper right")
-    names = f"{len(data.names)} segments"
-    fig.suptitle(
-        f"All transitions of the {data.actuators_done:,} actuators of n = {data.n} from {names}"
-        f" ({len(c['v_ml']):,} transitions as the paper counts them)"
-    )
-    fig.savefig(png, dpi=110)
-    plt.close(fig)

@@ -1,0 +1,122 @@
+"""A campaign of runs as one table: ``labrig.open_runs`` and ``labrig runs DIR``.
+
+One row per run file: what was run (title, protocol, specimen, seed, date), how it
+ended (status, reason, the writer's flags), the RMSE against the model and, for each
+snap-through the model predicts, the measured volume, pressure jump and length jump
+beside the model's and the error (measured minus model). The snaps are the
+``transitions`` of ``labrig compare --json`` whose ``type`` is ``snap``, in its order,
+numbered ``snap1_...``, ``snap2_...``; a run with fewer snaps has nulls there. A run
+without a comparison says why in ``note``; a file that cannot be read is a row with its
+``error``, so one bad file does not hide the rest.
+"""
+
+from __future__ import annotations
+
+import glob
+import math
+import warnings
+from collections.abc import Iterable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from labrig.errors import InputError, LabrigError
+
+from .run import Run, RunOpenWarning
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+# the measured quantity of ``compare --json`` -> (its model field, the row's suffix)
+SNAP_FIELDS = {
+    "v_meas_ml": ("v_ml", "v", "ml"),
+    "dp_meas_kpa": ("dp_kpa", "dp", "kpa"),
+    "dl_meas_mm": ("dl_mm", "dl", "mm"),
+}
+
+
+def run_files(runs: str | Path | Iterable[str | Path]) -> list[Path]:
+    """The run files named by a folder (its ``*.h5``), a glob pattern, a file, or a
+    list of those, in sorted order per item; ``InputError`` if none is found."""
+    items = [runs] if isinstance(runs, str | Path) else list(runs)
+    found: list[Path] = []
+    for item in items:
+        path = Path(item)
+        if path.is_dir():
+            found += sorted(path.glob("*.h5"))
+        elif glob.has_magic(str(item)):
+            found += sorted(Path(p) for p in glob.glob(str(item)))
+        elif path.is_file():
+            found.append(path)
+        else:
+            raise InputError(f"{item}: no such file or folder")
+    if not found:
+        raise InputError(f"{', '.join(str(i) for i in items)}: no run files (*.h5) found")
+    return found
+
+
+def _number(value) -> float | None:
+    return None if value is None or not math.isfinite(value) else float(value)
+
+
+def run_row(path: Path) -> dict[str, Any]:
+    """One run's row of the campaign table (see the module docstring)."""
+    row: dict[str, Any] = {"file": str(path)}
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RunOpenWarning)  # the row carries the flags
+            run = Run(path)
+        meta = run.metadata
+    except LabrigError as exc:
+        row["error"] = str(exc)
+        return row
+    row.update(
+        title=meta["title"],
+        protocol=meta["protocol"],
+        specimen=" + ".join(meta["specimen"]),
+        seed=meta["seed"],
+        date=meta["start_time"],
+        status=meta["status"],
+        reason=meta["reason"],
+        repetitions=meta["repetitions"],
+        writer_open=meta["writer_open"],
+        live=meta["live"],
+    )
+    try:
+        document = run.comparison_document
+    except LabrigError as exc:  # no comparison (none asked for, no repetition done)
+        row["note"] = str(exc)
+        return row
+    for name, value in document["rmse"].items():
+        row[f"rmse_{name}"] = value
+    snaps = [t for t in document["transitions"] if t["type"] == "snap"]
+    for k, snap in enumerate(snaps, 1):
+        row[f"snap{k}_phase"] = snap["phase"]
+        for measured, (model, short, unit) in SNAP_FIELDS.items():
+            seen, predicted = _number(snap[measured]), _number(snap[model])
+            row[f"snap{k}_{short}_{unit}"] = seen
+            row[f"snap{k}_{short}_model_{unit}"] = predicted
+            error = None if seen is None or predicted is None else seen - predicted
+            row[f"snap{k}_{short}_error_{unit}"] = error
+    return row
+
+
+def campaign_rows(runs: str | Path | Iterable[str | Path]) -> list[dict[str, Any]]:
+    """Every run's row, each with every column of the table (null where it has none),
+    so that the JSON, the CSV and the DataFrame are the same rectangle."""
+    rows = [run_row(path) for path in run_files(runs)]
+    columns: dict[str, None] = {}
+    for row in rows:
+        columns.update(dict.fromkeys(row))
+    for rare in ("note", "error"):  # last: most rows have none
+        if rare in columns:
+            del columns[rare]
+            columns[rare] = None
+    return [{name: row.get(name) for name in columns} for row in rows]
+
+
+def open_runs(runs: str | Path | Iterable[str | Path]) -> pd.DataFrame:
+    """A campaign as one DataFrame, one row a run (the table ``labrig runs`` prints):
+    ``runs`` is a folder, a glob pattern (``"runs/*demo*.h5"``), a file or a list."""
+    import pandas as pd
+
+    return pd.DataFrame(campaign_rows(runs))

@@ -1,0 +1,194 @@
+"""The stability model from Python: ``labrig.segment``, ``labrig.actuator``.
+
+A segment is what ``labrig model curve SEG`` shows, an actuator's path what
+``labrig model path SEG SEG ... --json`` prints: the path's tables are built from that
+command's own JSON document (``path_document``), so their columns are its fields
+(volumes in mL, pressures in kPa, lengths in mm; dE, dv, dl, dp normalised as in the
+paper), and a field the command gains appears here too.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from .axes import panel_axes
+from .solver_mode import prefer_plain_python
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    import pandas as pd
+    from matplotlib.axes import Axes
+
+    from labrig.model.actuator.path import Path as SolvedPath
+    from labrig.model.actuator.path import SampledPath
+    from labrig.model.actuator.transitions import Transition
+    from labrig.model.segments.curve import SegmentCurve
+
+
+def segment(spec: str | Path, library_dir: str | Path | None = None) -> Segment:
+    """A segment by library name (``B46-T20``), Gent membrane (``gent-a``), measured
+    segment name (from ``library_dir``, else $LABRIG_LIBRARY, else ./library) or CSV
+    path (header ``volume_ml,pressure_kpa,length_mm``); ``InputError`` if none fits."""
+    prefer_plain_python()
+    from labrig.model.segments.catalog import load_segment
+
+    directory = None if library_dir is None else Path(library_dir)
+    return Segment(str(spec), load_segment(str(spec), library_dir=directory))
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One segment's tabulated p(v) and l(v) (supplied volume from the unpressurised
+    state); ``model`` is the model's own ``SegmentCurve``, ``spec`` what named it."""
+
+    spec: str
+    model: SegmentCurve
+
+    @property
+    def name(self) -> str:
+        """The segment's name, as the model and the commands print it."""
+        return self.model.name
+
+    @property
+    def V0_ml(self) -> float:
+        """Volume enclosed at zero pressure (mL)."""
+        return self.model.V0_ml
+
+    @property
+    def peak(self) -> dict[str, float] | None:
+        """The pressure peak, ``{"v_ml", "p_kpa"}``; None if p(v) only rises."""
+        peak = self.model.peak
+        return None if peak is None else {"v_ml": peak.v_ml, "p_kpa": peak.p_kpa}
+
+    @property
+    def valley(self) -> dict[str, float] | None:
+        """The pressure valley after the peak, ``{"v_ml", "p_kpa"}``; None without one."""
+        valley = self.model.valley
+        return None if valley is None else {"v_ml": valley.v_ml, "p_kpa": valley.p_kpa}
+
+    @property
+    def curve(self) -> pd.DataFrame:
+        """The table: v_ml (supplied volume, mL), p_kpa (gauge, kPa), l_mm (mm), the
+        arrays ``labrig model curve --json`` prints."""
+        import pandas as pd
+
+        return pd.DataFrame(
+            {"v_ml": self.model.v_ml, "p_kpa": self.model.p_kpa, "l_mm": self.model.l_mm}
+        )
+
+    def plot(self, ax: Axes | Sequence[Axes] | None = None) -> Axes | list[Axes]:
+        """Draw what ``labrig model curve --plot`` draws (p-v and l-v, peak and valley
+        marked) on ``ax``: one Axes (p-v), two, or None (a new figure)."""
+        from labrig.cli.model_curve import _contact_ml, draw_curve
+
+        axes, shown = panel_axes(ax, 2)
+        draw_curve(axes, self.model, _contact_ml(self.spec))
+        return shown
+
+    def __repr__(self) -> str:
+        return f"<labrig.Segment {self.name}: {self.model.source}>"
+
+
+def actuator(*segments: str | Path | Segment) -> Actuator:
+    """An actuator of two or more segments sharing one pressure (names, CSV paths or
+    ``Segment`` objects)."""
+    from labrig.errors import InputError
+
+    if len(segments) < 2:
+        raise InputError(f"an actuator needs at least two segments, got {len(segments)}")
+    chosen = [s if isinstance(s, Segment) else segment(s) for s in segments]
+    return Actuator(tuple(chosen))
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """Segments in series, one pressure: the model's combined actuator."""
+
+    segments: tuple[Segment, ...]
+
+    @property
+    def names(self) -> list[str]:
+        """The segments' names, in series order."""
+        return [s.name for s in self.segments]
+
+    def path(self, *, deflate: bool = False, v_end_ml: float | None = None) -> ActuatorPath:
+        """The quasi-static path under volume-controlled inflation to ``v_end_ml`` (mL;
+        default: where no further transition is possible) and, with ``deflate``, back
+        to zero, as ``labrig model path`` computes it."""
+        prefer_plain_python()
+        from labrig.model.actuator.equilibria import Actuator as ModelActuator
+        from labrig.model.actuator.path import quasi_static_path, sample_path
+        from labrig.model.actuator.transitions import transitions
+
+        model = ModelActuator([s.model for s in self.segments])
+        found_path = quasi_static_path(model, v_end_ml, deflate=deflate)
+        return ActuatorPath(found_path, sample_path(found_path), tuple(transitions(found_path)))
+
+    def __repr__(self) -> str:
+        return f"<labrig.Actuator {' + '.join(self.names)}>"
+
+
+@dataclass(frozen=True)
+class ActuatorPath:
+    """A solved path: ``document`` is ``labrig model path --json``'s object, ``path``
+    and ``transitions`` its tables."""
+
+    solved: SolvedPath
+    sampled: SampledPath
+    found: tuple[Transition, ...]
+
+    @property
+    def document(self) -> dict[str, Any]:
+        """Exactly what ``labrig model path ... --json`` prints."""
+        from labrig.cli.model_path import path_document
+
+        return path_document(self.solved.actuator.names, self.sampled, self.found)
+
+    @property
+    def path(self) -> pd.DataFrame:
+        """The path sampled in volume: v_ml, p_kpa, l_mm and each segment's volume
+        ``v1_ml``, ``v2_ml``, ... (the JSON's ``v_i_ml``), all in mL, kPa, mm."""
+        import pandas as pd
+
+        fields = dict(self.document["path"])
+        per_segment = fields.pop("v_i_ml")
+        table = pd.DataFrame(fields)
+        for i, values in enumerate(per_segment, 1):
+            table[f"v{i}_ml"] = values
+        return table
+
+    @property
+    def transitions(self) -> pd.DataFrame:
+        """One row per event of the path (every peak crossing and every snap), the
+        JSON's ``transitions``: v_ml (supplied volume just before
+        it, mL), alpha, beta, stable (False: a snap at constant volume), dE, dv, dl, dp
+        (normalised), direction."""
+        import pandas as pd
+
+        return pd.DataFrame(self.document["transitions"])
+
+    @property
+    def paper_transitions(self) -> pd.DataFrame:
+        """The transitions as the paper counts them (a peak crossing and the snap it
+        sets off are one): the JSON's ``paper_transitions``, each with ``events``, the
+        rows of ``transitions`` it is made of."""
+        import pandas as pd
+
+        return pd.DataFrame(self.document["paper_transitions"])
+
+    def plot(self, ax: Axes | Sequence[Axes] | None = None) -> Axes | list[Axes]:
+        """Draw what ``labrig model path --plot`` draws (p-v and l-v with the
+        transitions; for two segments the v1-v2 plane) on ``ax``: one Axes (p-v), a
+        sequence, or None (a new figure)."""
+        from labrig.model.plots import draw_path, path_panels
+
+        axes, shown = panel_axes(ax, path_panels(self.solved))
+        draw_path(axes, self.solved, self.sampled, self.found)
+        return shown
+
+    def __repr__(self) -> str:
+        names = " + ".join(self.solved.actuator.names)
+        return f"<labrig.ActuatorPath {names}: {len(self.found)} transitions>"

@@ -1,0 +1,54 @@
+"""Opening a run file without disturbing its writer.
+
+The Python API only reads: files are opened with mode ``"r"``, in HDF5's SWMR read mode
+where the file is still being written (or was left by a killed writer), and always
+without HDF5's file lock (``locking=False``). A reader holding that lock would make the
+runner's own reopening fail when the run ends (it stores the analysis), so the API never
+takes it; SWMR itself needs no lock on the reader's side. Nothing here repairs a file:
+``labrig recover`` does that, on purpose, from the command line.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import h5py
+
+from labrig.analysis.runfile import open_checked, writer_flag_set
+from labrig.errors import InputError
+
+# The runner flushes a file at least every 0.5 s while samples arrive; a file still
+# flagged open whose last change is older than this is taken as left by a killed writer.
+LIVE_WINDOW_S = 10.0
+
+
+def open_readonly(path: Path) -> h5py.File:
+    """``path`` opened for reading, never locked, never written."""
+    try:
+        return h5py.File(path, "r", locking=False)
+    except OSError as plain_error:
+        try:
+            return h5py.File(path, "r", libver="latest", swmr=True, locking=False)
+        except OSError:
+            raise InputError(f"{path}: not a readable HDF5 file ({plain_error})") from None
+
+
+def open_run_file(path: Path) -> h5py.File:
+    """A labrig run file opened read-only and checked (``/entry`` present); InputError
+    naming what is wrong otherwise."""
+    if not path.exists():
+        raise InputError(f"{path}: no such file")
+    return open_checked(path, open_readonly)
+
+
+def writer_state(path: Path, status: str) -> tuple[bool, bool]:
+    """(writer_open, live) of a run file whose recorded status is ``status``.
+
+    ``writer_open``: the file still carries its writer's "open for writing" flag (it is
+    being recorded, or its writer was killed). ``live``: flagged open, status
+    ``running`` and changed within ``LIVE_WINDOW_S``: a writer is recording it now.
+    """
+    flagged = writer_flag_set(path)
+    recent = time.time() - path.stat().st_mtime <= LIVE_WINDOW_S
+    return flagged, flagged and status == "running" and recent

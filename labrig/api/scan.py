@@ -1,0 +1,121 @@
+"""``labrig.open_scan``: a scan file (``labrig model scan --out``) as a DataFrame.
+
+The scan file reader keeps the rows in the file until asked for; ``Scan.table`` reads a
+range of them, so a scan of millions of transitions is browsed without loading it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .axes import panel_axes
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    import pandas as pd
+    from matplotlib.axes import Axes
+
+
+def h5py_file(path: Path):
+    """The scan file, read-only and unlocked (a scan may be writing it)."""
+    import h5py
+
+    return h5py.File(path, "r", locking=False)
+
+
+def open_scan(path: str | Path) -> Scan:
+    """Open a scan file, complete or cut short; ``InputError`` if it is not one."""
+    from labrig.model.scan.scan_file import read_scan
+
+    return Scan(read_scan(Path(path)))
+
+
+class Scan:
+    """A scan: its metadata as attributes, its transitions as a DataFrame.
+
+    Attributes: ``path``; ``n`` (segments per actuator); ``names`` (the library's
+    segments, in the file's order); ``complete``; ``actuators_done`` of
+    ``n_combinations``; ``data`` (the scan file reader's ``ScanData``); ``len(scan)``
+    is the number of transitions.
+    """
+
+    def __init__(self, data) -> None:
+        self.data = data
+        self.path: Path = data.path
+        #: segments per actuator
+        self.n: int = data.n
+        #: the library's segment names, in the file's order
+        self.names: list[str] = list(data.names)
+        self.complete: bool = data.complete
+        self.actuators_done: int = data.actuators_done
+        self.n_combinations: int = data.n_combinations
+
+    def __len__(self) -> int:
+        return self.data.row_stop
+
+    def __repr__(self) -> str:
+        state = "complete" if self.complete else "incomplete"
+        return (
+            f"<labrig.Scan {self.path.name}: n = {self.n}, {self.actuators_done:,} of "
+            f"{self.n_combinations:,} actuators ({state}), {len(self):,} transitions>"
+        )
+
+    def table(self, start: int = 0, stop: int | None = None) -> pd.DataFrame:
+        """Transition rows ``start`` to ``stop`` (all by default): ``actuator`` (the
+        combination's rank), ``segment1`` ... ``segmentN`` (names), and the fields of
+        ``labrig model path --json``: direction (+1 inflate, -1 deflate), v_ml (mL),
+        alpha, beta, stable, dE, dv, dl, dp (normalised)."""
+        import pandas as pd
+
+        from labrig.model.scan.scan import TRANSITION_FIELDS
+
+        stop = len(self) if stop is None else min(stop, len(self))
+        with h5py_file(self.path) as h5:
+            rows = h5["transitions"]
+            table = {"actuator": rows["actuator"][start:stop]}
+            indices = rows["segments"][start:stop]
+            names = np.asarray(self.names, dtype=object)
+            for i in range(self.n):
+                table[f"segment{i + 1}"] = names[indices[:, i]]
+            for name in TRANSITION_FIELDS:
+                table[name] = rows[name][start:stop]
+        return pd.DataFrame(table)
+
+    @property
+    def transitions(self) -> pd.DataFrame:
+        """Every row of the scan: the paths' events (``table()``)."""
+        return self.table()
+
+    @property
+    def paper_transitions(self) -> pd.DataFrame:
+        """The transitions as the paper counts them (a peak crossing and the snap it
+        sets off are one; what ``labrig model scan-summary`` counts and Fig. 4 draws):
+        ``actuator``, ``segment1`` ... ``segmentN``, the event fields (dE, dv, dl, dp
+        summed over the events) and ``first``, the row of its first event in
+        ``transitions``."""
+        import pandas as pd
+
+        from labrig.model.scan.scan_summary import paper_columns
+
+        columns = dict(paper_columns(self.data))
+        table = {"actuator": columns.pop("actuator")}
+        with h5py_file(self.path) as h5:
+            indices = h5["transitions/segments"][:][columns["first"]]
+        names = np.asarray(self.names, dtype=object)
+        for i in range(self.n):
+            table[f"segment{i + 1}"] = names[indices[:, i]]
+        return pd.DataFrame({**table, **columns})
+
+    def plot(self, ax: Axes | Sequence[Axes] | None = None) -> Axes | list[Axes]:
+        """Draw what ``labrig model scan --plot`` draws (the paper's Fig. 4 A-C: dv, dl,
+        dp against dE of the paper's transitions, coloured by (alpha, beta)) on ``ax``:
+        one Axes (dv), three, or None (a new figure)."""
+        from labrig.model.scan.scan_summary import draw_fig4, paper_columns
+
+        axes, shown = panel_axes(ax, 3)
+        draw_fig4(axes, paper_columns(self.data))
+        return shown

@@ -1,0 +1,142 @@
+"""The API's names and fields are the command line's JSON, value for value."""
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import cli
+
+import labrig
+
+
+def _nulls(records):
+    """NaN (pandas' missing) as None (JSON's null), for comparing records."""
+    return [
+        {k: None if isinstance(v, float) and math.isnan(v) else v for k, v in row.items()}
+        for row in records
+    ]
+
+
+def test_comparison_is_compare_json(quick_run, capsys):
+    code, out, err = cli(["compare", quick_run, "--json"], capsys)
+    assert code == 0, err
+    printed = json.loads(out)
+    run = labrig.open_run(quick_run)
+    assert run.comparison_document == printed
+    table = run.comparison
+    assert list(table.columns) == list(printed["transitions"][0])
+    assert _nulls(table.to_dict("records")) == printed["transitions"]
+    assert run.rmse.to_dict() == printed["rmse"]
+    paper = run.paper_comparison
+    assert _nulls(paper.to_dict("records")) == printed["paper_transitions"]
+    assert "snap" in set(table["type"])
+
+
+def test_path_is_model_path_json(capsys):
+    segments = ("B48-T30", "B50-T20")
+    code, out, err = cli(["model", "path", *segments, "--deflate", "--json"], capsys)
+    assert code == 0, err
+    printed = json.loads(out)
+    path = labrig.actuator(*segments).path(deflate=True)
+    assert path.document == printed
+    assert path.transitions.to_dict("records") == printed["transitions"]
+    assert path.paper_transitions.to_dict("records") == printed["paper_transitions"]
+    table = path.path
+    for name in ("v_ml", "p_kpa", "l_mm"):
+        assert table[name].tolist() == printed["path"][name]
+    for i, values in enumerate(printed["path"]["v_i_ml"], 1):
+        assert table[f"v{i}_ml"].tolist() == values
+    # an invariant, not the code's own output: the segments' volumes add up to the total
+    np.testing.assert_allclose(table["v1_ml"] + table["v2_ml"], table["v_ml"], atol=2e-6)
+
+
+def test_segment_is_model_curve_json(capsys):
+    code, out, err = cli(["model", "curve", "B46-T20", "--json"], capsys)
+    assert code == 0, err
+    printed = json.loads(out)
+    segment = labrig.segment("B46-T20")
+    assert segment.name == printed["name"] and segment.V0_ml == printed["V0_ml"]
+    assert segment.peak == printed["peak"] and segment.valley == printed["valley"]
+    for name in ("v_ml", "p_kpa", "l_mm"):
+        assert segment.curve[name].tolist() == printed[name]
+
+
+@pytest.fixture(scope="module")
+def campaign(quick_run, tmp_path_factory):
+    """The quick run, a run without a comparison, and a file that is no run."""
+    import shutil
+
+    from support.simulated_runs import tiny_run
+
+    folder = tmp_path_factory.mktemp("campaign")
+    shutil.copyfile(quick_run, folder / "a_quick.h5")
+    tiny_run(folder / "b_tiny.h5")
+    (folder / "c_broken.h5").write_bytes(b"not a run file")
+    return folder
+
+
+def test_open_runs_is_runs_json_and_csv(campaign, tmp_path, capsys):
+    code, out, err = cli(["runs", campaign, "--json", "--csv", tmp_path / "runs.csv"], capsys)
+    assert code == 0, err
+    printed = json.loads(out)["runs"]
+    table = labrig.open_runs(campaign)
+    assert list(table.columns) == list(printed[0])
+    assert _nulls(table.to_dict("records")) == printed
+    from_csv = pd.read_csv(tmp_path / "runs.csv")
+    assert list(from_csv.columns) == list(table.columns)
+    np.testing.assert_allclose(from_csv["snap1_v_ml"], table["snap1_v_ml"].astype(float))
+
+    quick, tiny, broken = printed
+    assert quick["status"] == "complete" and quick["seed"] == 3
+    assert quick["specimen"] == "B48-T30 + B50-T20"
+    assert "no comparison with the model" in tiny["note"] and tiny["status"] == "complete"
+    assert tiny["snap1_v_ml"] is None
+    assert "not an HDF5 file" in broken["error"] and broken["status"] is None
+
+
+def test_a_campaigns_snaps_are_compares(campaign, quick_run):
+    """Each snap column is the compare document's snap, and the error is measured minus
+    model."""
+    row = labrig.open_runs([campaign / "a_quick.h5"]).iloc[0]
+    document = labrig.open_run(quick_run).comparison_document
+    snaps = [t for t in document["transitions"] if t["type"] == "snap"]
+    assert len(snaps) >= 2
+    for k, snap in enumerate(snaps, 1):
+        assert row[f"snap{k}_phase"] == snap["phase"]
+        assert row[f"snap{k}_v_model_ml"] == snap["v_ml"]
+        if snap["v_meas_ml"] is not None:
+            assert row[f"snap{k}_v_error_ml"] == pytest.approx(snap["v_meas_ml"] - snap["v_ml"])
+            assert row[f"snap{k}_dp_kpa"] == snap["dp_meas_kpa"]
+
+
+def test_runs_refuses_what_names_no_run(tmp_path, capsys):
+    code, _, err = cli(["runs", tmp_path / "none*.h5"], capsys)
+    assert code == 2 and "no run files (*.h5) found" in err
+    code, _, err = cli(["runs", tmp_path, "--csv", tmp_path / "missing" / "x.csv"], capsys)
+    assert code == 2 and "does not exist" in err
+
+
+def test_labrig_starts_without_pandas_or_xarray():
+    """The API's names are imported on first use: `labrig --help` stays fast."""
+    probe = (
+        "import sys; from labrig.cli import cli; import labrig\n"
+        "try: cli.main(['--help'], standalone_mode=False)\n"
+        "except SystemExit: pass\n"
+        "print(sorted(m for m in ('pandas', 'xarray') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True).stdout
+    assert out.splitlines()[-1] == "[]"
+
+
+def test_runs_prints_each_run_with_its_snaps_measured_and_predicted(campaign, capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")  # a wide terminal: one line a snap
+    code, out, err = cli(["runs", campaign / "a_*.h5", campaign / "b_tiny.h5"], capsys)
+    assert code == 0, err
+    row = labrig.open_runs([campaign / "a_quick.h5"]).iloc[0]
+    assert "a_quick.h5" in out and "b_tiny.h5" in out and "c_broken" not in out
+    assert f"v {row['snap1_v_ml']:.2f} ({row['snap1_v_model_ml']:.2f})" in out
+    assert len(labrig.open_runs(str(campaign / "[ab]_*.h5"))) == 2

@@ -1,0 +1,101 @@
+"""``labrig.segment``, ``labrig.actuator`` and ``labrig.open_scan``: tables and plots."""
+
+import subprocess
+import sys
+
+import h5py
+import matplotlib
+import numpy as np
+import pytest
+
+import labrig
+from labrig.errors import InputError
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    yield
+    plt.close("all")
+
+
+def test_a_path_plot_on_one_axes_is_the_pressure_panel():
+    path = labrig.actuator("B48-T30", "B50-T20").path()
+    _, ax = plt.subplots()
+    assert path.plot(ax=ax) is ax
+    assert ax.get_ylabel() == "pressure p (kPa)"
+    inflation = next(line for line in ax.lines if line.get_label() == "inflation")
+    table = path.path
+    # the drawn curve is the path's table (inflation only: every row), to its 6 decimals
+    np.testing.assert_allclose(inflation.get_xdata(), table["v_ml"], atol=1e-6)
+    np.testing.assert_allclose(inflation.get_ydata(), table["p_kpa"], atol=1e-6)
+    snaps = path.transitions[~path.transitions["stable"]]
+    drawn = [line for line in ax.lines if line.get_marker() == "v" and len(line.get_xdata())]
+    assert len(drawn) == len(snaps) > 0
+
+
+def test_a_path_plot_without_axes_has_the_commands_three_panels():
+    axes = labrig.actuator("B48-T30", "B50-T20").path().plot()
+    assert len(axes) == 3
+    assert axes[2].get_xlabel().startswith("v1 (B48-T30)")
+
+
+def test_a_segment_plot_and_its_errors():
+    segment = labrig.segment("B46-T20")
+    ax_p, ax_l = segment.plot()
+    assert ax_l.get_ylabel() == "length l (mm)"
+    peak = next(line for line in ax_p.lines if line.get_label() == "peak")
+    assert peak.get_xdata()[0] == segment.peak["v_ml"]
+    with pytest.raises(InputError, match="at least two segments"):
+        labrig.actuator("B46-T20")
+    with pytest.raises(InputError):
+        labrig.segment("no-such-segment")
+
+
+def test_a_measured_csv_segment(tmp_path):
+    v = np.linspace(0, 10, 200)
+    csv = tmp_path / "measured.csv"
+    rows = "\n".join(f"{a},{3 * a},{40 + 0.5 * a}" for a in v)
+    csv.write_text("volume_ml,pressure_kpa,length_mm\n" + rows + "\n")
+    segment = labrig.segment(csv)
+    np.testing.assert_allclose(segment.curve["p_kpa"], 3 * segment.curve["v_ml"], atol=1e-9)
+
+
+@pytest.fixture(scope="module")
+def gent_scan(tmp_path_factory):
+    """Every pair of the three Gent membranes, by `labrig model scan` (one process)."""
+    out = tmp_path_factory.mktemp("scan") / "gent.h5"
+    command = [sys.executable, "-m", "labrig", "model", "scan", "--n", "2", "--library",
+               "gent", "--workers", "1", "--out", str(out)]  # fmt: skip
+    subprocess.run(command, check=True, capture_output=True)
+    return out
+
+
+def test_a_scan_is_its_files_rows_with_names(gent_scan):
+    scan = labrig.open_scan(gent_scan)
+    assert scan.complete and scan.n == 2 and scan.actuators_done == 3
+    table = scan.transitions
+    with h5py.File(gent_scan, "r") as h5:
+        rows = h5["transitions"]
+        names = [n.decode() for n in h5["segments/name"][:]]
+        assert len(table) == len(scan) == len(rows["v_ml"])
+        for field in ("actuator", "direction", "v_ml", "alpha", "beta", "stable", "dE", "dp"):
+            np.testing.assert_array_equal(table[field].to_numpy(), rows[field][:])
+        index = rows["segments"][:]
+    assert list(table["segment1"]) == [names[i] for i in index[:, 0]]
+    assert list(table["segment2"]) == [names[i] for i in index[:, 1]]
+    part = scan.table(1, 3)
+    assert part.reset_index(drop=True).equals(table.iloc[1:3].reset_index(drop=True))
+    # counted as the paper counts them: fewer rows, the same sums (the counting's invariant)
+    paper = scan.paper_transitions
+    assert 0 < len(paper) <= len(table)
+    for name in ("dv", "dl", "dp"):
+        assert paper[name].sum() == pytest.approx(table[name].sum(), abs=1e-9)
+    first = paper["first"].to_numpy()
+    assert list(paper["segment1"]) == list(table["segment1"].to_numpy()[first])
+    axes = scan.plot()
+    assert len(axes) == 3 and axes[0].get_xlabel() == "energy change ΔÊ"
+    with pytest.raises(InputError, match="no such file"):
+        labrig.open_scan(gent_scan.parent / "missing.h5")
