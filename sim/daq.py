@@ -28,7 +28,8 @@ Behaviour copied from the device rather than replayed:
   quantisation of the hardware range, 13 bits in RSE and 14 differential (the usual
   datasheet split, unverified against NI), saturating at the range's ends;
 - the ways the bench dies, from a clock time on (``fail``, ``FAILURES``): the sensor's
-  Vout wire cut (the input reads 0 V), its supply wire cut (no output, and a measured
+  Vout wire cut (the open input floats, ``floating_input_v``), its Vout shorted to
+  ground (the input reads 0 V), its supply wire cut (no output, and a measured
   supply of 0 V), its output frozen (every later sample the same code), the device
   stalling (no sample acquired after it: reads wait and time out, -200284) or vanishing
   (unplugged: the samples already in the host buffer are read, then every call,
@@ -72,7 +73,19 @@ DIFF_RANGES_V = (1.0, 1.25, 2.0, 2.5, 4.0, 5.0, 10.0, 20.0)
 MAX_AGGREGATE_RATE_HZ = 48_000.0
 MIN_RATE_HZ = 0.1
 
-FAILURES = ("vout-cut", "supply-cut", "frozen", "stall", "vanish")
+FAILURES = ("vout-floating", "vout-cut", "supply-cut", "frozen", "stall", "vanish")
+# An open input does not read 0 V. Each analog input of the USB-6008/6009 reaches the
+# multiplexer through 127 kOhm to a node tied to ground by 39.2 kOhm and to the +2.5 V
+# reference by 30.9 kOhm (NI USB-6008/6009 User Guide and Specifications, "Analog Input
+# Circuitry"). Seen from the pin that is a source of 2.5 V x 39.2 / (39.2 + 30.9) =
+# 1.398 V behind 127 + 39.2 || 30.9 = 144 kOhm, the spec's input impedance: a cut wire
+# reads 1.40 V, 26.6 kPa through an MPX5100 on 5 V.
+FLOATING_INPUT_V = 2.5 * 39.2 / (39.2 + 30.9)
+# What a dangling wire behind 144 kOhm picks up (a model: it depends on the wire and the
+# room): mains hum, and broadband noise a few codes wide (one RSE code is 2.44 mV).
+FLOATING_HUM_V = 0.010  # amplitude
+FLOATING_NOISE_V = 0.003  # standard deviation
+MAINS_HZ = 50.0
 _CHANNEL_RE = re.compile(r"^/?(?P<dev>[A-Za-z]\w*)/ai(?P<first>\d+)(?::(?P<last>\d+))?$")
 
 
@@ -355,6 +368,9 @@ class SimDaqTask:
         self._failure: str | None = None
         self._failed_at_s = float("inf")
         self._frozen_v: np.ndarray | None = None  # per channel, once frozen
+        # the open input's own noise, drawn apart so a healthy run's samples do not change
+        self._floating_rng = np.random.default_rng(None if seed is None else [seed, 6009])
+        self._hum_phase = float(self._floating_rng.uniform(0.0, 2 * np.pi))
 
     # -- the nidaqmx.Task surface -------------------------------------------------------
 
@@ -564,6 +580,8 @@ class SimDaqTask:
             if name == self.output_channel:
                 v = mpx5100.output_v(p_kpa, self.supply_v)
                 cut = failed if self._failure in ("vout-cut", "supply-cut") else False
+                if self._failure == "vout-floating":
+                    v = np.where(failed, self.floating_input_v(t_s), v)
             elif name == self.supply_channel:
                 v = np.full(n, self.supply_v)
                 cut = failed if self._failure == "supply-cut" else False
@@ -573,7 +591,7 @@ class SimDaqTask:
             else:
                 v = np.zeros(n)
                 cut = False
-            v = np.where(cut, 0.0, v)  # a cut wire: the input reads ground
+            v = np.where(cut, 0.0, v)  # shorted to ground, or a sensor without supply
             v = v + self._rng.normal(0.0, noise_v, n) if noise_v > 0 else v
             out[row, :n] = quantise(v, channel.range_v, channel.bits)
         if self._failure == "frozen" and failed.any():
@@ -582,6 +600,13 @@ class SimDaqTask:
                 self._frozen_v = out[:, max(first - 1, 0)].copy()  # the last good codes
             out[:, first:n] = self._frozen_v[:, None]
         self._read_pos += n
+
+    def floating_input_v(self, t_s: np.ndarray) -> np.ndarray:
+        """What an open input reads at the sample times ``t_s``: the input network's
+        1.40 V, mains hum and broadband noise (``FLOATING_*``)."""
+        hum_v = FLOATING_HUM_V * np.sin(2 * np.pi * MAINS_HZ * t_s + self._hum_phase)
+        noise_v = self._floating_rng.normal(0.0, FLOATING_NOISE_V, len(t_s))
+        return FLOATING_INPUT_V + hum_v + noise_v
 
     # -- helpers ------------------------------------------------------------------------
 

@@ -452,8 +452,8 @@ def test_an_unplugged_daq_gets_cable_advice_and_its_buffer_is_read_first():
 
 
 @pytest.mark.parametrize(("failure", "check"), [("vout-cut", "low"), ("supply-cut", "nan")])
-def test_a_cut_sensor_wire_reads_as_no_pressure(failure, check):
-    """Vout cut: the input reads ground, -4.4 kPa (flagged); supply cut with the supply
+def test_a_dead_sensor_wire_reads_as_no_pressure(failure, check):
+    """Vout shorted to ground: -4.4 kPa (flagged); supply cut with the supply
     measured: 0/0, converted to NaN, not a number that could pass for a pressure."""
     rig = Rig(ramp_after(0.0, 10.0), supply_channel="Dev1/ai1")
     rig.daq.start(1000.0)
@@ -469,3 +469,29 @@ def test_a_cut_sensor_wire_reads_as_no_pressure(failure, check):
         assert block.out_of_range[after].all()
     else:
         assert np.isnan(block.pressure_kpa[after]).all()
+
+
+def test_a_cut_output_wire_floats_where_the_usb_6009_input_network_holds_it():
+    """An open RSE input reads the Thevenin voltage of the 6009's input network (127 kOhm
+    to a node tied to ground by 39.2 kOhm and to +2.5 V by 30.9 kOhm): 1.40 V, 26.6 kPa
+    through the MPX5100 on 5 V, in range and not flagged, with mains hum on it."""
+    rig = Rig(ramp_after(0.0, 10.0), sim={"noise_kpa": 0.0}, supply_channel="Dev1/ai1")
+    rig.daq.start(1000.0)
+    rig.clock.sleep(0.5)
+    rig.tasks[-1].fail("vout-floating")
+    rig.clock.sleep(2.0)
+    block = rig.daq.read()
+    after = block.t_s >= 0.5
+    p = block.pressure_kpa[after]
+    # the node's voltage with the pin open: no current through the 127 kOhm
+    open_v = 2.5 / (1 / 39.2e3 + 1 / 30.9e3) / 30.9e3
+    assert open_v == pytest.approx(1.398, abs=1e-3)
+    assert np.mean(p) == pytest.approx((open_v / 5.0 - 0.04) / 0.009, abs=0.1)
+    assert not block.out_of_range[after].any() and np.all(np.isfinite(p))
+    assert 0.1 < np.std(p) < 0.3  # noisy: hum and a few codes of broadband noise
+    spectrum = np.abs(np.fft.rfft(p - np.mean(p)))
+    assert np.fft.rfftfreq(len(p), 1e-3)[np.argmax(spectrum)] == pytest.approx(50.0, abs=1.0)
+    # before the cut: the ramp, as the sensor gave it
+    np.testing.assert_allclose(
+        block.pressure_kpa[~after], rig.truth(block.t_s[~after]) + 0.8, atol=0.3
+    )

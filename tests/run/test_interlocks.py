@@ -2,6 +2,7 @@
 thread that saw the problem, and refuses a start that is already tripped."""
 
 import threading
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -139,3 +140,169 @@ def test_a_frozen_signal_trips_after_its_allowance_across_blocks():
     slow = interlocks.PressureStuck(0.5, min_samples=50)
     few = PressureBlock(np.arange(10) * 0.1, np.full(10, 20.0), np.zeros(10, bool))
     assert slow.check_pressure(few) is None
+
+
+# -- the pressure must respond to the volume infused -------------------------------------
+
+PROTOCOLS = sorted((Path(__file__).parents[2] / "protocols").glob("*.yaml"))
+
+
+def response_for(model_v, model_p):
+    return interlocks.PressureResponse(np.asarray(model_v, float), np.asarray(model_p, float))
+
+
+def infuse(interlock, pressure_at, rate_ml_min, volume_ml, period_s=0.2):
+    """Feed ``interlock`` as a run's loops do: a pressure block of 1 kHz samples and a
+    pump status every ``period_s`` while infusing at ``rate_ml_min``; the specimen
+    volume at the trip, or None."""
+    t = 0.0
+    while t * rate_ml_min / 60 < volume_ml:
+        t_block = t + np.arange(1, round(period_s * 1000) + 1) * 1e-3
+        reason = interlock.check_pressure(
+            PressureBlock(t_block, pressure_at(t_block), np.zeros(len(t_block), bool))
+        )
+        t = float(t_block[-1])
+        volume_ml_now = t * rate_ml_min / 60
+        reason = reason or interlock.check_pump(
+            PumpStatus(t, PumpState.INFUSING, volume_ml_now, 0.0), volume_ml_now
+        )
+        if reason:
+            return volume_ml_now, reason
+    return None
+
+
+# a model that rises 10 kPa/mL to 5 mL, stays at 50 kPa to 15 mL, then rises again
+STEP_V = [0.0, 5.0, 15.0, 25.0]
+STEP_P = [0.0, 50.0, 50.0, 150.0]
+
+
+def test_a_pressure_that_follows_the_model_never_trips_even_on_its_flat_stretch():
+    rng = np.random.default_rng(3)
+    rate = 30.0  # mL/min
+
+    def specimen(t):
+        return np.interp(t * rate / 60, STEP_V, STEP_P) + rng.normal(0.0, 0.3, len(t))
+
+    assert infuse(response_for(STEP_V, STEP_P), specimen, rate, 24.0) is None
+
+
+def test_a_flat_pressure_trips_where_the_model_expects_it_to_move_and_not_before():
+    rng = np.random.default_rng(4)
+    rate = 30.0
+
+    def floating(t):
+        return 26.6 + rng.normal(0.0, 0.18, len(t))
+
+    volume, reason = infuse(response_for(STEP_V, STEP_P), floating, rate, 24.0)
+    # the first full millilitre judged: the model's change over [0, 1] mL is 10 kPa
+    assert 1.0 <= volume <= 1.3
+    assert reason.startswith("pressure did not respond to the volume infused: 1.")
+    assert "a cut sensor output wire floats" in reason
+    # a flat reading struck on the plateau (here: from 6 mL) is seen once the model
+    # leaves it (15 mL; shifted by the allowed 1 mL) and one millilitre more is infused
+    interlock = response_for(STEP_V, STEP_P)
+
+    def cut_at_6_ml(t):
+        live = np.interp(t * rate / 60, STEP_V, STEP_P) + rng.normal(0.0, 0.18, len(t))
+        return np.where(t * rate / 60 < 6.0, live, floating(t))
+
+    volume, _ = infuse(interlock, cut_at_6_ml, rate, 24.0)
+    assert 16.0 <= volume <= 17.3
+
+
+def test_the_window_restarts_after_a_hold_or_a_withdrawal():
+    interlock = response_for(STEP_V, STEP_P)
+    flat = PressureBlock(np.arange(1, 1001) * 1e-3, np.full(1000, 20.0), np.zeros(1000, bool))
+    interlock.check_pressure(flat)
+    # 0.8 mL infused, a hold, then 0.8 mL more: no single infusion moved a full mL
+    assert interlock.check_pump(PumpStatus(0.0, PumpState.INFUSING, 0.0, 0.0), 0.0) is None
+    assert interlock.check_pump(PumpStatus(0.4, PumpState.INFUSING, 0.8, 0.0), 0.8) is None
+    assert interlock.check_pump(PumpStatus(0.5, PumpState.IDLE, 0.8, 0.0), 0.8) is None
+    assert interlock.check_pump(PumpStatus(0.6, PumpState.INFUSING, 0.8, 0.0), 0.8) is None
+    assert interlock.check_pump(PumpStatus(0.9, PumpState.INFUSING, 1.6, 0.0), 1.6) is None
+
+
+def test_air_and_blocked_specimens_are_not_judged_on_the_free_model():
+    from labrig.model.segments.catalog import load_segment
+
+    segments = [load_segment("SI-B46-T20")]
+    for fluid, length in (("air", "free"), ("water", "blocked")):
+        assert interlocks.PressureResponse.for_specimen(segments, fluid, length, 20.0) is None
+
+
+def shipped_infusions():
+    """(protocol name, specimen, first infusion) of each shipped protocol the
+    interlock judges (water, free length)."""
+    from labrig.config.protocol import InfuseStep, iter_plan, load_protocol
+
+    found = []
+    for path in PROTOCOLS:
+        protocol = load_protocol(path).protocol
+        specimen = protocol.specimen
+        if specimen.fluid == "water" and specimen.length == "free":
+            step = next(s for _, s, _ in iter_plan(protocol.steps) if isinstance(s, InfuseStep))
+            found.append((path.stem, protocol, step))
+    return found
+
+
+def infuse_through_the_driver(protocol, step, seed, floating_from_ml=None):
+    """One infusion of ``protocol``'s specimen on the simulated plant (segments
+    exchanging fluid through a resistance), read by the real driver from SimDaqTask,
+    judged by the interlock built for the specimen as a run builds it; the specimen
+    volume at the trip, or None. ``floating_from_ml``: the sensor's output wire is cut
+    there."""
+    from labrig.drivers.ni_daq import NiDaqPressure
+    from labrig.model.segments.catalog import load_segment
+    from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
+    from labrig.sim.plant import Plant
+    from labrig.time.virtual import VirtualClock
+
+    specimen = protocol.specimen
+    segments = [load_segment(name) for name in specimen.segments]
+    interlock = interlocks.PressureResponse.for_specimen(
+        segments, specimen.fluid, specimen.length, protocol.limits.max_volume_ml
+    )
+    rate_ml_s = step.infuse.rate_ml_min / 60
+    clock = VirtualClock()
+    start_s = 1.0  # after the zero
+
+    def volume_ml_at(t_s):
+        return min(step.infuse.volume_ml, max(0.0, (t_s - start_s) * rate_ml_s))
+
+    plant = Plant(segments, volume_ml_at, t0_s=0.0, seed=seed)
+    tasks = []
+
+    def new_task():
+        tasks.append(SimDaqTask(clock, plant.pressure_kpa_at, seed=seed))
+        return tasks[-1]
+
+    daq = NiDaqPressure(clock, task_factory=new_task, reader_factory=SimAnalogMultiChannelReader)
+    with clock.participate():
+        daq.zero(0.5)
+        daq.start()
+        if floating_from_ml is not None:
+            tasks[-1].fail("vout-floating", at_s=start_s + floating_from_ml / rate_ml_s)
+        try:
+            while volume_ml_at(clock.now()) < step.infuse.volume_ml:
+                clock.sleep(0.2)
+                reason = interlock.check_pressure(daq.read())
+                t_s = clock.now()
+                v_ml = volume_ml_at(t_s)
+                state = PumpState.INFUSING if t_s > start_s else PumpState.IDLE
+                reason = reason or interlock.check_pump(PumpStatus(t_s, state, v_ml, 0.0), v_ml)
+                if reason:
+                    return v_ml
+        finally:
+            daq.stop()
+    return None
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_shipped_protocols_never_trip_it_and_a_cut_wire_does(seed):
+    infusions = shipped_infusions()
+    assert {name for name, *_ in infusions} >= {"demo", "segment_characterization"}
+    for name, protocol, step in infusions:
+        assert infuse_through_the_driver(protocol, step, seed) is None, name
+        # cut in the first millilitre, where every specimen's pressure rises steeply
+        tripped_ml = infuse_through_the_driver(protocol, step, seed, floating_from_ml=0.3)
+        assert tripped_ml is not None and 1.3 <= tripped_ml <= 1.6, (name, tripped_ml)
