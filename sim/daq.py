@@ -19,6 +19,10 @@ Behaviour copied from the device rather than replayed:
   the coerced rate, not the requested one);
 - a sample clock that may be off by ``clock_error_ppm`` against the host clock (a
   crystal's error), so a driver that never re-anchors drifts as on the bench;
+- samples that reach the host a USB transfer after they are taken
+  (``transfer_latency_s``, a range each query draws from): the acquired count
+  (``total_samp_per_chan_acquired``) and what a read can take lag the sample clock by
+  it, as on a USB-6009, whose count is of the samples that have reached the host;
 - hardware timing on the shared clock: sample k is taken at t_start + k/rate however late
   it is read, so nothing is lost while the buffer has room, and like DAQmx the buffer
   overflows (error -200279) when it is not read in time;
@@ -283,7 +287,7 @@ class SimInStream:
         task._check_open()
         if not task._running:
             return 0
-        available = min(task._acquired() - task._read_pos, task._buffer_size)
+        available = min(task._delivered() - task._read_pos, task._buffer_size)
         if available == 0:
             task._check_reachable()
         return available
@@ -293,7 +297,7 @@ class SimInStream:
         task = self._task
         task._check_open()
         task._check_reachable()
-        return task._acquired() if task._running else 0
+        return task._delivered() if task._running else 0
 
 
 class SimAnalogMultiChannelReader:
@@ -337,6 +341,7 @@ class SimDaqTask:
         new_task_name: str = "",
         clock_error_ppm: float = 0.0,
         other_signals: dict[str, Callable[[np.ndarray], np.ndarray]] | None = None,
+        transfer_latency_s: tuple[float, float] = (0.0, 0.0),
     ) -> None:
         self.clock = clock
         self.pressure_kpa_at = pressure_kpa_at
@@ -347,6 +352,9 @@ class SimDaqTask:
         self.output_channel = output_channel.strip("/").lower()
         self.supply_channel = supply_channel.strip("/").lower() if supply_channel else None
         self.clock_error_ppm = float(clock_error_ppm)
+        self.transfer_latency_s = (float(transfer_latency_s[0]), float(transfer_latency_s[1]))
+        self._latency_rng = np.random.default_rng(None if seed is None else [seed, 6008])
+        self._delivered_n = 0
         # more instruments on other inputs: channel -> volts at the sample times
         self.other_signals = {
             name.strip("/").lower(): signal for name, signal in (other_signals or {}).items()
@@ -402,6 +410,7 @@ class SimDaqTask:
         rate = self.timing.samp_clk_rate
         self._buffer_size = max(self.timing.samp_quant_samp_per_chan, default_buffer_size(rate))
         self._read_pos = 0
+        self._delivered_n = 0
         self._overflowed = False
         self._running = True
         self._t_start_s = self.clock.now()
@@ -483,14 +492,24 @@ class SimDaqTask:
         """The rate the sample clock really runs at, measured on the host clock."""
         return self.timing.samp_clk_rate * (1.0 + 1e-6 * self.clock_error_ppm)
 
-    def _acquired(self) -> int:
-        """Samples taken since start: sample k is taken at t_start + k/rate (none after
-        a stall or a vanish)."""
-        now_s = self.clock.now()
+    def _acquired(self, at_s: float | None = None) -> int:
+        """Samples taken from the start to ``at_s`` (default now): sample k is taken at
+        t_start + k/rate (none after a stall or a vanish)."""
+        now_s = self.clock.now() if at_s is None else at_s
         if self._failure in ("stall", "vanish"):
             now_s = min(now_s, self._failed_at_s)
         elapsed_s = now_s - self._t_start_s
         return max(0, int(np.floor(elapsed_s * self._device_rate_hz())) + 1)
+
+    def _delivered(self) -> int:
+        """Samples that have reached the host: those taken a transfer latency ago (drawn
+        anew at each query, never fewer than before)."""
+        low_s, high_s = self.transfer_latency_s
+        if high_s <= 0:
+            return self._acquired()
+        latency_s = self._latency_rng.uniform(low_s, high_s)
+        self._delivered_n = max(self._delivered_n, self._acquired(self.clock.now() - latency_s))
+        return self._delivered_n
 
     def _read_into(self, data, n_requested, timeout, reader) -> int:
         self._check_open()
@@ -510,18 +529,19 @@ class SimDaqTask:
             )
         if self._timeout_pending and not read_available:
             self._timeout_pending = False
-            n_got = min(self._timeout_delivers, n_requested, self._acquired() - self._read_pos)
+            n_got = min(self._timeout_delivers, n_requested, self._delivered() - self._read_pos)
             self._generate(data[:, :n_got], n_got)
             self.clock.sleep(timeout)
             raise self._read_timeout(timeout, n_got)
         self._check_overflow()
         deadline_s = self.clock.now() + timeout
         rate = self._device_rate_hz()
-        while self._acquired() - self._read_pos < n_requested:
+        while self._delivered() - self._read_pos < n_requested:
             wait_s = (self._read_pos + n_requested) / rate - (self.clock.now() - self._t_start_s)
+            wait_s += self.transfer_latency_s[0]
             remaining_s = deadline_s - self.clock.now()
             if remaining_s <= 0:
-                n_got = self._acquired() - self._read_pos
+                n_got = self._delivered() - self._read_pos
                 self._generate(data[:, :n_got], n_got)
                 raise self._read_timeout(timeout, n_got)
             self.clock.sleep(min(max(wait_s, 1e-4), remaining_s))
@@ -530,7 +550,7 @@ class SimDaqTask:
         return n_requested
 
     def _check_overflow(self) -> None:
-        if self._overflowed or self._acquired() - self._read_pos > self._buffer_size:
+        if self._overflowed or self._delivered() - self._read_pos > self._buffer_size:
             self._overflowed = True  # like DAQmx, the task stays in error until restarted
             code = self._overflow_code
             if code == DAQmxErrors.SAMPLES_NO_LONGER_AVAILABLE:

@@ -386,9 +386,9 @@ def test_samples_are_stamped_at_the_rate_daqmx_coerced():
     assert (t.size - 1) / 700.0 - (true_t[-1] - true_t[0]) > 9e-4
 
 
-def test_long_runs_are_re_anchored_on_the_host_clock():
+def test_long_runs_follow_the_host_clock():
     # A sample clock 1000 ppm fast: stamped at the nominal rate, 300 s of samples would
-    # end 0.3 s late. Re-anchoring every 10 s keeps them within the observation error.
+    # end 0.3 s late. The drift check keeps them within the sightings' error.
     truth = TimeRecorder()
     rig = Rig(truth, sim={"clock_error_ppm": 1000.0}, buffer_s=400.0)
     rig.daq.start(100.0)
@@ -427,7 +427,7 @@ def test_a_disagreement_no_crystal_has_is_not_believed(caplog):
     rig = Rig(TimeRecorder(), sim={"clock_error_ppm": 10_000.0}, buffer_s=100.0)
     rig.daq.start(100.0)
     with caplog.at_level("WARNING", logger="labrig.drivers.ni_daq"):
-        _, t, _, _ = rig.collect(30.0, every_s=1.0)
+        _, t, _, _ = rig.collect(60.0, every_s=1.0)
     rig.daq.stop()
     assert "ppm off the host clock: not believed" in caplog.text
     np.testing.assert_allclose(np.diff(t), 0.01, rtol=1e-9)
@@ -495,3 +495,41 @@ def test_a_cut_output_wire_floats_where_the_usb_6009_input_network_holds_it():
     np.testing.assert_allclose(
         block.pressure_kpa[~after], rig.truth(block.t_s[~after]) + 0.8, atol=0.3
     )
+
+
+# What a USB-6009 shows: its count is of the samples that reached the host, a transfer
+# of 12-37 ms after they were taken.
+USB_LATENCY_S = (0.012, 0.037)
+
+
+def test_usb_transfer_latency_never_makes_the_stamps_late():
+    truth = TimeRecorder()
+    rig = Rig(truth, sim={"transfer_latency_s": USB_LATENCY_S})
+    rig.daq.start(1000.0)
+    _, t, _, _ = rig.collect(120.0, every_s=0.1)
+    rig.daq.stop()
+    late_s = t - truth.t_s[: t.size]
+    # the sample clock anchored at the start: on time to the clock's rounding, however
+    # late each block reached the host
+    assert np.max(np.abs(late_s)) < 1e-6
+    np.testing.assert_allclose(np.diff(t), 1e-3, rtol=1e-9)
+
+
+def test_a_drifting_sample_clock_is_caught_beyond_what_latency_explains():
+    # 1000 ppm fast behind USB latency: stamped at the nominal rate, 300 s of samples
+    # would end 0.3 s late; the drift check finds the rate behind the latency.
+    truth = TimeRecorder()
+    rig = Rig(
+        truth, sim={"clock_error_ppm": 1000.0, "transfer_latency_s": USB_LATENCY_S}, buffer_s=400.0
+    )
+    rig.daq.start(100.0)
+    _, t, _, _ = rig.collect(300.0, every_s=0.2)  # as often as a run reads
+    rig.daq.stop()
+    true_t = truth.t_s[: t.size]
+    naive_t = t[0] + np.arange(t.size) / rig.daq.sample_clock_hz
+    assert np.max(naive_t - true_t) > 0.25  # what it was without the check
+    assert np.all(np.diff(t) > 0)  # continuous and increasing across every correction
+    # the rate is first judged over 30 s of sightings (at 40 s) and slewed onto by 50 s
+    error_s = t - true_t
+    assert np.max(np.abs(error_s[true_t - true_t[0] > 60.0])) < 0.01
+    assert np.max(np.abs(error_s[true_t - true_t[0] > 200.0])) < 0.005
