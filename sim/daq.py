@@ -18,7 +18,7 @@ Behaviour copied from the device rather than replayed:
   really uses: the timebase divided by a whole number (``timing.samp_clk_rate`` reads
   the coerced rate, not the requested one);
 - a sample clock that may be off by ``clock_error_ppm`` against the host clock (a
-  crystal's error), so a driver that never re-anchors drifts as on the bench;
+  crystal's error), so a driver that never checks its rate drifts as on the bench;
 - samples that reach the host a USB transfer after they are taken
   (``transfer_latency_s``, a range each query draws from): the acquired count
   (``total_samp_per_chan_acquired``) and what a read can take lag the sample clock by
