@@ -2,10 +2,10 @@
 thread that saw the problem, and refuses a start that is already tripped."""
 
 import threading
-from pathlib import Path
 
 import numpy as np
 import pytest
+from support.sensor_runs import infuse_judged, shipped_infusions
 
 from labrig.rig.devices import PressureBlock, PumpState, PumpStatus
 from labrig.run import interlocks
@@ -144,8 +144,6 @@ def test_a_frozen_signal_trips_after_its_allowance_across_blocks():
 
 # -- the pressure must respond to the volume infused -------------------------------------
 
-PROTOCOLS = sorted((Path(__file__).parents[2] / "protocols").glob("*.yaml"))
-
 
 def response_for(model_v, model_p):
     return interlocks.PressureResponse(np.asarray(model_v, float), np.asarray(model_p, float))
@@ -230,79 +228,14 @@ def test_air_and_blocked_specimens_are_not_judged_on_the_free_model():
         assert interlocks.PressureResponse.for_specimen(segments, fluid, length, 20.0) is None
 
 
-def shipped_infusions():
-    """(protocol name, specimen, first infusion) of each shipped protocol the
-    interlock judges (water, free length)."""
-    from labrig.config.protocol import InfuseStep, iter_plan, load_protocol
-
-    found = []
-    for path in PROTOCOLS:
-        protocol = load_protocol(path).protocol
-        specimen = protocol.specimen
-        if specimen.fluid == "water" and specimen.length == "free":
-            step = next(s for _, s, _ in iter_plan(protocol.steps) if isinstance(s, InfuseStep))
-            found.append((path.stem, protocol, step))
-    return found
-
-
-def infuse_through_the_driver(protocol, step, seed, floating_from_ml=None):
-    """One infusion of ``protocol``'s specimen on the simulated plant (segments
-    exchanging fluid through a resistance), read by the real driver from SimDaqTask,
-    judged by the interlock built for the specimen as a run builds it; the specimen
-    volume at the trip, or None. ``floating_from_ml``: the sensor's output wire is cut
-    there."""
-    from labrig.drivers.ni_daq import NiDaqPressure
-    from labrig.model.segments.catalog import load_segment
-    from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
-    from labrig.sim.plant import Plant
-    from labrig.time.virtual import VirtualClock
-
-    specimen = protocol.specimen
-    segments = [load_segment(name) for name in specimen.segments]
-    interlock = interlocks.PressureResponse.for_specimen(
-        segments, specimen.fluid, specimen.length, protocol.limits.max_volume_ml
-    )
-    rate_ml_s = step.infuse.rate_ml_min / 60
-    clock = VirtualClock()
-    start_s = 1.0  # after the zero
-
-    def volume_ml_at(t_s):
-        return min(step.infuse.volume_ml, max(0.0, (t_s - start_s) * rate_ml_s))
-
-    plant = Plant(segments, volume_ml_at, t0_s=0.0, seed=seed)
-    tasks = []
-
-    def new_task():
-        tasks.append(SimDaqTask(clock, plant.pressure_kpa_at, seed=seed))
-        return tasks[-1]
-
-    daq = NiDaqPressure(clock, task_factory=new_task, reader_factory=SimAnalogMultiChannelReader)
-    with clock.participate():
-        daq.zero(0.5)
-        daq.start()
-        if floating_from_ml is not None:
-            tasks[-1].fail("vout-floating", at_s=start_s + floating_from_ml / rate_ml_s)
-        try:
-            while volume_ml_at(clock.now()) < step.infuse.volume_ml:
-                clock.sleep(0.2)
-                reason = interlock.check_pressure(daq.read())
-                t_s = clock.now()
-                v_ml = volume_ml_at(t_s)
-                state = PumpState.INFUSING if t_s > start_s else PumpState.IDLE
-                reason = reason or interlock.check_pump(PumpStatus(t_s, state, v_ml, 0.0), v_ml)
-                if reason:
-                    return v_ml
-        finally:
-            daq.stop()
-    return None
-
-
-@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize(
+    "seed", [0, pytest.param(1, marks=pytest.mark.slow), pytest.param(2, marks=pytest.mark.slow)]
+)
 def test_the_shipped_protocols_never_trip_it_and_a_cut_wire_does(seed):
     infusions = shipped_infusions()
     assert {name for name, *_ in infusions} >= {"demo", "segment_characterization"}
     for name, protocol, step in infusions:
-        assert infuse_through_the_driver(protocol, step, seed) is None, name
+        assert infuse_judged(protocol, step, seed) is None, name
         # cut in the first millilitre, where every specimen's pressure rises steeply
-        tripped_ml = infuse_through_the_driver(protocol, step, seed, floating_from_ml=0.3)
+        tripped_ml = infuse_judged(protocol, step, seed, floating_from_ml=0.3)
         assert tripped_ml is not None and 1.3 <= tripped_ml <= 1.6, (name, tripped_ml)
