@@ -59,8 +59,9 @@ class PressureCeiling(Interlock):
 class PressureSignal(Interlock):
     """Trips on a sample that is no pressure reading: not a number (the sensor's supply
     lost: 0/0), or flagged beyond the sensor's or the ADC's range while not above the
-    limit (a cut output wire reads -4.4 kPa). A dead sensor reads low, never high, so
-    the ceiling alone would let the pump infuse into it."""
+    limit (an output shorted to ground reads -4.4 kPa). A sensor dead that way reads
+    low, never high, so the ceiling alone would let the pump infuse into it. A cut
+    output wire reads in range: ``PressureResponse`` sees it."""
 
     outcome = "faulted"
 
@@ -78,7 +79,8 @@ class PressureSignal(Interlock):
             )
         return (
             f"pressure reading {p[first]:.1f} kPa at t = {t_s:.2f} s is outside the "
-            "sensor's range (a cut output wire reads -4.4 kPa: check the sensor's wires)"
+            "sensor's range (an output shorted to ground reads -4.4 kPa: check the "
+            "sensor's wires)"
         )
 
 
@@ -267,7 +269,8 @@ class PressureResponse(Interlock):
                     f"from {v_start:.2f} mL (t = {t_start:.2f} to {t_end:.2f} s) moved it by "
                     f"{span_kpa:.2f} kPa where the specimen's model expects at least "
                     f"{self.min_change_kpa:g}: a cut sensor output wire floats (the "
-                    "USB-6009 reads about 27 kPa); check the sensor's wires"
+                    "USB-6009 reads about 27 kPa), or the specimen leaks; check the "
+                    "sensor's wires and the specimen's connections"
                 )
         return None
 
