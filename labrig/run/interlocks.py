@@ -183,6 +183,20 @@ class PressureResponse(Interlock):
         self._judged = 0  # the moves already judged
 
     @classmethod
+    def for_protocol(cls, protocol) -> PressureResponse | None:
+        """The interlock for a protocol's specimen, its model up to the volume limit
+        (None where it cannot be judged: ``for_specimen``)."""
+        from labrig.model.segments.catalog import load_segment
+
+        specimen = protocol.specimen
+        return cls.for_specimen(
+            [load_segment(spec) for spec in specimen.segments],
+            specimen.fluid,
+            specimen.length,
+            protocol.limits.max_volume_ml,
+        )
+
+    @classmethod
     def for_specimen(
         cls, segments: Sequence, fluid: str, length: str, v_max_ml: float
     ) -> PressureResponse | None:

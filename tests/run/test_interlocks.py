@@ -5,7 +5,7 @@ import threading
 
 import numpy as np
 import pytest
-from support.sensor_runs import infuse_judged, shipped_infusions
+from support.sensor_runs import PROTOCOLS, infuse_judged, shipped_infusions
 
 from labrig.rig.devices import PressureBlock, PumpState, PumpStatus
 from labrig.run import interlocks
@@ -221,11 +221,15 @@ def test_the_window_restarts_after_a_hold_or_a_withdrawal():
 
 
 def test_air_and_blocked_specimens_are_not_judged_on_the_free_model():
-    from labrig.model.segments.catalog import load_segment
+    from labrig.config.protocol import load_protocol
 
-    segments = [load_segment("SI-B46-T20")]
-    for fluid, length in (("air", "free"), ("water", "blocked")):
-        assert interlocks.PressureResponse.for_specimen(segments, fluid, length, 20.0) is None
+    def built_for(name):
+        protocol = load_protocol(PROTOCOLS / f"{name}.yaml").protocol
+        return interlocks.PressureResponse.for_protocol(protocol)
+
+    for name in ("movie_s7_air", "movie_s7_air_reservoir", "blocked_force"):
+        assert built_for(name) is None, name
+    assert isinstance(built_for("demo"), interlocks.PressureResponse)
 
 
 @pytest.mark.parametrize(

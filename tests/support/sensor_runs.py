@@ -107,20 +107,12 @@ def shipped_infusions() -> list[tuple[str, object, InfuseStep]]:
     return found
 
 
-def response_interlock(protocol) -> tuple[list, PressureResponse]:
-    """The specimen's segments and its interlock, built as a run builds it."""
-    specimen = protocol.specimen
-    segments = [load_segment(name) for name in specimen.segments]
-    interlock = PressureResponse.for_specimen(
-        segments, specimen.fluid, specimen.length, protocol.limits.max_volume_ml
-    )
-    return segments, interlock
-
-
 def infuse_judged(protocol, step: InfuseStep, seed: int, floating_from_ml: float | None = None):
-    """The first infusion of ``protocol`` judged by its interlock: the volume at the
-    trip, or None. ``floating_from_ml``: the sensor's output wire is cut there."""
-    segments, interlock = response_interlock(protocol)
+    """The first infusion of ``protocol`` judged by its interlock, built as a run
+    builds it: the volume at the trip, or None. ``floating_from_ml``: the sensor's
+    output wire is cut there."""
+    segments = [load_segment(name) for name in protocol.specimen.segments]
+    interlock = PressureResponse.for_protocol(protocol)
     rate = step.infuse.rate_ml_min
     legs = [Leg(PumpState.INFUSING, step.infuse.volume_ml / rate * 60, rate)]
 
