@@ -197,7 +197,8 @@ class FrameSource:
             capture.release()
             raise
         if settings.exposure is None and source.stamp == "capture":
-            source.keep_the_rate(node)
+            # V4L2 (Linux) numbers its cameras as its nodes: index N is /dev/videoN
+            source.keep_the_rate(node if isinstance(node, str) else f"/dev/video{node}")
         return source
 
     @classmethod
