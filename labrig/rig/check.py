@@ -14,8 +14,9 @@ names is reached and read, one line each; nothing moves.
   about 0.3 LSB does not dither the ADC, so the zero cannot be averaged below one code
   and long runs of one code at rest are normal, not a frozen input.
 - camera: frames until the tracker finds both markers (a camera's first frames may be
-  dark while its exposure settles), then the resolution, the frame rate and the
-  markers' distance in px and in mm at the configured scale.
+  dark while its exposure settles), then the resolution, the frame rate set and the one
+  the frames' stamps show (auto exposure may lower it in dim light), and the markers'
+  distance in px and in mm at the configured scale.
 
 Each failure says what was expected, what was found and what to check (cable, port,
 address, driver). The checks take their connections as parameters (a port, a DAQ task
@@ -35,7 +36,9 @@ from labrig.config.rig_file import CameraConfig, PressureConfig, PumpConfig, Rig
 from labrig.errors import DeviceError, InputError
 from labrig.time.clock import Clock
 
-CAMERA_FRAMES = 10  # frames tried before both markers must have been found
+CAMERA_FRAMES = 10  # frames tried before both markers must have been found, and read
+# a measured frame rate below this share of the one set is reported as short
+RATE_SHORT = 0.9
 # below this spread (LSB) the noise no longer dithers the ADC: a mean of the codes is
 # off the true level by up to half a code (a uniform quantisation error is 0.29 LSB)
 DITHER_LSB = 0.3
@@ -391,6 +394,21 @@ def check_camera(length, config: CameraConfig | None, source: str) -> DeviceChec
     fps = length.frames.capture.get(cv2.CAP_PROP_FPS)
     fourcc = length.frames.fourcc
     seen = f"{source}: {width}x{height}, {fps:g} fps" + (f" {fourcc}" if fourcc else "")
+    if not length.frames.is_file:
+        try:  # enough frames for their stamps to tell the rate
+            while length.frames.n_frames < CAMERA_FRAMES:
+                length.frames.read()
+        except DeviceError as exc:
+            return _camera_unreachable(exc, f"frames from {source}")
+        measured = length.frames.measured_fps
+        if measured is not None:
+            seen += f" ({measured:.1f} measured"
+            if fps > 0 and measured < RATE_SHORT * fps:
+                seen += (
+                    ": short of the rate set; in dim light auto exposure lowers it, so add "
+                    "light or give camera.exposure"
+                )
+            seen += ")"
     if not fix.ok:
         return DeviceCheck(
             "camera",

@@ -240,3 +240,27 @@ def test_the_pressure_check_reports_the_spread_of_codes_at_rest(noise_kpa, quiet
         expected = np.hypot(noise_kpa / lsb_kpa, np.sqrt(1 / 12))
         assert std_lsb == pytest.approx(expected, rel=0.1)
         assert "too quiet" not in check.found
+
+
+def test_the_camera_check_shows_the_rate_the_frames_really_come_at():
+    """CAP_PROP_FPS says 30 while auto exposure in dim light gives 12: the check reads
+    enough frames for their stamps to tell, and says what to do."""
+    from labrig.drivers.camera import CameraLength, CameraSettings, FrameSource
+    from labrig.rig.check import check_camera
+    from labrig.sim.camera import SimCamera
+    from labrig.time.virtual import VirtualClock
+
+    clock = VirtualClock()
+    with clock.participate():
+        for dim_light_fps, shown in ((None, "30.0 measured)"), (12.0, "12.0 measured: short")):
+            cam = SimCamera(
+                clock, lambda t: 40.0, size=(320, 240), mm_per_px=0.2, dim_light_fps=dim_light_fps
+            )
+            frames = FrameSource.live(cam, clock, "simulated camera")
+            frames.configure(CameraSettings(width=320, height=240, fps=30.0))
+            length = CameraLength(frames, mm_per_px=0.2)
+            check = check_camera(length, None, "simulated camera")
+            length.close()
+            assert check.ok, check.line()
+            assert f"320x240, 30 fps MJPG ({shown}" in check.found
+    assert "add light or give camera.exposure" in check.found
