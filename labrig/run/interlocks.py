@@ -10,8 +10,10 @@ a condition that is already true refuses the start.
 
 from __future__ import annotations
 
+import bisect
 import math
 import threading
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -178,7 +180,7 @@ class PressureResponse(Interlock):
         self._shifts_ml = np.linspace(-shift_ml, shift_ml, 2 * math.ceil(shift_ml / 0.05) + 1)
         self._lock = threading.Lock()
         self._bin = (-1, 0.0, 0)  # the 0.1 s bin being filled: index, sum, count
-        self._bins: list[tuple[float, float]] = []  # (start time, mean) of full bins
+        self._bins: deque[tuple[float, float]] = deque()  # (start time, mean) of full bins
         self._moves: list[tuple[float, float]] = []  # (time, volume) of this infusion
         self._judged = 0  # the moves already judged
 
@@ -262,15 +264,16 @@ class PressureResponse(Interlock):
             end = self._judged
             self._judged += 1
             t_end, v_end = moves[end]
-            starts = [i for i in range(end) if v_end - moves[i][1] >= self.window_ml]
-            if not starts:
+            # the latest point a full window before (an infusion's volumes only rise)
+            start = bisect.bisect_right(moves, v_end - self.window_ml, hi=end, key=_volume) - 1
+            if start < 0:
                 continue
-            t_start, v_start = moves[starts[-1]]
+            t_start, v_start = moves[start]
             # older points and bins can no longer start a window
-            del moves[: starts[-1]]
-            self._judged -= starts[-1]
+            del moves[:start]
+            self._judged -= start
             while self._bins and self._bins[0][0] < t_start - RESPONSE_BIN_S:
-                del self._bins[0]
+                self._bins.popleft()
             if self.expected_change_kpa(v_start, v_end) < self.min_change_kpa:
                 continue
             means = [p for t, p in self._bins if t >= t_start and t + RESPONSE_BIN_S <= t_end]
@@ -287,6 +290,10 @@ class PressureResponse(Interlock):
                     "sensor's wires and the specimen's connections"
                 )
         return None
+
+
+def _volume(move: tuple[float, float]) -> float:
+    return move[1]
 
 
 @dataclass(frozen=True)
