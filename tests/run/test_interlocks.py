@@ -243,3 +243,40 @@ def test_the_shipped_protocols_never_trip_it_and_a_cut_wire_does(seed):
         # cut in the first millilitre, where every specimen's pressure rises steeply
         tripped_ml = infuse_judged(protocol, step, seed, floating_from_ml=0.3)
         assert tripped_ml is not None and 1.3 <= tripped_ml <= 1.6, (name, tripped_ml)
+
+
+def test_a_cut_wire_on_the_simulated_rig_faults_the_run_with_the_pump_stopped(tmp_path):
+    """The whole simulated rig: the runner's loops feed the interlock, the wire is cut
+    at 0.3 mL of the first infusion (the stiff first millilitres, 60 mL/min), the run
+    ends faulted about a millilitre later with the plunger standing still."""
+    from support.simrig import short_protocol, when_volume_exceeds
+
+    from labrig.config.protocol import load_protocol
+    from labrig.config.rig_file import sim_rig_config
+    from labrig.rig.assembly import build_rig
+    from labrig.run.runner import Runner
+
+    path = tmp_path / "protocol.yaml"
+    path.write_text(short_protocol())
+    loaded = load_protocol(path)
+    rig = build_rig(loaded.protocol, sim_rig_config(None, 0))
+    runner = Runner(loaded, rig, tmp_path / "run.h5")
+    if not any(isinstance(i, interlocks.PressureResponse) for i in runner.monitor.interlocks):
+        runner.monitor.interlocks.append(interlocks.PressureResponse.for_protocol(loaded.protocol))
+    emulator = rig.simulation.emulator
+    cut_s = []
+
+    def cut_the_wire():
+        if when_volume_exceeds(rig, 0.3):
+            cut_s.append(rig.clock.now())
+            rig.simulation.daq_tasks[-1].fail("vout-floating")
+
+    with rig.clock.participate():
+        rig.clock.start_thread(cut_the_wire, "cut")
+        result = runner.run()
+    assert result.status == "faulted"
+    assert result.reason.startswith("pressure did not respond to the volume infused")
+    end_s = rig.clock.now()
+    stopped_ml = emulator.net_volume_ml(end_s)
+    assert emulator.net_volume_ml(end_s + 30.0) == stopped_ml  # the plunger stands still
+    assert 1.0 <= stopped_ml - emulator.net_volume_ml(cut_s[0]) <= 1.5
