@@ -177,6 +177,7 @@ class PressureResponse(Interlock):
         self.window_ml = float(window_ml)
         self.min_change_kpa = float(min_change_kpa)
         self.stiffness_fraction = float(stiffness_fraction)
+        # the shifts on a 0.05 mL grid, the model's own sampling
         self._shifts_ml = np.linspace(-shift_ml, shift_ml, 2 * math.ceil(shift_ml / 0.05) + 1)
         self._lock = threading.Lock()
         self._bin = (-1, 0.0, 0)  # the 0.1 s bin being filled: index, sum, count
@@ -214,8 +215,8 @@ class PressureResponse(Interlock):
 
     def expected_change_kpa(self, v_from_ml: float, v_to_ml: float) -> float:
         """The smallest pressure change the specimen can show from one volume to the
-        other: the model's, at its smallest over the shifts, times the stiffness
-        fraction (0 beyond the model's volumes)."""
+        other: the model's, at its smallest over the shifts that keep the window within
+        the model's volumes, times the stiffness fraction (0 where none does)."""
         v0, v1 = v_from_ml + self._shifts_ml, v_to_ml + self._shifts_ml
         inside = (v0 >= self._model_v[0]) & (v1 <= self._model_v[-1])
         if not inside.any():
