@@ -27,6 +27,18 @@ about 10 fps at 1280x720), then sets the size, the rate, and locks exposure and 
 where asked, then reads them all back: a camera that silently stays at 640x480 would
 make a scale measured at 1280x720 wrong, so a mismatch is refused in one line, and a
 rate the camera cannot give in the pixel format it took says which format that is.
+Without a manual exposure, V4L2's auto exposure is set (``CAP_PROP_AUTO_EXPOSURE``:
+V4L2 takes 3, aperture priority, for auto and 1 for manual; a camera left in manual by
+another program would otherwise keep that program's exposure), and on a camera
+opened by its device node ``exposure_auto_priority`` is turned off
+(``labrig.drivers.v4l2_control``): with it on, auto exposure lowers the real frame rate
+in dim light while ``CAP_PROP_FPS`` still reports the nominal one. What the camera
+really gives is measured from the frames' stamps (``measured_fps``).
+
+A camera is an index, a ``/dev/video*`` node or any path under ``/dev`` that leads to
+one: the ``/dev/v4l/by-id/...`` links udev makes stay the same whichever
+``/dev/videoN`` the camera gets when it is plugged in again. The link is resolved and
+the node it names opened with the V4L2 backend.
 
 A capture stamp is checked against the shared clock read at the grab: a stamp ahead
 of it, far behind it (more than the driver's queue of frames), or not after the
@@ -46,6 +58,8 @@ square to the camera's axis, where one scale holds across the frame.
 
 from __future__ import annotations
 
+import logging
+import os
 import re
 import threading
 from dataclasses import dataclass
@@ -57,11 +71,13 @@ import numpy as np
 
 from labrig.drivers.markers import MarkerFix, MarkerTracker, mm_per_px_from_reference
 from labrig.drivers.tracker_process import TrackerProcess
+from labrig.drivers.v4l2_control import V4L2_CID_EXPOSURE_AUTO_PRIORITY, set_control
 from labrig.errors import DeviceError, InputError
 from labrig.rig.devices import LengthSample
 from labrig.time.clock import Clock, ClockThread
 
 DEVICE_PATH = re.compile(r"^/dev/video\d+$")
+log = logging.getLogger(__name__)
 # V4L2 exposure modes as OpenCV passes them (CAP_PROP_AUTO_EXPOSURE)
 V4L2_MANUAL_EXPOSURE, V4L2_AUTO_EXPOSURE = 1.0, 3.0
 DEFAULT_WARMUP_FRAMES = 5
@@ -137,16 +153,21 @@ class FrameSource:
         self._kept: list[Frame] = []
         self.fourcc = ""  # the pixel format the camera reports, once configured
         self._last_stamp_s = float("-inf")
+        # the first and the newest frame's stamp, and the frames between (warm-up left
+        # out): the rate the camera really gives
+        self._first_frame_s = float("nan")
+        self._newest_frame_s = float("nan")
+        self._n_stamped = 0
 
     @classmethod
     def open(
         cls, source: int | str | Path, clock: Clock, settings: CameraSettings | None = None
     ) -> FrameSource:
-        """A camera (an int, a string of digits: its device index, or a /dev/video*
-        path) or a video file."""
+        """A camera (an int, a string of digits: its device index, or a path under /dev
+        such as /dev/video0 or a /dev/v4l/by-id/... link) or a video file."""
         if isinstance(source, int) or (isinstance(source, str) and source.isdigit()):
             return cls.open_camera(int(source), clock, settings)
-        if DEVICE_PATH.match(str(source)):
+        if is_device_path(source):
             return cls.open_camera(str(source), clock, settings)
         return cls.open_file(source)
 
@@ -154,22 +175,30 @@ class FrameSource:
     def open_camera(
         cls, device: int | str, clock: Clock, settings: CameraSettings | None = None
     ) -> FrameSource:
-        """A live camera by index or /dev/video* path, configured with ``settings``."""
-        if isinstance(device, str) and not Path(device).exists():
-            raise DeviceError(f"camera {device}: no such device (is the camera plugged in?)")
-        capture = cv2.VideoCapture(device, cv2.CAP_V4L2 if isinstance(device, str) else 0)
+        """A live camera by index or device path (a link is resolved to the node it
+        names), configured with ``settings``."""
+        node = device_node(device)
+        named = str(device) if str(node) == str(device) else f"{device} ({node})"
+        if isinstance(device, str) and not Path(node).exists():
+            raise DeviceError(f"camera {named}: no such device (is the camera plugged in?)")
+        # a node by path needs the V4L2 backend; an index lets OpenCV choose
+        capture = cv2.VideoCapture(node, cv2.CAP_V4L2 if isinstance(device, str) else 0)
         if not capture.isOpened():
             capture.release()
             raise DeviceError(
-                f"camera {device} could not be opened: check that it is connected and no "
+                f"camera {named} could not be opened: check that it is connected and no "
                 "other program uses it, or run without hardware with --sim"
             )
         source = cls.live(capture, clock, f"camera {device}")
+        settings = settings or CameraSettings()
         try:
-            source.configure(settings or CameraSettings())
+            source.configure(settings)
         except DeviceError:
             capture.release()
             raise
+        if settings.exposure is None and source.stamp == "capture":
+            # V4L2 (Linux) numbers its cameras as its nodes: index N is /dev/videoN
+            source.keep_the_rate(node if isinstance(node, str) else f"/dev/video{node}")
         return source
 
     @classmethod
@@ -212,6 +241,8 @@ class FrameSource:
         if settings.exposure is not None:
             c.set(cv2.CAP_PROP_AUTO_EXPOSURE, V4L2_MANUAL_EXPOSURE)
             asked.append(("exposure", cv2.CAP_PROP_EXPOSURE, float(settings.exposure)))
+        elif self.stamp == "capture":  # V4L2's modes; other backends number them otherwise
+            asked.append(("auto exposure", cv2.CAP_PROP_AUTO_EXPOSURE, V4L2_AUTO_EXPOSURE))
         if settings.focus is not None:
             c.set(cv2.CAP_PROP_AUTOFOCUS, 0.0)
             asked.append(("focus", cv2.CAP_PROP_FOCUS, float(settings.focus)))
@@ -233,11 +264,30 @@ class FrameSource:
                         "camera.fps or camera.width/height in the rig file, or use a camera "
                         "that streams MJPG (v4l2-ctl --list-formats-ext lists its formats)"
                     )
+                if what == "auto exposure":
+                    raise DeviceError(
+                        f"{self.name}: auto exposure (V4L2 mode 3) was asked, the camera "
+                        f"stays in mode {got:g}: give camera.exposure in the rig file for a "
+                        "manual exposure (v4l2-ctl --all lists its range)"
+                    )
                 raise DeviceError(
                     f"{self.name}: asked for {what} {value:g}, the camera gives {got:g} "
                     f"(set camera.{what} in the rig file to what it supports; "
                     "v4l2-ctl --all lists it)"
                 )
+
+    def keep_the_rate(self, node: str) -> None:
+        """Turn ``exposure_auto_priority`` off on the V4L2 node ``node``, so auto
+        exposure cannot lower the frame rate; a camera without the control (or a
+        system that cannot set it) is logged, and ``measured_fps`` tells the rate."""
+        problem = set_control(node, V4L2_CID_EXPOSURE_AUTO_PRIORITY, 0)
+        if problem is not None:
+            log.warning(
+                "%s: exposure_auto_priority not turned off (%s): in dim light auto "
+                "exposure may lower the frame rate",
+                self.name,
+                problem,
+            )
 
     # --- reading -----------------------------------------------------------------------
     def read(self) -> Frame | None:
@@ -329,6 +379,10 @@ class FrameSource:
                     t_s = t_capture_s
             frame = Frame(t_s=t_s, image=image)
             with self._lock:
+                if self._n_stamped == 0:
+                    self._first_frame_s = t_s
+                self._newest_frame_s = t_s
+                self._n_stamped += 1
                 if self._keep_all:
                     self._kept.append(frame)
                     self.n_frames += 1
@@ -354,6 +408,18 @@ class FrameSource:
                 f"({t_host_s:.3f} s): the camera's clock jumped; reconnect the camera"
             )
         self._last_stamp_s = t_capture_s
+
+    @property
+    def measured_fps(self) -> float | None:
+        """The frame rate the camera really gave, from the stamps of its frames since
+        the stream started (warm-up left out); None before two frames. It can be below
+        ``CAP_PROP_FPS``: auto exposure with ``exposure_auto_priority`` on lowers the
+        rate in dim light and the property still reports the nominal one."""
+        with self._lock:
+            n, first_s, newest_s = self._n_stamped, self._first_frame_s, self._newest_frame_s
+        if n < 2 or not newest_s > first_s:
+            return None
+        return (n - 1) / (newest_s - first_s)
 
     @property
     def last_grab_s(self) -> float:
@@ -471,6 +537,11 @@ class CameraLength:
             "light, or give camera.mm_per_px in the rig file"
         )
 
+    @property
+    def measured_fps(self) -> float | None:
+        """The camera's real frame rate (``FrameSource.measured_fps``), for the run file."""
+        return self.frames.measured_fps
+
     def newest_frame_s(self) -> float:
         """The clock time of the camera's newest frame (for the signal watch)."""
         return self.frames.last_grab_s
@@ -523,3 +594,16 @@ def fourcc_text(code: float) -> str:
     "" when the backend reports none."""
     value = int(code)
     return "" if value <= 0 else value.to_bytes(4, "little").decode("ascii", "replace").strip()
+
+
+def is_device_path(source: str | Path) -> bool:
+    """A path that names a device rather than a video file: under /dev itself, or a
+    link that leads there (``/dev/v4l/by-id/...``, or one of the user's own)."""
+    path = str(source)
+    return path.startswith("/dev/") or os.path.realpath(path).startswith("/dev/")
+
+
+def device_node(device: int | str) -> int | str:
+    """The node a device path leads to (a by-id link resolved: OpenCV's V4L2 backend
+    opens the node it is given); an index as it is."""
+    return device if isinstance(device, int) else os.path.realpath(device)

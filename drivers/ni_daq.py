@@ -22,10 +22,18 @@ Timestamps: the sample clock is the device's, so sample k of an acquisition is t
 t_start + k/rate with the coerced rate. t_start is read on the shared clock around
 ``task.start()`` (the midpoint of the clock just before and just after the call): it is
 uncertain by half the call's duration, a few ms on USB, the same for every sample. The
-device's crystal and the host's clock disagree by up to ~100 ppm (0.36 s an hour), so
-every ``REANCHOR_S`` the driver compares the number of samples acquired
-(``in_stream.total_samp_per_chan_acquired``) with the clock and slews the stamps onto
-the host clock over the next interval, keeping them continuous and increasing.
+stamps never follow when a block reached the host: the USB-6009 counts a sample
+(``avail_samp_per_chan``, ``total_samp_per_chan_acquired``) only once a USB transfer
+brought it, 12-37 ms after it was taken, so a stamp taken from the newest counted
+sample would be late by that. What the host clock can tell is the rate: the device's
+crystal and the host's clock disagree by up to ~100 ppm (0.36 s an hour). Each read
+notes the time its newest counted sample was seen; every ``DRIFT_CHECK_S`` the least
+delayed of those sightings (the transfer latency at its smallest, nearly constant)
+joins a line through the acquisition, whose slope is the sample period on the host
+clock. Where it differs from the nominal period by more than the sightings' scatter
+(and by less than any crystal can, ``MAX_CLOCK_DISAGREEMENT``), the stamps take that
+period from t_start, slewed onto it over the next interval so they stay continuous
+and increasing.
 """
 
 from __future__ import annotations
@@ -55,10 +63,12 @@ OVERFLOW_CODES = {
 UNREACHABLE_CODES = (-201003, -200324, -50405)
 TERMINALS = ("RSE", "DIFF")
 log = logging.getLogger(__name__)
-# How often (in clock seconds) the sample stamps are re-anchored on the host clock, and
-# the largest disagreement believed: a crystal is off by ~1e-4, the host by less; a
-# larger one means the observation was delayed (a stalled host), not a drifting clock.
-REANCHOR_S = 10.0
+# How often (in clock seconds) the sample clock is checked against the host clock, how
+# long a stretch of acquisition its rate is first judged over, and the largest
+# disagreement believed: a crystal is off by ~1e-4, the host by less; a larger one
+# means the sightings were delayed (a stalled host), not a drifting clock.
+DRIFT_CHECK_S = 10.0
+DRIFT_FIT_S = 30.0
 MAX_CLOCK_DISAGREEMENT = 2e-3
 
 
@@ -154,11 +164,17 @@ class NiDaqPressure:
         self._start_slack_s = 0.0
         self._n_read = 0  # samples per channel read since the acquisition started
         self._unread: list[np.ndarray] = []  # read by zero() during a run, for read()
-        # Stamps: sample k is at _anchor_t_s + (k - _anchor_k) * _s_per_sample.
+        # Stamps: sample k is at _anchor_t_s + (k - _anchor_k) * _s_per_sample, slewing
+        # onto t_start + k * _period_s (the sample period on the host clock).
         self._anchor_k = 0
         self._anchor_t_s = 0.0
         self._s_per_sample = 0.0
-        self._next_reanchor_s = float("inf")
+        self._period_s = 0.0
+        self._next_check_s = float("inf")
+        # (k, host time) of the least delayed sighting of a newest counted sample: this
+        # interval's, and each earlier interval's
+        self._sighting: tuple[int, float] | None = None
+        self._sightings: list[tuple[int, float]] = []
 
     # -- PressureSource ------------------------------------------------------------------
 
@@ -204,8 +220,11 @@ class NiDaqPressure:
             raise RuntimeError("read() needs a running acquisition: call start() first")
         try:
             n = self._task.in_stream.avail_samp_per_chan
+            seen_s = self.clock.now()
         except _daq_error() as exc:
             raise self._translate(exc, "reading the number of available samples") from exc
+        if n > 0:
+            self._sighted(self._n_read + n - 1, seen_s)
         blocks, self._unread = self._unread, []
         if n > 0:
             # n samples are in the buffer already: the read returns at once
@@ -214,8 +233,8 @@ class NiDaqPressure:
             block = self._block(np.empty((len(self.channels), 0)))
         else:
             block = self._block(np.concatenate(blocks, axis=1))
-        if self.clock.now() >= self._next_reanchor_s:
-            self._reanchor()
+        if seen_s >= self._next_check_s:
+            self._check_drift(seen_s)
         return block
 
     def stop(self) -> None:
@@ -300,60 +319,61 @@ class NiDaqPressure:
         self._t_start_s = 0.5 * (before_s + after_s)
         self._start_slack_s = 0.5 * (after_s - before_s)
         self._anchor_k, self._anchor_t_s = 0, self._t_start_s
-        self._s_per_sample = 1.0 / sample_clock_hz
-        self._next_reanchor_s = self._t_start_s + REANCHOR_S
+        self._s_per_sample = self._period_s = 1.0 / sample_clock_hz
+        self._next_check_s = self._t_start_s + DRIFT_CHECK_S
+        self._sighting, self._sightings = None, []
         self._n_read = 0
         self._unread = []
 
-    def _reanchor(self) -> None:
-        """Slew the stamps onto the host clock, as far as it can be observed.
+    def _sighted(self, k: int, seen_s: float) -> None:
+        """Sample ``k`` was counted by ``seen_s``: kept if it is this interval's least
+        delayed sighting (its stamp closest to, or past, the moment it was seen)."""
+        lead_s = self._stamp(np.array([k]))[0] - seen_s
+        if self._sighting is None or lead_s > self._lead_s(self._sighting):
+            self._sighting = (k, seen_s)
 
-        The newest acquired sample, N - 1, was taken between one sample period before
-        the count was read and the moment it was read, give or take the start's own
-        uncertainty. From the start to that window: the sample period on the host
-        clock, and how well it is known; it replaces the nominal one only where they
-        differ by more than that. Then the stamp of sample N - 1, if it lies outside
-        the window, is brought to its edge over the next ``REANCHOR_S``, starting from
-        the next unstamped sample, so the stamps stay continuous and increasing.
-        """
-        try:
-            before_s = self.clock.now()
-            acquired = int(self._task.in_stream.total_samp_per_chan_acquired)
-            after_s = self.clock.now()
-        except _daq_error() as exc:
-            raise self._translate(exc, "reading the number of samples acquired") from exc
-        self._next_reanchor_s = after_s + REANCHOR_S
-        if acquired < 2:
-            return
+    def _lead_s(self, sighting: tuple[int, float]) -> float:
+        return self._stamp(np.array([sighting[0]]))[0] - sighting[1]
+
+    def _check_drift(self, now_s: float) -> None:
+        """Judge the sample period on the host clock from the intervals' least delayed
+        sightings, and slew the stamps onto t_start + k * period over the next interval."""
+        self._next_check_s = now_s + DRIFT_CHECK_S
+        if self._sighting is not None:
+            self._sightings.append(self._sighting)
+            self._sighting = None
+        self._period_s = self._fitted_period_s()
+        k_next = self._n_read
+        t_next_s = self._stamp(np.array([k_next]))[0]
+        error_s = self._t_start_s + k_next * self._period_s - t_next_s
+        # below a nanosecond it is the rounding of the anchors, not time
+        error_s = 0.0 if abs(error_s) < 1e-9 else error_s
+        error_s = float(np.clip(error_s, -0.5 * DRIFT_CHECK_S, 0.5 * DRIFT_CHECK_S))
+        self._anchor_k, self._anchor_t_s = k_next, t_next_s
+        self._s_per_sample = self._period_s + error_s / (DRIFT_CHECK_S * self.sample_clock_hz)
+
+    def _fitted_period_s(self) -> float:
+        """The sample period on the host clock: the slope of the line through the
+        intervals' sightings, once they span ``DRIFT_FIT_S``, where it differs from the
+        nominal period by more than their scatter allows; else the period so far."""
+        k = np.array([k for k, _ in self._sightings], dtype=float)
+        seen_s = np.array([t for _, t in self._sightings])
         nominal_s = 1.0 / self.sample_clock_hz
-        # The window's ends are possible times (a read exactly at a sample's instant):
-        # a hair of margin keeps rounding from taking them for a disagreement.
-        margin_s = 1e-9 * nominal_s
-        early_s = before_s - nominal_s - self._start_slack_s - margin_s
-        late_s = after_s + self._start_slack_s + margin_s
-        k_obs = acquired - 1
-        line_s = (0.5 * (early_s + late_s) - self._t_start_s) / k_obs
-        known_s = 0.5 * (late_s - early_s) / k_obs
-        if known_s > MAX_CLOCK_DISAGREEMENT * nominal_s:
-            return  # the host stalled around the read or the start: nothing to learn
-        if abs(line_s - nominal_s) - known_s > MAX_CLOCK_DISAGREEMENT * nominal_s:
+        if len(k) < 3 or (k[-1] - k[0]) * nominal_s < DRIFT_FIT_S:
+            return self._period_s
+        period_s, intercept_s = np.polyfit(k, seen_s, 1)
+        residual_s = seen_s - (intercept_s + period_s * k)
+        # the line is known to the sightings' scatter, and each sighting to one sample
+        # period (the newest counted sample was taken up to a period before), over the
+        # span it covers
+        known_s = (np.max(residual_s) - np.min(residual_s) + nominal_s) / (k[-1] - k[0])
+        if abs(period_s - nominal_s) > MAX_CLOCK_DISAGREEMENT * nominal_s:
             log.warning(
                 "the DAQ's sample clock seems %.0f ppm off the host clock: not believed",
-                1e6 * (line_s / nominal_s - 1.0),
+                1e6 * (period_s / nominal_s - 1.0),
             )
-            return
-        period_s = nominal_s if abs(line_s - nominal_s) <= known_s else line_s
-        t_obs = self._stamp(np.array([k_obs]))[0]
-        error_s = 0.0
-        if t_obs < early_s:
-            error_s = early_s - t_obs
-        elif t_obs > late_s:
-            error_s = late_s - t_obs
-        error_s = float(np.clip(error_s, -0.5 * REANCHOR_S, 0.5 * REANCHOR_S))
-        k_next = self._n_read
-        self._anchor_t_s = self._stamp(np.array([k_next]))[0]
-        self._anchor_k = k_next
-        self._s_per_sample = period_s + error_s / (REANCHOR_S * self.sample_clock_hz)
+            return self._period_s
+        return nominal_s if abs(period_s - nominal_s) <= known_s else float(period_s)
 
     def _stamp(self, k: np.ndarray) -> np.ndarray:
         return self._anchor_t_s + (k - self._anchor_k) * self._s_per_sample

@@ -13,8 +13,13 @@ settles; ``CAP_PROP_POS_MSEC`` is the frame's capture time on the clock (V4L2: t
 kernel's monotonic buffer timestamp); ``set``/``get`` take and read back the size, rate,
 exposure, focus and pixel format: it opens in YUYV, takes MJPG when asked unless it is
 a YUYV-only camera (``formats``), and in YUYV gives at most the rate USB 2.0 carries
-(``YUYV_BYTES_PER_S``: 10 fps at 1280x720, 30 at 640x480). It dies as cameras die
-(``stop_frames``: the next grab never returns; ``jump_clock``: its stamps jump).
+(``YUYV_BYTES_PER_S``: 10 fps at 1280x720, 30 at 640x480). As UVC webcams do, it
+may be slow to deliver the first frame of a stream (``first_frame_delay_s``: 0.3-1 s
+is common), and in dim light (``dim_light_fps``) its auto exposure, with
+``exposure_auto_priority`` on (the default of many webcams, a control OpenCV cannot
+set), lowers the real frame rate while ``CAP_PROP_FPS`` reports the nominal one. It
+dies as cameras die (``stop_frames``: the next grab never returns; ``jump_clock``: its
+stamps jump).
 ``write_video`` writes frames to a real MJPG/AVI file.
 
 Frames are rendered where they are read (``SimFrame``): the tracker reads two small
@@ -109,6 +114,8 @@ class SimCamera:
         queue_frames: int = 4,
         monochrome: bool = False,
         formats: tuple[str, ...] = ("YUYV", "MJPG"),
+        first_frame_delay_s: float = 0.0,
+        dim_light_fps: float | None = None,
     ) -> None:
         if not mm_per_px > 0 or not fps > 0 or queue_frames < 1:
             raise ValueError("SimCamera: mm_per_px and fps must be > 0, queue_frames >= 1")
@@ -156,6 +163,9 @@ class SimCamera:
         self.formats = tuple(formats)
         self.fourcc = self.formats[0]  # a UVC camera opens in its first format
         self._asked_fps = float(fps)
+        self.first_frame_delay_s = float(first_frame_delay_s)
+        self.dim_light_fps = dim_light_fps
+        self.exposure_auto_priority = True  # a V4L2 control OpenCV has no property for
         self._frames_stop_s = math.inf  # fault injection: no frame exposed from then on
         self._clock_jump_s = 0.0  # fault injection: added to every later stamp
         self._pos_msec = 0.0
@@ -423,16 +433,19 @@ class SimCamera:
         dark while the auto-exposure settles after the stream (re)starts."""
         if not self._opened:
             return False, None
+        fps = self.streaming_fps
         if not self._streaming:
             # V4L2 under OpenCV starts streaming at the first grab, not when opened:
-            # no frame from before it is queued, and the exposure settles from now
-            self._last_frame = math.ceil(self.clock.now() * self.fps) - 1
+            # no frame from before it is queued, the first comes after the camera's
+            # start-up delay, and the exposure settles from then
+            first_s = self.clock.now() + self.first_frame_delay_s
+            self._last_frame = math.ceil(first_s * fps) - 1
             self._stream_first = self._last_frame + 1
             self._streaming = True
-        exposed = math.floor(self.clock.now() * self.fps)  # the newest frame so far
+        exposed = math.floor(self.clock.now() * fps)  # the newest frame so far
         k = max(self._last_frame + 1, exposed - self.queue_frames + 1)
         self._last_frame = k
-        t_s = k / self.fps
+        t_s = k / fps
         self.clock.sleep(t_s - self.clock.now())
         while self._opened and t_s >= self._frames_stop_s:
             self.clock.sleep(STOPPED_POLL_S)  # a grab that never returns, until released
@@ -445,6 +458,15 @@ class SimCamera:
         if self.stream_size != (self.width, self.height):
             frame = frame.resized(self.stream_size)
         return True, frame
+
+    @property
+    def streaming_fps(self) -> float:
+        """The rate frames really come at: the one set, unless auto exposure with its
+        priority on lengthens the exposure in dim light (``dim_light_fps``)."""
+        auto = self._controls[cv2.CAP_PROP_AUTO_EXPOSURE] == 3.0
+        if self.dim_light_fps is not None and auto and self.exposure_auto_priority:
+            return min(self.fps, float(self.dim_light_fps))
+        return self.fps
 
     def set(self, prop_id: int, value: float) -> bool:
         """Set a property as OpenCV's V4L2 backend does: the size takes a supported mode
@@ -472,6 +494,8 @@ class SimCamera:
             return True
         if prop_id in self._controls:
             self._controls[prop_id] = float(value)
+            if prop_id == cv2.CAP_PROP_AUTO_EXPOSURE:
+                self._restart_stream()  # the frames' timing may change with it
             return True
         return False
 
@@ -490,6 +514,12 @@ class SimCamera:
     def jump_clock(self, by_s: float) -> None:
         """Every later frame's stamp is off by ``by_s`` (the camera's clock jumped)."""
         self._clock_jump_s = float(by_s)
+
+    def restart_slowly(self, first_frame_delay_s: float) -> None:
+        """The stream restarts (a UVC camera re-initialising, as after a USB reset) and
+        its first frame comes ``first_frame_delay_s`` after the next grab."""
+        self.first_frame_delay_s = float(first_frame_delay_s)
+        self._restart_stream()
 
     def _restart_stream(self) -> None:
         """A new format: the stream stops (its queued buffers are dropped) and starts

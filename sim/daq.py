@@ -18,7 +18,11 @@ Behaviour copied from the device rather than replayed:
   really uses: the timebase divided by a whole number (``timing.samp_clk_rate`` reads
   the coerced rate, not the requested one);
 - a sample clock that may be off by ``clock_error_ppm`` against the host clock (a
-  crystal's error), so a driver that never re-anchors drifts as on the bench;
+  crystal's error), so a driver that never checks its rate drifts as on the bench;
+- samples that reach the host a USB transfer after they are taken
+  (``transfer_latency_s``, a range each query draws from): the acquired count
+  (``total_samp_per_chan_acquired``) and what a read can take lag the sample clock by
+  it, as on a USB-6009, whose count is of the samples that have reached the host;
 - hardware timing on the shared clock: sample k is taken at t_start + k/rate however late
   it is read, so nothing is lost while the buffer has room, and like DAQmx the buffer
   overflows (error -200279) when it is not read in time;
@@ -28,7 +32,8 @@ Behaviour copied from the device rather than replayed:
   quantisation of the hardware range, 13 bits in RSE and 14 differential (the usual
   datasheet split, unverified against NI), saturating at the range's ends;
 - the ways the bench dies, from a clock time on (``fail``, ``FAILURES``): the sensor's
-  Vout wire cut (the input reads 0 V), its supply wire cut (no output, and a measured
+  Vout wire cut (the open input floats, ``floating_input_v``), its Vout shorted to
+  ground (the input reads 0 V), its supply wire cut (no output, and a measured
   supply of 0 V), its output frozen (every later sample the same code), the device
   stalling (no sample acquired after it: reads wait and time out, -200284) or vanishing
   (unplugged: the samples already in the host buffer are read, then every call,
@@ -72,7 +77,19 @@ DIFF_RANGES_V = (1.0, 1.25, 2.0, 2.5, 4.0, 5.0, 10.0, 20.0)
 MAX_AGGREGATE_RATE_HZ = 48_000.0
 MIN_RATE_HZ = 0.1
 
-FAILURES = ("vout-cut", "supply-cut", "frozen", "stall", "vanish")
+FAILURES = ("vout-floating", "vout-cut", "supply-cut", "frozen", "stall", "vanish")
+# An open input does not read 0 V. Each analog input of the USB-6008/6009 reaches the
+# multiplexer through 127 kOhm to a node tied to ground by 39.2 kOhm and to the +2.5 V
+# reference by 30.9 kOhm (NI USB-6008/6009 User Guide and Specifications, "Analog Input
+# Circuitry"). Seen from the pin that is a source of 2.5 V x 39.2 / (39.2 + 30.9) =
+# 1.398 V behind 127 + 39.2 || 30.9 = 144 kOhm, the spec's input impedance: a cut wire
+# reads 1.40 V, 26.6 kPa through an MPX5100 on 5 V.
+FLOATING_INPUT_V = 2.5 * 39.2 / (39.2 + 30.9)
+# What a dangling wire behind 144 kOhm picks up (a model: it depends on the wire and the
+# room): mains hum, and broadband noise a few codes wide (one RSE code is 2.44 mV).
+FLOATING_HUM_V = 0.010  # amplitude
+FLOATING_NOISE_V = 0.003  # standard deviation
+MAINS_HZ = 50.0
 _CHANNEL_RE = re.compile(r"^/?(?P<dev>[A-Za-z]\w*)/ai(?P<first>\d+)(?::(?P<last>\d+))?$")
 
 
@@ -270,7 +287,7 @@ class SimInStream:
         task._check_open()
         if not task._running:
             return 0
-        available = min(task._acquired() - task._read_pos, task._buffer_size)
+        available = min(task._delivered() - task._read_pos, task._buffer_size)
         if available == 0:
             task._check_reachable()
         return available
@@ -280,7 +297,7 @@ class SimInStream:
         task = self._task
         task._check_open()
         task._check_reachable()
-        return task._acquired() if task._running else 0
+        return task._delivered() if task._running else 0
 
 
 class SimAnalogMultiChannelReader:
@@ -324,6 +341,7 @@ class SimDaqTask:
         new_task_name: str = "",
         clock_error_ppm: float = 0.0,
         other_signals: dict[str, Callable[[np.ndarray], np.ndarray]] | None = None,
+        transfer_latency_s: tuple[float, float] = (0.0, 0.0),
     ) -> None:
         self.clock = clock
         self.pressure_kpa_at = pressure_kpa_at
@@ -334,6 +352,9 @@ class SimDaqTask:
         self.output_channel = output_channel.strip("/").lower()
         self.supply_channel = supply_channel.strip("/").lower() if supply_channel else None
         self.clock_error_ppm = float(clock_error_ppm)
+        self.transfer_latency_s = (float(transfer_latency_s[0]), float(transfer_latency_s[1]))
+        self._latency_rng = np.random.default_rng(None if seed is None else [seed, 6008])
+        self._delivered_n = 0
         # more instruments on other inputs: channel -> volts at the sample times
         self.other_signals = {
             name.strip("/").lower(): signal for name, signal in (other_signals or {}).items()
@@ -355,6 +376,9 @@ class SimDaqTask:
         self._failure: str | None = None
         self._failed_at_s = float("inf")
         self._frozen_v: np.ndarray | None = None  # per channel, once frozen
+        # the open input's own noise, drawn apart so a healthy run's samples do not change
+        self._floating_rng = np.random.default_rng(None if seed is None else [seed, 6009])
+        self._hum_phase = float(self._floating_rng.uniform(0.0, 2 * np.pi))
 
     # -- the nidaqmx.Task surface -------------------------------------------------------
 
@@ -386,6 +410,7 @@ class SimDaqTask:
         rate = self.timing.samp_clk_rate
         self._buffer_size = max(self.timing.samp_quant_samp_per_chan, default_buffer_size(rate))
         self._read_pos = 0
+        self._delivered_n = 0
         self._overflowed = False
         self._running = True
         self._t_start_s = self.clock.now()
@@ -467,14 +492,24 @@ class SimDaqTask:
         """The rate the sample clock really runs at, measured on the host clock."""
         return self.timing.samp_clk_rate * (1.0 + 1e-6 * self.clock_error_ppm)
 
-    def _acquired(self) -> int:
-        """Samples taken since start: sample k is taken at t_start + k/rate (none after
-        a stall or a vanish)."""
-        now_s = self.clock.now()
+    def _acquired(self, at_s: float | None = None) -> int:
+        """Samples taken from the start to ``at_s`` (default now): sample k is taken at
+        t_start + k/rate (none after a stall or a vanish)."""
+        now_s = self.clock.now() if at_s is None else at_s
         if self._failure in ("stall", "vanish"):
             now_s = min(now_s, self._failed_at_s)
         elapsed_s = now_s - self._t_start_s
         return max(0, int(np.floor(elapsed_s * self._device_rate_hz())) + 1)
+
+    def _delivered(self) -> int:
+        """Samples that have reached the host: those taken a transfer latency ago (drawn
+        anew at each query, never fewer than before)."""
+        low_s, high_s = self.transfer_latency_s
+        if high_s <= 0:
+            return self._acquired()
+        latency_s = self._latency_rng.uniform(low_s, high_s)
+        self._delivered_n = max(self._delivered_n, self._acquired(self.clock.now() - latency_s))
+        return self._delivered_n
 
     def _read_into(self, data, n_requested, timeout, reader) -> int:
         self._check_open()
@@ -494,18 +529,19 @@ class SimDaqTask:
             )
         if self._timeout_pending and not read_available:
             self._timeout_pending = False
-            n_got = min(self._timeout_delivers, n_requested, self._acquired() - self._read_pos)
+            n_got = min(self._timeout_delivers, n_requested, self._delivered() - self._read_pos)
             self._generate(data[:, :n_got], n_got)
             self.clock.sleep(timeout)
             raise self._read_timeout(timeout, n_got)
         self._check_overflow()
         deadline_s = self.clock.now() + timeout
         rate = self._device_rate_hz()
-        while self._acquired() - self._read_pos < n_requested:
+        while self._delivered() - self._read_pos < n_requested:
             wait_s = (self._read_pos + n_requested) / rate - (self.clock.now() - self._t_start_s)
+            wait_s += self.transfer_latency_s[0]
             remaining_s = deadline_s - self.clock.now()
             if remaining_s <= 0:
-                n_got = self._acquired() - self._read_pos
+                n_got = self._delivered() - self._read_pos
                 self._generate(data[:, :n_got], n_got)
                 raise self._read_timeout(timeout, n_got)
             self.clock.sleep(min(max(wait_s, 1e-4), remaining_s))
@@ -514,7 +550,7 @@ class SimDaqTask:
         return n_requested
 
     def _check_overflow(self) -> None:
-        if self._overflowed or self._acquired() - self._read_pos > self._buffer_size:
+        if self._overflowed or self._delivered() - self._read_pos > self._buffer_size:
             self._overflowed = True  # like DAQmx, the task stays in error until restarted
             code = self._overflow_code
             if code == DAQmxErrors.SAMPLES_NO_LONGER_AVAILABLE:
@@ -564,6 +600,8 @@ class SimDaqTask:
             if name == self.output_channel:
                 v = mpx5100.output_v(p_kpa, self.supply_v)
                 cut = failed if self._failure in ("vout-cut", "supply-cut") else False
+                if self._failure == "vout-floating":
+                    v = np.where(failed, self.floating_input_v(t_s), v)
             elif name == self.supply_channel:
                 v = np.full(n, self.supply_v)
                 cut = failed if self._failure == "supply-cut" else False
@@ -573,7 +611,7 @@ class SimDaqTask:
             else:
                 v = np.zeros(n)
                 cut = False
-            v = np.where(cut, 0.0, v)  # a cut wire: the input reads ground
+            v = np.where(cut, 0.0, v)  # shorted to ground, or a sensor without supply
             v = v + self._rng.normal(0.0, noise_v, n) if noise_v > 0 else v
             out[row, :n] = quantise(v, channel.range_v, channel.bits)
         if self._failure == "frozen" and failed.any():
@@ -582,6 +620,13 @@ class SimDaqTask:
                 self._frozen_v = out[:, max(first - 1, 0)].copy()  # the last good codes
             out[:, first:n] = self._frozen_v[:, None]
         self._read_pos += n
+
+    def floating_input_v(self, t_s: np.ndarray) -> np.ndarray:
+        """What an open input reads at the sample times ``t_s``: the input network's
+        1.40 V, mains hum and broadband noise (``FLOATING_*``)."""
+        hum_v = FLOATING_HUM_V * np.sin(2 * np.pi * MAINS_HZ * t_s + self._hum_phase)
+        noise_v = self._floating_rng.normal(0.0, FLOATING_NOISE_V, len(t_s))
+        return FLOATING_INPUT_V + hum_v + noise_v
 
     # -- helpers ------------------------------------------------------------------------
 

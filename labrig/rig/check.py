@@ -9,10 +9,14 @@ names is reached and read, one line each; nothing moves.
 - pressure: one second of readings through the real DAQ driver, converted to kPa and
   not zeroed, must read atmospheric within the MPX5100's offset tolerance; a wired
   supply channel is read too (in volts, the driver's conversion undone) and must be
-  within the sensor's 4.75-5.25 V.
+  within the sensor's 4.75-5.25 V. The spread of the ADC's codes at rest is reported
+  (their standard deviation in LSB and the commonest codes): a sensor quieter than
+  about 0.3 LSB does not dither the ADC, so the zero cannot be averaged below one code
+  and long runs of one code at rest are normal, not a frozen input.
 - camera: frames until the tracker finds both markers (a camera's first frames may be
-  dark while its exposure settles), then the resolution, the frame rate and the
-  markers' distance in px and in mm at the configured scale.
+  dark while its exposure settles), then the resolution, the frame rate set and the one
+  the frames' stamps show (auto exposure may lower it in dim light), and the markers'
+  distance in px and in mm at the configured scale.
 
 Each failure says what was expected, what was found and what to check (cable, port,
 address, driver). The checks take their connections as parameters (a port, a DAQ task
@@ -32,7 +36,14 @@ from labrig.config.rig_file import CameraConfig, PressureConfig, PumpConfig, Rig
 from labrig.errors import DeviceError, InputError
 from labrig.time.clock import Clock
 
-CAMERA_FRAMES = 10  # frames tried before both markers must have been found
+CAMERA_FRAMES = 10  # frames tried before both markers must have been found, and read
+# a measured frame rate below this share of the one set is reported as short
+RATE_SHORT = 0.9
+# below this spread (LSB) the noise no longer dithers the ADC: a mean of the codes is
+# off the true level by up to half a code (a uniform quantisation error is 0.29 LSB)
+DITHER_LSB = 0.3
+# the commonest codes listed
+CODES_SHOWN = 4
 
 
 @dataclass(frozen=True)
@@ -297,6 +308,9 @@ def check_pressure(
             ).pressure_kpa
             supply_v = float(np.mean(mpx5100.output_v(as_kpa, mpx5100.NOMINAL_SUPPLY_V)))
             supply = f"; supply {supply_v:.3f} V on {config.supply_channel}"
+        if good.any():
+            volts = mpx5100.output_v(block.pressure_kpa[good], supply_v or config.supply_v)
+            supply += f"; {code_spread(volts, low_v, high_v, bits)}"
     except DeviceError as exc:
         expected, check = _daq_hint(exc, config)
         cause = exc.__cause__
@@ -328,6 +342,22 @@ def check_pressure(
             "wired to and the terminal configuration",
         )
     return DeviceCheck("pressure", True, f"{found}, atmospheric within +-{tolerance:g} kPa")
+
+
+def code_spread(volts: np.ndarray, low_v: float, high_v: float, bits: int) -> str:
+    """The spread of the ADC codes behind ``volts`` (read on a ``bits``-bit converter
+    over ``low_v``..``high_v``): their standard deviation in LSB and the commonest
+    codes with their share, and a note when the noise is too small to dither."""
+    step_v = (high_v - low_v) / 2**bits
+    codes = np.rint((np.asarray(volts, dtype=float) - low_v) / step_v).astype(np.int64)
+    values, counts = np.unique(codes, return_counts=True)
+    order = np.argsort(-counts, kind="stable")[:CODES_SHOWN]
+    shares = ", ".join(f"{values[i]}: {100 * counts[i] / codes.size:.0f} %" for i in order)
+    std_lsb = float(np.std(codes))
+    text = f"codes at rest: std {std_lsb:.2f} LSB over {values.size} codes ({shares})"
+    if std_lsb < DITHER_LSB:
+        text += " (too quiet to dither the ADC: the zero is known to one code)"
+    return text
 
 
 # --- the camera ---------------------------------------------------------------------------
@@ -364,6 +394,21 @@ def check_camera(length, config: CameraConfig | None, source: str) -> DeviceChec
     fps = length.frames.capture.get(cv2.CAP_PROP_FPS)
     fourcc = length.frames.fourcc
     seen = f"{source}: {width}x{height}, {fps:g} fps" + (f" {fourcc}" if fourcc else "")
+    if not length.frames.is_file:
+        try:  # enough frames for their stamps to tell the rate
+            while length.frames.n_frames < CAMERA_FRAMES:
+                length.frames.read()
+        except DeviceError as exc:
+            return _camera_unreachable(exc, f"frames from {source}")
+        measured = length.frames.measured_fps
+        if measured is not None:
+            seen += f" ({measured:.1f} measured"
+            if fps > 0 and measured < RATE_SHORT * fps:
+                seen += (
+                    ": short of the rate set; in dim light auto exposure lowers it, so add "
+                    "light or give camera.exposure"
+                )
+            seen += ")"
     if not fix.ok:
         return DeviceCheck(
             "camera",

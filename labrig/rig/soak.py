@@ -92,6 +92,17 @@ FAULTS: dict[str, Fault] = {
     "camera-stops": Fault(
         lambda rig, rng: rig.simulation.camera.stop_frames(), "camera: no sample"
     ),
+    # the sensor's output wire cut: the open input floats at 27 kPa; only the pressure's
+    # response to the volume infused can tell (where the model expects it to move)
+    "floating-wire": Fault(
+        lambda rig, rng: _daq(rig).fail("vout-floating"), "did not respond to the volume infused"
+    ),
+    # the camera's stream restarts and its first frame comes 0.6-1 s late: beyond the
+    # frame allowance once the run is under way
+    "camera-slow-start": Fault(
+        lambda rig, rng: rig.simulation.camera.restart_slowly(rng.uniform(0.6, 1.0)),
+        "camera: no sample",
+    ),
     "camera-clock-jump": Fault(
         lambda rig, rng: rig.simulation.camera.jump_clock(rng.choice((-1, 1)) * rng.uniform(2, 30)),
         "the camera's clock jumped",

@@ -295,3 +295,81 @@ def test_exactly_one_scale_is_required(video):
         CameraLength(frames, mm_per_px=0.1, reference_distance_mm=30.0)
     with pytest.raises(InputError, match="must be > 0"):
         CameraLength(frames, mm_per_px=-0.1)
+
+
+def test_a_by_id_link_is_a_camera_opened_by_the_node_it_names(tmp_path):
+    """udev's /dev/v4l/by-id/... links keep a camera's name whichever /dev/videoN it
+    gets: a link that leads into /dev is a camera, not a video file."""
+    by_id = tmp_path / "by-id"
+    by_id.mkdir()
+    unplugged = by_id / "usb-Logitech_HD_Pro_Webcam_C920-video-index0"
+    unplugged.symlink_to("/dev/video97")
+    with pytest.raises(DeviceError) as error:
+        FrameSource.open(str(unplugged), VirtualClock())
+    assert str(error.value) == (
+        f"camera {unplugged} (/dev/video97): no such device (is the camera plugged in?)"
+    )
+    # a node that is there is handed to OpenCV's V4L2 backend (this one is no camera)
+    not_a_camera = by_id / "usb-Other-video-index0"
+    not_a_camera.symlink_to("/dev/null")
+    with pytest.raises(DeviceError, match=rf"camera {not_a_camera} \(/dev/null\) could not be"):
+        FrameSource.open(str(not_a_camera), VirtualClock())
+
+
+def test_auto_exposure_is_applied_when_no_exposure_is_given():
+    """A camera another program left in manual exposure (V4L2 mode 1) is put back in
+    auto (mode 3, aperture priority) unless the rig file gives an exposure."""
+    clock = VirtualClock()
+    with clock.participate():
+        cam = SimCamera(clock, lambda t: 35.0, size=(640, 360), mm_per_px=MM_PER_PX)
+        cam.set(cv2.CAP_PROP_AUTO_EXPOSURE, 1.0)
+        live_source(clock, cam, width=640, height=360, fps=30.0)
+        assert cam.get(cv2.CAP_PROP_AUTO_EXPOSURE) == 3.0
+        live_source(clock, cam, width=640, height=360, fps=30.0, exposure=80.0)
+        assert cam.get(cv2.CAP_PROP_AUTO_EXPOSURE) == 1.0
+
+
+def test_the_measured_frame_rate_shows_what_auto_exposure_priority_takes():
+    """In dim light, auto exposure with exposure_auto_priority on gives 12 fps where
+    30 were set, and CAP_PROP_FPS still says 30: the stamps tell the real rate."""
+    clock = VirtualClock()
+    with clock.participate():
+        cam = SimCamera(
+            clock, lambda t: 35.0, size=(320, 240), mm_per_px=0.2, fps=30.0, dim_light_fps=12.0
+        )
+        frames = live_source(clock, cam, width=320, height=240, fps=30.0)
+        assert frames.measured_fps is None  # no frame yet
+        length = CameraLength(frames, mm_per_px=0.2)
+        for _ in range(24):
+            length.read()
+        assert cam.get(cv2.CAP_PROP_FPS) == 30.0
+        assert length.measured_fps == pytest.approx(12.0, rel=1e-6)
+        # a manual exposure: the rate set
+        manual = live_source(clock, cam, width=320, height=240, fps=30.0, exposure=50.0)
+        for _ in range(10):
+            manual.read()
+        assert manual.measured_fps == pytest.approx(30.0, rel=1e-6)
+
+
+def test_exposure_auto_priority_is_set_by_its_ioctl_on_a_v4l2_node(tmp_path):
+    """The control goes to the node with VIDIOC_S_CTRL; a node that is no V4L2 device
+    answers ENOTTY, a missing one ENOENT, each said in one line."""
+    from labrig.drivers.v4l2_control import V4L2_CID_EXPOSURE_AUTO_PRIORITY, set_control
+
+    assert "Inappropriate ioctl" in set_control("/dev/null", V4L2_CID_EXPOSURE_AUTO_PRIORITY, 0)
+    missing = set_control(str(tmp_path / "video97"), V4L2_CID_EXPOSURE_AUTO_PRIORITY, 0)
+    assert missing == f"{tmp_path / 'video97'}: No such file or directory"
+
+
+def test_a_camera_slow_to_start_delivers_its_first_frame_late():
+    clock = VirtualClock()
+    with clock.participate():
+        cam = SimCamera(
+            clock, lambda t: 35.0, size=(320, 240), mm_per_px=0.2, fps=10.0, first_frame_delay_s=0.8
+        )
+        frames = FrameSource.live(cam, clock, "simulated camera", warmup_frames=0)
+        frames.configure(CameraSettings(width=320, height=240, fps=10.0))
+        start_s = clock.now()
+        first = frames.read()
+        assert first.t_s - start_s == pytest.approx(0.8, abs=0.1 + 1e-9)
+        assert frames.read().t_s - first.t_s == pytest.approx(0.1)  # then at its rate

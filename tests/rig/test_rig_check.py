@@ -210,3 +210,57 @@ def test_an_unreachable_daq_gets_cable_advice_not_wiring():
     assert "DAQmx error -201003" in check.found
     assert "USB cable" in check.check and "nilsdev" in check.check
     assert "terminal" not in check.check
+
+
+@pytest.mark.parametrize(("noise_kpa", "quiet"), [(0.05, False), (0.15, False), (0.003, True)])
+def test_the_pressure_check_reports_the_spread_of_codes_at_rest(noise_kpa, quiet):
+    """The ADC codes behind one second at atmosphere: their std in LSB is the sensor's
+    noise in LSB with the quantisation's 1/12 LSB^2 added (for noise that dithers); a
+    sensor too quiet to dither sits on one or two codes, and the line says so."""
+    from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
+    from labrig.time.virtual import VirtualClock
+
+    clock = VirtualClock()
+    check = check_pressure(
+        PressureConfig(),
+        clock,
+        task_factory=lambda: SimDaqTask(
+            clock, lambda t: np.zeros(np.shape(t)), noise_kpa=noise_kpa, seed=3
+        ),
+        reader_factory=SimAnalogMultiChannelReader,
+    )
+    assert check.ok, check.line()
+    found = re.search(r"codes at rest: std ([0-9.]+) LSB over (\d+) codes", check.found)
+    std_lsb, n_codes = float(found[1]), int(found[2])
+    lsb_kpa = 20.0 / 2**13 / (0.009 * 5.0)  # 13-bit RSE over +-10 V, at 45 mV/kPa
+    if quiet:
+        assert std_lsb < 0.3 and n_codes <= 2
+        assert "too quiet to dither the ADC" in check.found
+    else:
+        expected = np.hypot(noise_kpa / lsb_kpa, np.sqrt(1 / 12))
+        assert std_lsb == pytest.approx(expected, rel=0.1)
+        assert "too quiet" not in check.found
+
+
+def test_the_camera_check_shows_the_rate_the_frames_really_come_at():
+    """CAP_PROP_FPS says 30 while auto exposure in dim light gives 12: the check reads
+    enough frames for their stamps to tell, and says what to do."""
+    from labrig.drivers.camera import CameraLength, CameraSettings, FrameSource
+    from labrig.rig.check import check_camera
+    from labrig.sim.camera import SimCamera
+    from labrig.time.virtual import VirtualClock
+
+    clock = VirtualClock()
+    with clock.participate():
+        for dim_light_fps, shown in ((None, "30.0 measured)"), (12.0, "12.0 measured: short")):
+            cam = SimCamera(
+                clock, lambda t: 40.0, size=(320, 240), mm_per_px=0.2, dim_light_fps=dim_light_fps
+            )
+            frames = FrameSource.live(cam, clock, "simulated camera")
+            frames.configure(CameraSettings(width=320, height=240, fps=30.0))
+            length = CameraLength(frames, mm_per_px=0.2)
+            check = check_camera(length, None, "simulated camera")
+            length.close()
+            assert check.ok, check.line()
+            assert f"320x240, 30 fps MJPG ({shown}" in check.found
+    assert "add light or give camera.exposure" in check.found

@@ -357,3 +357,19 @@ def test_a_sample_clock_off_the_host_clock():
     clock.sleep(1.0)
     read(reader, 1, task.in_stream.avail_samp_per_chan)
     np.testing.assert_allclose(np.diff(np.concatenate(truth.times)), 1 / 100.1, rtol=1e-9)
+
+
+def test_samples_reach_the_host_a_jittered_transfer_after_they_are_taken():
+    """The count a USB-6009 reports is of the samples a USB transfer brought: taken
+    12-37 ms before the query, never fewer than the query before."""
+    clock = VirtualClock()
+    task, _ = started(make_task(clock, transfer_latency_s=(0.012, 0.037)))
+    counts, lags_s = [], []
+    for _ in range(200):
+        clock.sleep(0.0137)
+        n = task.in_stream.total_samp_per_chan_acquired
+        counts.append(n)
+        lags_s.append(clock.now() - (n - 1) / 1000.0)  # sample n - 1 was taken then
+    assert np.all(np.diff(counts) >= 0)
+    assert min(lags_s) >= 0.012 - 1e-9 and max(lags_s) <= 0.037 + 0.001 + 1e-9
+    assert max(lags_s) - min(lags_s) > 0.015  # jittered, not a fixed delay
