@@ -88,7 +88,8 @@ PLOT_OPTION = plot_option(
     "library_spec",
     default="analytical",
     show_default=True,
-    help="'analytical' (36 calibrated braided segments), 'si' (the SI's), 'gent', or a "
+    help="'analytical' (the 36 braided segments of the default library, bare names), "
+    "'paper', 'calibrated' or 'si' (the 36 of that library, prefixed names), 'gent', or a "
     "folder of measured CSV curves.",
 )
 @click.option(

@@ -98,7 +98,6 @@ def test_which_statements_hold_on_the_paper_library_as_measured(paper_doc):
         "fig4-11-release",
         "fig4-11-flow",
         "fig4-12-both",
-        "fig4-12-length",
         "fig4-energy-range",
     }
 

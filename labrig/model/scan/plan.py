@@ -36,6 +36,9 @@ PYTHON = "python"
 # 376,992 actuators at n = 5 and 1.9 million at n = 6
 MAX_N = 6
 
+# the named library of the 36 braided segments by their bare names
+ANALYTICAL = "analytical"
+
 # The compiled functions whose machine code a scan loads from numba's cache: the
 # compiled path and the two largest the reference path calls from Python (an actuator
 # the compiled path leaves to the reference, every actuator of a measured library).
@@ -103,15 +106,18 @@ def plan_solver(
 
 
 def named_library(spec: str | None) -> tuple[str, tuple[str, ...]] | None:
-    """The name and segment names of a named library (``analytical``, the default; ``si``;
-    ``gent``), or None where ``spec`` names a folder of measured curves. The one place
-    that knows what each named library holds: ``load_library`` builds from it, and the
-    plan counts from it without building anything."""
-    key = (spec or "analytical").strip().lower()
-    if key in ("analytical", "si"):
-        from labrig.model.segments import catalog
+    """The name and segment names of a named library, or None where ``spec`` names a
+    folder of measured curves: ``analytical`` (the default: the 36 braided segments by
+    their bare names, the default library's), ``paper``, ``calibrated`` and ``si`` (the
+    36 of that library, named with its prefix as ``labrig.model.segments.catalog``
+    spells them: ``paper:B46-T20``), ``gent``. The one place that knows what each named
+    library holds: ``load_library`` builds from it, and the plan counts from it without
+    building anything."""
+    from labrig.model.segments import catalog
 
-        return key, tuple(catalog.LIBRARY_NAMES if key == "analytical" else catalog.SI_NAMES)
+    key = (spec or ANALYTICAL).strip().lower()
+    if key == ANALYTICAL or key in catalog.LIBRARIES:
+        return key, catalog.library_names(None if key == ANALYTICAL else key)
     if key == "gent":
         from labrig.model.segments.gent import GENT_NAMES
 

@@ -47,9 +47,7 @@ from labrig.model.actuator.transitions import WINDOW_ML, transitions
 from labrig.model.scan.plan import named_library
 from labrig.model.segments.curve import SegmentCurve
 
-ANALYTICAL = "analytical"
 GENT = "gent"
-SI = "si"
 
 
 @dataclass(frozen=True)
@@ -57,7 +55,7 @@ class ScanLibrary:
     """The segments a scan combines, in a fixed order (their index is their number in
     the scan file)."""
 
-    label: str  # "analytical", "gent" or the folder of measured curves
+    label: str  # a named library ("analytical", "paper", "gent", ...) or a folder
     curves: tuple[SegmentCurve, ...]
 
     @property
@@ -76,9 +74,10 @@ class ScanLibrary:
 
 
 def load_library(spec: str | None) -> ScanLibrary:
-    """``analytical`` (default: the 36 calibrated braided segments), ``si`` (the SI's 36
-    uncalibrated ones), ``gent`` (the three membranes of Fig. S1) or a folder of measured
-    curves (every ``*.csv`` in it, by file name)."""
+    """``analytical`` (default: the 36 braided segments of the default library, by bare
+    name), ``paper``, ``calibrated`` or ``si`` (the 36 of that library, by prefixed name),
+    ``gent`` (the three membranes of Fig. S1) or a folder of measured curves (every
+    ``*.csv`` in it, by file name)."""
     named = named_library(spec)
     if named is not None:
         name, segment_names = named
@@ -90,8 +89,8 @@ def load_library(spec: str | None) -> ScanLibrary:
     folder = Path(spec)
     if not folder.is_dir():
         raise InputError(
-            f"--library {spec!r}: use 'analytical' (the 36 braided segments), 'si' (the SI's), "
-            "'gent', or a "
+            f"--library {spec!r}: use 'analytical' (the 36 braided segments of the default "
+            "library), 'paper', 'calibrated' or 'si' (the 36 of that library), 'gent', or a "
             "folder of measured curves (CSV files volume_ml,pressure_kpa,length_mm)"
         )
     from labrig.model.segments.measured import load_csv

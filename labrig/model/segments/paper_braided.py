@@ -27,6 +27,18 @@ a segment can be built at all (docs/explanation/segments.md derives both):
 
 After contact the SI's constrained energy (``BraidedSegment.contact_state``) holds,
 starting at theta = 0 for a segment that met straight braids.
+
+Two more things decide when the tube meets the braids (docs/decisions/0007):
+
+- The strips are clamped-clamped elastica (``labrig.model.segments.elastica``), not
+  S40's hinged bars: their envelope at length l is the elastica's solid of revolution.
+- Past its peak a uniform tube keeps lengthening, straightening the braids until their
+  envelope is nearly empty; a latex tube under volume control localises into a bulge
+  instead (``Bulge``): the rest of the tube keeps its length, the pressure falls to the
+  free tube's Maxwell pressure with the bulged phase at the envelope's widest radius,
+  and the bulge spreads along the strips until the tube fills the envelope at the
+  peak's length. Then the constrained contact branch takes over, the braids opening
+  and the segment shortening.
 """
 
 from __future__ import annotations
@@ -37,8 +49,10 @@ from functools import cached_property
 import numpy as np
 from scipy.optimize import brentq
 
+from labrig.model.segments import elastica
 from labrig.model.segments.braided import (
     MM3_PER_ML,
+    P_END_KPA,
     BraidedSegment,
     hoop_stretch_sq,
     interior_maximum,
@@ -55,6 +69,29 @@ BRAID_INNER_RADIUS_MM = 3.97
 # is 0/0 at theta = 0; 1e-4 rad changes the enclosed volume by about 1e-3 mm^3.
 STRAIGHT_ANGLE = 1e-4
 _SAMPLES = 33
+# The bulge (docs/decisions/0007): the fall from the peak takes this share of the bulged
+# volume range (assumed: the bulge meets the strips half-way), the plateau then falls by
+# at most PLATEAU_FALL_KPA (a strictly ordered falling branch) and rises to the contact
+# branch over RISE_ML (numerical).
+DROP_SHARE = 0.5
+PLATEAU_FALL_KPA = 1.0
+RISE_ML = 0.01
+# the step of the central difference of the envelope's volume in the braid angle
+_ANGLE_STEP = 1e-7
+
+
+@dataclass(frozen=True)
+class Bulge:
+    """The two-phase tube past the peak: the plateau (Maxwell's pressure), the unbulged
+    phase's axial stretch on the rising branch, the bulged phase's on the falling branch
+    (outer radius at the envelope's widest), the braid angle at the peak's length and the
+    volume at which the tube fills the envelope there."""
+
+    plateau_kpa: float
+    thin_stretch: float
+    bulged_stretch: float
+    peak_angle: float
+    fill_ml: float  # supplied volume at which the tube fills the envelope
 
 
 def capped_pressure_ratio(stretch_theta, stretch_z):
@@ -75,6 +112,16 @@ class PaperBraidedSegment(BraidedSegment):
     radius_mm: float = TUBE_INNER_RADIUS_MM
     thickness_mm: float = TUBE_THICKNESS_MM
     envelope_radius_mm: float | None = BRAID_INNER_RADIUS_MM
+
+    def braid_volume_mm3(self, theta):
+        """The clamped elastica's envelope at length L_braid cos(theta)
+        (``labrig.model.segments.elastica``), not S40's cone."""
+        length = self.l_braid_mm * np.cos(np.asarray(theta, dtype=float))
+        return elastica.envelope_volume_mm3(length, self.l_braid_mm, self.end_radius_mm)
+
+    def _braid_volume_slope(self, theta):
+        h = _ANGLE_STEP
+        return (self.braid_volume_mm3(theta + h) - self.braid_volume_mm3(theta - h)) / (2 * h)
 
     def check_braids_enclose_tube(self) -> None:
         """Inextensible braids hold any tube that F alone would stretch past them."""
@@ -201,23 +248,145 @@ class PaperBraidedSegment(BraidedSegment):
             for i in range(3)
         )
 
+    # --- the bulge past the peak (docs/decisions/0007) --------------------------------
+    def free_energy_mj(self, lambda_z):
+        """The free tube's potential under F on its uniform branch: the membrane's
+        energy (S14 over the undeformed wall 2 pi R H L_tube) less F times its length.
+        Its change along the branch is the work int p dv (kPa mL = mJ)."""
+        lz = np.asarray(lambda_z, dtype=float)
+        lt = np.sqrt(self._hoop_sq(lz))
+        wall_mm3 = 2 * np.pi * self.radius_mm * self.thickness_mm * self.l_tube_mm
+        membrane = 0.5 * (lt**2 + lz**2 + 1 / (lt * lz) ** 2 - 3)
+        work_mj = self.axial_force_n * self.l_tube_mm * lz
+        return self.shear_modulus_mpa * wall_mm3 * membrane - work_mj
+
+    def outer_radius_mm(self, lambda_z):
+        """The free tube's outer radius on its uniform branch: inner lambda_theta R plus
+        the thinned wall H/(lambda_theta lambda_z)."""
+        lz = np.asarray(lambda_z, dtype=float)
+        lt = np.sqrt(self._hoop_sq(lz))
+        return lt * self.radius_mm + self.thickness_mm / (lt * lz)
+
+    def maxwell_pressure_kpa(self, bulged_stretch: float) -> tuple[float, float]:
+        """(p_M, thin stretch): the equal-area pressure between the rising branch and the
+        bulged phase at axial stretch ``bulged_stretch`` on the falling branch,
+        E(b) - E(a) = p_M (v(b) - v(a)), and the unbulged phase's stretch a."""
+        v_b = float(self.tube_state(bulged_stretch)[0])
+        e_b = float(self.free_energy_mj(bulged_stretch))
+
+        def thin(p):
+            return brentq(lambda lz: self.tube_state(lz)[1] - p, self.lambda_z0, self.peak_stretch)
+
+        def area(p):
+            a = thin(p)
+            return e_b - float(self.free_energy_mj(a)) - p * (v_b - float(self.tube_state(a)[0]))
+
+        low = float(self.tube_state(bulged_stretch)[1])
+        high = float(self.tube_state(self.peak_stretch)[1])
+        p_m = brentq(area, low, high * (1 - 1e-12), xtol=1e-10)
+        return p_m, thin(p_m)
+
+    @cached_property
+    def bulge(self) -> Bulge | None:
+        """The bulge past the peak, or None where the tube meets the braids uniformly
+        (no peak before contact, or an envelope no wider than the tube at its peak)."""
+        if self.peak_stretch is None:
+            return None
+        peak_length = self.peak_stretch * self.l_tube_mm
+        widest = float(elastica.widest_radius_mm(peak_length, self.l_braid_mm, self.end_radius_mm))
+        if widest <= float(self.outer_radius_mm(self.peak_stretch)):
+            return None
+        far = self.peak_stretch
+        while self.outer_radius_mm(far) < widest:  # the radius grows without bound
+            far *= 2
+        bulged = brentq(lambda lz: self.outer_radius_mm(lz) - widest, self.peak_stretch, far)
+        plateau, thin = self.maxwell_pressure_kpa(bulged)
+        angle = float(np.arccos(min(peak_length / self.l_braid_mm, 1.0)))
+        with np.errstate(divide="ignore"):
+            fill_ml = float(self.contact_state(min(angle, self.wall_angle))[0])
+        if fill_ml <= float(self.tube_state(self.peak_stretch)[0]) + 2 * RISE_ML:
+            return None
+        return Bulge(plateau, thin, bulged, angle, fill_ml)
+
+    @cached_property
+    def end_angle(self) -> float:
+        return self._end_angle_from(self.contact_angle)
+
+    @cached_property
+    def wall_angle(self) -> float:
+        """The braid angle of the envelope's largest volume: past it the strips enclose
+        less as they bow further."""
+        return brentq(self._braid_volume_slope, STRAIGHT_ANGLE, 0.5 * np.pi - 1e-6)
+
+    def _end_angle_from(self, theta: float) -> float:
+        """The braid angle where the contact branch started at ``theta`` reaches
+        P_END_KPA, on its way to the wall from either side (a tube that fills an
+        envelope already past its largest volume lengthens the segment toward it). The
+        volume's slope is a central difference, so the bracket stays 100 steps clear."""
+        wall = self.wall_angle
+        stop = wall - np.sign(wall - theta) * 100 * _ANGLE_STEP
+        return brentq(lambda th: self.contact_state(th)[1] - P_END_KPA, theta, stop, xtol=1e-13)
+
+    def _bulged_tables(self, bulge: Bulge):
+        """(v_ml, p_kpa, l_mm) from the unpressurised state through the peak, the fall,
+        the plateau and the contact branch from the peak's length."""
+        free = np.linspace(self.lambda_z0, self.peak_stretch, _SAMPLES)
+        v_free, p_free, l_free = self.tube_state(free)
+        v_pk, p_pk, l_pk = float(v_free[-1]), float(p_free[-1]), float(l_free[-1])
+        v_a, _, l_a = (float(x) for x in self.tube_state(bulge.thin_stretch))
+        # a peak's length past the envelope's largest volume fills it at the wall
+        start = min(bulge.peak_angle, self.wall_angle)
+        with np.errstate(divide="ignore"):  # at the wall itself the pressure is infinite
+            v_c, p_c, l_c = self.contact_state(np.array([start]))
+        if start < self.wall_angle - 100 * _ANGLE_STEP and p_c[0] < P_END_KPA:
+            end = self._end_angle_from(start)
+            v_c, p_c, l_c = self.contact_state(np.linspace(start, end, _SAMPLES))
+        else:  # filling the envelope at this length is the wall itself: the table ends
+            p_c = np.array([P_END_KPA])
+        v_end = float(v_c[0]) - RISE_ML
+        p_end = bulge.plateau_kpa - min(PLATEAU_FALL_KPA, p_pk - bulge.plateau_kpa)
+
+        def mixture_mm(v):  # the bulged phase spans the strips at the length they have
+            return l_a + (v - v_a) / (float(v_c[0]) - v_a) * (float(l_c[0]) - l_a)
+
+        drop_end = v_pk + DROP_SHARE * (v_end - v_pk)
+        s = np.linspace(0.0, 1.0, _SAMPLES)[1:]
+        v_drop = v_pk + s * (drop_end - v_pk)
+        p_drop = bulge.plateau_kpa + (p_pk - bulge.plateau_kpa) * 0.5 * (1 + np.cos(np.pi * s))
+        l_drop = l_pk + s * (mixture_mm(drop_end) - l_pk)
+        v_flat = drop_end + s * (v_end - drop_end)
+        p_flat = bulge.plateau_kpa - s * (bulge.plateau_kpa - p_end)
+        v = np.concatenate([v_free, v_drop, v_flat, v_c])
+        p = np.concatenate([p_free, p_drop, p_flat, p_c])
+        length = np.concatenate([l_free, l_drop, mixture_mm(v_flat), l_c])
+        return v, p, length
+
     def describe(self) -> str:
         straight = ", meets straight braids" if self.meets_straight_braids else ""
+        bulge = self.bulge
+        shape = (
+            f"bulge plateau {bulge.plateau_kpa:.2f} kPa (free tube's Maxwell pressure), fills "
+            f"the braids at {bulge.fill_ml:.3f} mL"
+            if bulge
+            else f"contact at {self.contact_ml:.3f} mL{straight}"
+        )
         return (
             f"braided segment from the paper's numbers (R = {self.radius_mm:g} mm, H = "
-            f"{self.thickness_mm:g} mm, braids from {self.end_radius_mm:g} mm, mu = "
+            f"{self.thickness_mm:g} mm, elastica braids from {self.end_radius_mm:g} mm, mu = "
             f"{self.shear_modulus_mpa:g} MPa): L_braid = {self.l_braid_mm:g} mm, L_tube = "
-            f"{self.l_tube_mm:g} mm, F = {self.axial_force_n:.3f} N; contact at "
-            f"{self.contact_ml:.3f} mL{straight}"
+            f"{self.l_tube_mm:g} mm, F = {self.axial_force_n:.3f} N; {shape}"
         )
 
     def curve(self, name: str | None = None) -> SegmentCurve:
         """The segment's p(v), l(v) from the unpressurised state to P_END_KPA."""
-        count = len(self._branches())
-        knots = [np.linspace(0, count, count * (_SAMPLES - 1) + 1)]
-        if self.peak_knot() is not None:
-            knots.append([self.peak_knot()])  # the free branch is the first
-        _, v, p, length = tabulate(self._state, np.unique(np.concatenate(knots)))
+        if self.bulge is not None:
+            v, p, length = self._bulged_tables(self.bulge)
+        else:
+            count = len(self._branches())
+            knots = [np.linspace(0, count, count * (_SAMPLES - 1) + 1)]
+            if self.peak_knot() is not None:
+                knots.append([self.peak_knot()])  # the free branch is the first
+            _, v, p, length = tabulate(self._state, np.unique(np.concatenate(knots)))
         v[0], p[0] = 0.0, 0.0  # the unpressurised state, exactly
         label = name or f"B{self.l_braid_mm:g}-T{self.l_tube_mm:g}"
         return SegmentCurve(label, v, p, length, V0_ml=self.V0_ml, source=self.describe())

@@ -18,6 +18,12 @@ from labrig.model.scan import plan
 from labrig.model.scan.plan import SolverCosts, plan_solver
 from labrig.model.scan.run import run_scan
 from labrig.model.scan.scan import load_library
+from labrig.model.segments.catalog import (
+    LIBRARIES,
+    LIBRARY_NAMES,
+    library_names,
+    parse_library_name,
+)
 
 
 @pytest.mark.parametrize(
@@ -58,6 +64,16 @@ def test_python_costs_by_segments_extend_past_the_table():
 def test_library_sizes_without_loading(spec):
     assert plan.library_size(spec) == len(load_library(spec).curves)
     assert plan.library_size(None) == plan.library_size("analytical")
+
+
+@pytest.mark.parametrize("library", LIBRARIES)
+def test_every_library_prefix_is_a_scan_library(library):
+    """``--library paper|calibrated|si`` names the 36 segments as the catalog spells
+    them (``paper:B46-T20``), each resolving to its own library's segment."""
+    name, names = plan.named_library(f" {library.upper()} ")
+    assert name == library and names == library_names(library)
+    assert len(names) == 36 and all(parse_library_name(n)[0] == library for n in names)
+    assert plan.named_library("analytical")[1] == LIBRARY_NAMES
 
 
 def test_library_size_of_a_folder(tmp_path):

@@ -198,6 +198,9 @@ def test_resume_and_create_refuse_what_does_not_fit(tmp_path):
 def test_libraries_by_name_and_folder(tmp_path):
     analytical = load_library(None)
     assert analytical.names == list(LIBRARY_NAMES) and load_library("Analytical") == analytical
+    paper = load_library("paper")
+    assert paper.label == "paper" and paper.names[0] == "paper:B40-T20"
+    assert paper.curves[-1] is analytical_segment("paper:B50-T30")
     assert load_library("gent").names == ["gent-a", "gent-b", "gent-c"]
     for name in ("B50-T20", "B46-T22"):
         write_csv(analytical_segment(name), tmp_path / f"m-{name}.csv")

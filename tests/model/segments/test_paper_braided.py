@@ -1,13 +1,17 @@
-"""The segment from the paper's numbers against independent computations: the envelope
-of S40 by quadrature, the fixed-length branch's pressure as the derivative of the
-membrane energy, the straight braids' force in the uniaxial limit, pressure continuity
-at both kinds of contact, the energy after contact by quadrature of p dv, and the peak
-by a second parametrisation (hoop stretch, bisection) of the same membrane."""
+"""The segment from the paper's numbers against independent computations: the
+fixed-length branch's pressure as the derivative of the membrane energy, the straight
+braids' force in the uniaxial limit, pressure continuity at both kinds of contact, the
+energy after contact by quadrature of p dv, the peak by a second parametrisation (hoop
+stretch, bisection) of the same membrane, and the bulge: the free tube's energy against
+quadrature of p dv, Maxwell's equal areas by quadrature, and the bulged curve's plateau
+and fill volume from the elastica envelope (tests/model/segments/test_elastica.py checks
+the envelope itself)."""
 
 import numpy as np
 import pytest
 from scipy.integrate import quad
 
+from labrig.model.segments import elastica
 from labrig.model.segments.braided import braid_force_n
 from labrig.model.segments.ogden_braided import OgdenBraidedSegment
 from labrig.model.segments.paper_braided import (
@@ -42,7 +46,6 @@ def test_all_36_segments_build_and_rise_to_the_wall(library):
         curve = seg.curve()
         assert np.all(np.diff(curve.v_ml) > 0)
         assert curve.p_kpa[0] == 0 and curve.p_kpa[-1] == pytest.approx(300.0, rel=1e-6)
-        assert curve.l_mm[-1] < curve.l_mm.max()  # the braids shorten it after contact
 
 
 def test_short_braids_on_long_tubes_are_straight_at_rest(library):
@@ -55,15 +58,6 @@ def test_short_braids_on_long_tubes_are_straight_at_rest(library):
         if abs(stretch * tube - braid) > 0.01:
             assert seg.straight_at_rest == (stretch * tube > braid)
     assert sum(s.straight_at_rest for s in library.values()) == 6
-
-
-def test_envelope_volume_is_the_double_cone_by_quadrature(library):
-    seg = library[(46, 20)]
-    for theta in [1e-3, 0.2, 0.6, 1.0]:
-        half = 0.5 * seg.l_braid_mm * np.cos(theta)
-        slope = np.tan(theta)
-        cone, _ = quad(lambda x, s=slope: np.pi * (BRAID_INNER_RADIUS_MM + x * s) ** 2, 0, half)
-        assert seg.braid_volume_mm3(theta) == pytest.approx(2 * cone, rel=1e-9)
 
 
 def test_fixed_length_pressure_is_the_derivative_of_the_membrane_energy(library):
@@ -151,3 +145,54 @@ def test_peaks_rise_with_l_braid_and_do_not_depend_on_l_tube(library):
     assert all(len(values) == 1 for values in by_braid.values())
     ordered = [next(iter(by_braid[b])) for b in sorted(by_braid)]
     assert np.all(np.diff(ordered) > 0)
+
+
+def work_p_dv_mj(seg, lo, hi, pressure_offset_kpa=0.0):
+    """int (p - offset) dv along the free tube's uniform branch, by quadrature in the
+    axial stretch (dv/dlambda_z by central differences)."""
+
+    def integrand(lz, h=1e-7):
+        dv = (seg.tube_state(lz + h)[0] - seg.tube_state(lz - h)[0]) / (2 * h)
+        return (seg.tube_state(lz)[1] - pressure_offset_kpa) * dv
+
+    return quad(integrand, lo, hi, limit=400, epsabs=1e-8)[0]
+
+
+@pytest.mark.parametrize("geometry", [(46, 20), (40, 22)])
+def test_free_tube_energy_is_the_work_of_the_pressure(library, geometry):
+    seg = library[geometry]
+    lo, hi = seg.lambda_z0, seg.bulge.bulged_stretch
+    expected = seg.free_energy_mj(hi) - seg.free_energy_mj(lo)
+    assert work_p_dv_mj(seg, lo, hi) == pytest.approx(expected, rel=1e-7)
+
+
+@pytest.mark.parametrize("geometry", [(46, 20), (50, 26), (40, 22)])
+def test_maxwell_plateau_has_equal_areas_by_quadrature(library, geometry):
+    seg = library[geometry]
+    bulge = seg.bulge
+    thin, bulged, p_m = bulge.thin_stretch, bulge.bulged_stretch, bulge.plateau_kpa
+    assert seg.tube_state(thin)[1] == pytest.approx(p_m, rel=1e-9)
+    above = work_p_dv_mj(seg, thin, seg.peak_stretch, p_m)  # the rising branch's lobe
+    net = work_p_dv_mj(seg, thin, bulged, p_m)
+    assert abs(net) < 1e-6 * above
+    # the bulged phase's outer surface is at the strips' widest, at the peak's length
+    widest = elastica.widest_radius_mm(seg.peak_stretch * seg.l_tube_mm, seg.l_braid_mm, 3.97)
+    lt = np.sqrt(
+        (seg.tube_state(bulged)[0] + seg.V0_ml) * 1000 / (np.pi * R**2 * seg.l_tube_mm * bulged)
+    )
+    assert lt * R + H / (lt * bulged) == pytest.approx(widest, rel=1e-9)
+
+
+def test_bulged_curve_falls_to_the_plateau_and_fills_the_envelope(library):
+    bulged = [s for s in library.values() if s.bulge is not None]
+    assert len(bulged) == 23
+    for seg in bulged:
+        curve, bulge = seg.curve(), seg.bulge
+        assert curve.peak.p_kpa > bulge.plateau_kpa > curve.valley.p_kpa - 1.0 - 1e-9
+        # the tube fills the elastica at the peak's length (or its largest volume)
+        length = max(seg.peak_stretch * seg.l_tube_mm, seg.l_braid_mm * np.cos(seg.wall_angle))
+        inner = elastica.envelope_volume_mm3(length, seg.l_braid_mm, 3.97) - seg.wall_volume_mm3
+        assert bulge.fill_ml == pytest.approx(inner / 1000 - seg.V0_ml, rel=1e-9)
+        plateau = (curve.v_ml > curve.valley.v_ml - 1e-9) & (curve.v_ml < bulge.fill_ml - 0.005)
+        assert curve.valley.v_ml == pytest.approx(bulge.fill_ml - 0.01, abs=1e-9)
+        assert np.all(np.abs(curve.p_kpa[plateau] - curve.valley.p_kpa) < 1e-9)
