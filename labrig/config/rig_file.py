@@ -17,6 +17,7 @@ from pydantic import Field, model_validator
 from labrig.config.protocol import LoadedProtocol
 from labrig.config.yaml_schema import Strict, parse_yaml_model
 from labrig.errors import InputError
+from labrig.user_files import MAX_CONFIG_BYTES, read_text_file
 
 # A 50 mL Hamilton 1000-series gastight syringe (the paper's), inner diameter in mm.
 DEFAULT_SYRINGE_DIAMETER_MM = 27.6
@@ -229,11 +230,16 @@ def _rig_file(loaded: LoadedProtocol) -> RigConfig:
     path = Path(loaded.protocol.rig)
     if not path.is_absolute():
         path = loaded.path.parent / path
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"{loaded.path}: rig: cannot read rig file {path} ({exc})") from None
+    text = read_rig_text(path, f"{loaded.path}: rig: ")
     return parse_yaml_model(text, str(path), RigConfig, what="a rig configuration")
+
+
+def read_rig_text(path: Path, context: str = "") -> str:
+    """The text of a rig file (a regular file only); InputError after ``context``."""
+    try:
+        return read_text_file(path, what="rig file", max_bytes=MAX_CONFIG_BYTES)
+    except InputError as exc:
+        raise InputError(f"{context}cannot read rig file {exc}") from None
 
 
 def rig_config_text(config: RigConfig) -> str:

@@ -137,8 +137,9 @@ class RunWriter:
             self._create_layout(title, protocol_text, protocol_path, rig_config_text)
             self._file.swmr_mode = True
         except BaseException:
-            if hasattr(self, "_file"):
+            if hasattr(self, "_file"):  # a file this writer created, half laid out
                 self._file.close()
+                self.path.unlink(missing_ok=True)
             self._claim.release()
             raise
         self._last_flush = time.monotonic()
