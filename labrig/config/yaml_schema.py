@@ -10,6 +10,7 @@ what is allowed.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable
 from typing import Annotated, TypeVar
 
@@ -47,6 +48,8 @@ def _printable(line_breaks: bool):
 
     return AfterValidator(check)
 
+
+_KEY = re.compile(r"[A-Za-z_][A-Za-z0-9_-]{0,63}")
 
 # a name or a path on one line, and free text
 Line = Annotated[str, _printable(line_breaks=False)]
@@ -122,7 +125,13 @@ def _message(error: dict) -> str:
 def _format_loc(loc: list) -> str:
     text = ""
     for part in loc:
-        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
+        if isinstance(part, int):
+            text += f"[{part}]"
+            continue
+        # an unknown key is shown only if it looks like one: a file that is no YAML
+        # config (a mistyped path) would otherwise show its lines as keys
+        name = part if _KEY.fullmatch(str(part)) else "(a key that is no name)"
+        text += f".{name}" if text else name
     return text
 
 
