@@ -182,7 +182,7 @@ def load_run(path: str | Path) -> RunRecord:
     try:
         run = open_run(path)
     except InputError as exc:
-        if path.exists():
+        if path.is_file():
             raise _diagnose_unopenable(path, exc) from None
         raise
     where = str(path)

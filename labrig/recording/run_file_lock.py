@@ -88,6 +88,7 @@ class RunFileLock:
                 break
             os.close(fd)
         os.ftruncate(fd, 0)
+        os.lseek(fd, 0, os.SEEK_SET)  # Windows' lock moved the position
         os.write(fd, f"{os.getpid()} {self.purpose}\n".encode())
         self._fd = fd
         return self
@@ -162,25 +163,30 @@ def claim_out_path(path: Path, *, overwrite: bool) -> list[str]:
     and creates the file only if it is still absent: a run started meanwhile onto the
     same path makes this one stop with one line, and nothing is lost.
     """
-    if not path.exists() and not path.is_symlink():
+    video = path.with_suffix(".avi")  # where the run records its video, if it does
+    there = [p for p in (path, video) if p.exists() or p.is_symlink()]
+    if not there:
         return []
     advice = "choose another --out"
     with RunFileLock(path, "overwrite").acquire(advice):
         if not overwrite:
+            what = "a run file" if there[0] == path else "a run's video"
             raise InputError(
-                f"{path}: a run file is already there; {advice}, or --overwrite to move it "
+                f"{there[0]}: {what} is already there; {advice}, or --overwrite to move it "
                 "aside first (it is never deleted)"
             )
-        if not path.is_file():
-            raise InputError(f"{path}: exists and is not a file; {advice}")
-        refuse_if_open_elsewhere(path, f"close it there, or {advice}")
+        if any(not p.is_file() for p in there):
+            raise InputError(f"{there[0]}: exists and is not a file; {advice}")
+        if path in there:
+            refuse_if_open_elsewhere(path, f"close it there, or {advice}")
         target = replaced_path(path, dt.datetime.now().strftime("%Y%m%d-%H%M%S"))
-        moved = [_move(path, target)]
-        video = path.with_suffix(".avi")
-        if video.exists():
-            moved.append(_move(video, target.with_suffix(".avi")))
-            if not _rename_video_in(target, target.with_suffix(".avi").name):
-                moved.append(f"{target} still names its video {video.name}: not a run file")
+        moved = [_move(p, target.with_suffix(p.suffix)) for p in there]
+        if (
+            path in there
+            and video in there
+            and not _rename_video_in(target, target.with_suffix(".avi").name)
+        ):
+            moved.append(f"{target} still names its video {video.name}: not a run file")
         return moved
 
 

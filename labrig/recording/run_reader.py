@@ -37,6 +37,8 @@ def open_run(path: str | Path) -> h5py.File:
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path}: no such file")
+    if not path.is_file():  # HDF5 would wait forever on a pipe's open
+        raise InputError(f"{path}: not a regular file (a folder, a device or a pipe)")
     try:
         return h5py.File(path, "r")
     except OSError as plain_error:

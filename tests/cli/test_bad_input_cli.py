@@ -1,6 +1,7 @@
 """Bad input through the real entry point: one line and exit 2, never "internal error",
 never a hang, for names, stored protocols and datasets no run of this rig could make."""
 
+import os
 import textwrap
 
 import h5py
@@ -71,3 +72,11 @@ def test_a_dataset_of_two_billion_values_is_one_line(tmp_path, capsys):
         f"error: {path}: /entry/repetitions/rep_01/pressure/value holds 2000000000 values, "
         "more than the 250000000 of any run of this rig\n"
     )
+
+
+@pytest.mark.parametrize("command", ["show", "recover"])
+def test_a_pipe_named_as_a_run_file_is_one_line(tmp_path, capsys, command):
+    pipe = tmp_path / "run.h5"
+    os.mkfifo(pipe)
+    code, _, err = run([command, pipe], capsys)
+    assert (code, err) == (2, f"error: {pipe}: not a regular file (a folder, a device or a pipe)\n")

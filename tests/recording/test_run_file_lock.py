@@ -165,3 +165,15 @@ def test_a_killed_holder_leaves_no_lock_that_holds(tmp_path):
     assert not lock_path(path).exists()
     with RunFileLock(path, "recover").acquire("x"):
         assert lock_path(path).read_text().split()[1] == "recover"
+
+
+def test_a_video_left_without_its_run_file_is_never_overwritten(tmp_path):
+    path = tmp_path / "run.h5"
+    video = path.with_suffix(".avi")
+    video.write_bytes(b"frames")
+    with pytest.raises(InputError, match=r"run.avi: a run's video is already there"):
+        claim_out_path(path, overwrite=False)
+    (line,) = claim_out_path(path, overwrite=True)
+    (moved,) = tmp_path.glob("run.replaced-*.avi")
+    assert line == f"moved the old {video} to {moved}"
+    assert moved.read_bytes() == b"frames"
