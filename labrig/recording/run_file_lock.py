@@ -1,10 +1,11 @@
 """Who may write a run file: one process at a time, from before the file exists until it
 is closed.
 
-HDF5's own lock cannot do this. ``h5py.File(path, "w")`` truncates the file before it
-asks for that lock (another program holding the file open found it emptied), and a
-writer in single-writer/multiple-reader (SWMR) mode gives the lock up so that readers
-can follow the file as it grows (a second run then wrote into the first one's file).
+HDF5's own lock cannot do this. Opening in HDF5's create-or-truncate mode empties the
+file before it asks for that lock (another program holding the file open found it
+emptied), and a writer in single-writer/multiple-reader (SWMR) mode gives the lock up
+so that readers can follow the file as it grows (a second run then wrote into the first
+one's file).
 So a run, and ``labrig recover``, take labrig's own lock on a sidecar, ``RUN.h5.lock``:
 an OS lock (``flock`` on POSIX, ``msvcrt.locking`` on Windows) that the kernel drops
 however the process ends, so a killed run leaves no lock that holds, at most the empty
