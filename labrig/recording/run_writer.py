@@ -132,13 +132,14 @@ class RunWriter:
         self._pending: dict[str, list[dict[str, np.ndarray]]] = {}
         self._datasets: dict[tuple[str, str], h5py.Dataset] = {}
         self._claim = RunFileLock(self.path, "run").acquire("choose another --out")
+        created: h5py.File | None = None
         try:
-            self._file = self._create_file()
+            self._file = created = self._create_file()
             self._create_layout(title, protocol_text, protocol_path, rig_config_text)
             self._file.swmr_mode = True
         except BaseException:
-            if hasattr(self, "_file"):  # a file this writer created, half laid out
-                self._file.close()
+            if created is not None:  # this writer's own new file, half laid out
+                created.close()
                 self.path.unlink(missing_ok=True)
             self._claim.release()
             raise

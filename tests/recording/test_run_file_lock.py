@@ -177,3 +177,19 @@ def test_a_video_left_without_its_run_file_is_never_overwritten(tmp_path):
     (moved,) = tmp_path.glob("run.replaced-*.avi")
     assert line == f"moved the old {video} to {moved}"
     assert moved.read_bytes() == b"frames"
+
+
+def test_a_writer_that_fails_to_lay_out_its_file_leaves_nothing(tmp_path):
+    path = tmp_path / "run.h5"
+    with pytest.raises(ValueError, match="NUL"):  # HDF5 strings hold no NUL
+        RunWriter(
+            path,
+            title="a\0b",
+            protocol_text="",
+            protocol_path="p.yaml",
+            rig_config_text="",
+            repetitions=1,
+            with_length=False,
+        )
+    assert list(tmp_path.iterdir()) == []
+    make_writer(path).finalise("complete")  # the lock was let go
