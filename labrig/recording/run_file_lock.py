@@ -165,19 +165,22 @@ def claim_out_path(path: Path, *, overwrite: bool) -> list[str]:
     same path makes this one stop with one line, and nothing is lost.
     """
     video = path.with_suffix(".avi")  # where the run records its video, if it does
-    there = [p for p in (path, video) if p.exists() or p.is_symlink()]
+    advice = "choose another --out"
+    try:
+        there = [p for p in (path, video) if p.exists() or p.is_symlink()]
+    except OSError as exc:  # a name too long, a folder that cannot be searched
+        raise InputError(f"{path}: not a usable run file name ({exc.strerror})") from None
     if not there:
         return []
-    advice = "choose another --out"
     with RunFileLock(path, "overwrite").acquire(advice):
+        if any(not p.is_file() for p in there):
+            raise InputError(f"{there[0]}: exists and is not a regular file; {advice}")
         if not overwrite:
             what = "a run file" if there[0] == path else "a run's video"
             raise InputError(
                 f"{there[0]}: {what} is already there; {advice}, or --overwrite to move it "
                 "aside first (it is never deleted)"
             )
-        if any(not p.is_file() for p in there):
-            raise InputError(f"{there[0]}: exists and is not a file; {advice}")
         if path in there:
             refuse_if_open_elsewhere(path, f"close it there, or {advice}")
         target = replaced_path(path, dt.datetime.now().strftime("%Y%m%d-%H%M%S"))

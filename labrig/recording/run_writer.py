@@ -116,7 +116,10 @@ class RunWriter:
         self.path = Path(path)
         # sees every append (repetition, log, columns) as written: the live view's feed
         self.tap = tap
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InputError(f"{self.path}: cannot create its folder ({exc.strerror})") from None
         if repetitions < 1:
             raise ValueError("a run has at least one repetition")
         self.repetitions = repetitions
@@ -154,6 +157,8 @@ class RunWriter:
                 f"{self.path}: a file is already there; a run never writes over one "
                 "(labrig run --overwrite moves it aside first)"
             ) from None
+        except OSError as exc:
+            raise InputError(f"{self.path}: cannot create the run file ({exc})") from None
 
     # --- layout --------------------------------------------------------------------
     def _create_layout(

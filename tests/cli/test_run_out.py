@@ -71,3 +71,21 @@ def test_two_runs_started_at_once_on_one_file(tmp_path):
     with open_run(out) as finished:
         assert finished["entry/status"][()] == b"complete"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["one.h5", "tiny.yaml"]
+
+
+@pytest.mark.parametrize(
+    ("out", "expected"),
+    [
+        ("x" * 300 + ".h5", "not a usable run file name (File name too long)"),
+        ("/dev/null", "exists and is not a regular file; choose another --out"),
+        ("a-file/run.h5", "cannot create its folder (File exists)"),
+    ],
+)
+def test_an_unusable_out_path_is_one_line(tmp_path, capsys, out, expected):
+    protocol = tmp_path / "tiny.yaml"
+    protocol.write_text(TINY)
+    (tmp_path / "a-file").write_text("")
+    target = out if out.startswith("/") else tmp_path / out
+    code, _, err = run(["run", protocol, "--sim", "--out", target], capsys)
+    assert code == 2
+    assert err.strip().splitlines()[-1] == f"error: {target}: {expected}"
