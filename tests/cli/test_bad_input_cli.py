@@ -80,3 +80,12 @@ def test_a_pipe_named_as_a_run_file_is_one_line(tmp_path, capsys, command):
     os.mkfifo(pipe)
     code, _, err = run([command, pipe], capsys)
     assert (code, err) == (2, f"error: {pipe}: not a regular file (a folder, a device or a pipe)\n")
+
+
+@pytest.mark.parametrize("command", [["show"], ["model", "curve"], ["compare"]])
+def test_a_path_the_system_refuses_is_one_line(tmp_path, capsys, command):
+    name = tmp_path / ("x" * 300 + ".h5")
+    code, _, err = run([*command, name], capsys)
+    assert code == 2
+    (line,) = err.splitlines()
+    assert line.startswith(f"error: {name}: ") and "File name too long" in line
