@@ -37,7 +37,9 @@ def _printable(line_breaks: bool):
     make names that cannot be file names."""
     allowed = "\n\t" if line_breaks else ""
 
-    def check(value: str) -> str:
+    def check(value):
+        if not isinstance(value, str):  # the other member of a union (a camera index)
+            return value
         for position, char in enumerate(value, start=1):
             if not char.isprintable() and char not in allowed:
                 raise ValueError(
@@ -51,9 +53,10 @@ def _printable(line_breaks: bool):
 
 _KEY = re.compile(r"[A-Za-z_][A-Za-z0-9_-]{0,63}")
 
-# a name or a path on one line, and free text
+# a name or a path on one line, free text, and a device's index or path
 Line = Annotated[str, _printable(line_breaks=False)]
 Text = Annotated[str, _printable(line_breaks=True)]
+IndexOrLine = Annotated[int | str, _printable(line_breaks=False)]
 
 
 def parse_yaml_model(

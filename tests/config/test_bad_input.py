@@ -157,3 +157,22 @@ def test_a_huge_number_in_a_curve_is_one_line(tmp_path):
     assert str(error.value) == (
         f"{table}: line 7, column pressure_kpa: beyond +-1e+06 (mL, kPa, mm): not a segment's curve"
     )
+
+
+@pytest.mark.parametrize(
+    ("rig", "expected"),
+    [
+        ('pump: {port: "/dev/ttyACM0\\0"}', "line 1: pump.port: character 13 is a control"),
+        (
+            'pump: {port: x}\ncamera: {source: "cam\\0", mm_per_px: 0.1}',
+            "line 2: camera.source: character 4 is a control",
+        ),
+        ("pump: {port: x}\nsignal_timeout_s: .nan", "signal_timeout_s: Input should be a finite"),
+    ],
+)
+def test_a_rig_file_names_its_devices_in_printable_text(tmp_path, rig, expected):
+    (tmp_path / "rig.yaml").write_text(rig)
+    protocol = tmp_path / "p.yaml"
+    protocol.write_text(BASE.replace("rig: sim", "rig: rig.yaml"))
+    with pytest.raises(InputError, match=expected):
+        load_rig_config(load_protocol(protocol))
