@@ -26,6 +26,7 @@ import numpy as np
 
 from labrig.errors import InputError
 from labrig.model.segments.catalog import find_measured, is_measured_name, resolve_library_dir
+from labrig.user_files import MAX_CONFIG_BYTES, read_text_file
 
 LIBRARY_GRID_ML = 0.01
 
@@ -115,8 +116,9 @@ def list_measured(directory: str | Path | None = None) -> list[MeasuredSegment]:
     for csv_path in sorted(folder.glob("*.csv")) if folder.is_dir() else []:
         provenance_path = csv_path.with_suffix(".json")
         try:
-            provenance = json.loads(provenance_path.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
+            text = read_text_file(provenance_path, what="provenance", max_bytes=MAX_CONFIG_BYTES)
+            provenance = json.loads(text)
+        except (InputError, ValueError):
             provenance = {}
         out.append(MeasuredSegment(csv_path.stem, csv_path, provenance_path, provenance))
     return out

@@ -9,6 +9,10 @@ repetition. ``recover_run`` clears the flag
 run was cut short, and stores the analysis of what was recorded, so the file then reads
 like any finished run. Each step says what it did; a file that needs nothing is left
 untouched.
+
+A file a live run still writes looks just like a killed run's (the flag, "running"), so
+recovery first takes the run file's lock, which a live run holds, and checks that no
+other program has the file open: either refuses with nothing changed.
 """
 
 from __future__ import annotations
@@ -20,13 +24,21 @@ import h5py
 from labrig.analysis.results import now_iso
 from labrig.analysis.runfile import load_run
 from labrig.recording.repair import clear_write_flag
+from labrig.recording.run_file_lock import RunFileLock, refuse_if_open_elsewhere
 from labrig.recording.run_layout import REASON_SIZE
 from labrig.recording.run_reader import decode
 
 
 def recover_run(path: Path, *, analyse: bool = True) -> list[str]:
     """Repair the run file at ``path``; returns one line per action taken."""
-    record = load_run(path)  # InputError for anything that is not a readable run file
+    refusal = "recover it once that has ended (nothing was changed)"
+    with RunFileLock(path, "recover").acquire(refusal):
+        record = load_run(path)  # InputError for anything that is not a readable run file
+        refuse_if_open_elsewhere(path, refusal)
+        return _recover(path, record, analyse)
+
+
+def _recover(path: Path, record, analyse: bool) -> list[str]:
     lines = []
     if record.writer_flag_set:
         clear_write_flag(path)

@@ -21,7 +21,7 @@ import numpy as np
 from labrig.config.protocol import Protocol, parse_protocol
 from labrig.errors import InputError
 from labrig.recording.run_layout import repetition_name
-from labrig.recording.run_reader import LogSeries, decode, open_run
+from labrig.recording.run_reader import LogSeries, decode, open_run, read_values
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
@@ -114,7 +114,7 @@ def _read(group: h5py.Group, name: str, where: str):
     if name not in group:
         raise InputError(f"{where}: missing {group.name.rstrip('/')}/{name}")
     try:
-        return group[name][()]
+        return read_values(group[name], where)
     except (OSError, KeyError, ValueError) as exc:
         raise InputError(f"{where}: cannot read {group.name}/{name} ({exc})") from None
 
@@ -189,7 +189,7 @@ def open_checked(path: Path, opener: Callable[[Path], h5py.File] = open_run) -> 
     try:
         run = opener(path)
     except InputError as exc:
-        if path.exists():
+        if path.is_file():
             raise _diagnose_unopenable(path, exc) from None
         raise
     if "entry" not in run:

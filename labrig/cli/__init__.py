@@ -3,8 +3,9 @@
 Sub-commands live in their own modules and are imported only when used, so that
 ``labrig --help`` answers at once and a missing optional device library cannot break
 unrelated commands. A ``LabrigError`` becomes one clear line on stderr and its exit code
-(2 for bad input), never a traceback; any other exception (a bug) too, as one line with
-exit code 1. ``labrig --debug COMMAND`` shows the traceback instead.
+(2 for bad input), never a traceback; so does an operating-system error about a named
+path (exit code 2); any other exception (a bug) too, as one line with exit code 1.
+``labrig --debug COMMAND`` shows the traceback instead.
 """
 
 from __future__ import annotations
@@ -126,6 +127,11 @@ def main(argv: list[str] | None = None) -> None:
     except Exception as exc:
         if _SETTINGS["debug"]:
             raise
+        if isinstance(exc, OSError) and exc.filename is not None:
+            # the operating system refused a path a person gave (a name too long, a
+            # folder that is a file, no permission): about that path, not a bug
+            click.echo(f"error: {exc.filename}: {exc.strerror or _one_line(exc)}", err=True)
+            sys.exit(2)
         click.echo(
             f"error: internal error ({type(exc).__name__}: {_one_line(exc)}); "
             "labrig --debug ... shows the traceback",

@@ -47,8 +47,9 @@ def load(path: Path, *, compare_model: bool = True):
 def _warn_open(record) -> None:
     if record.writer_flag_set:
         click.echo(
-            f"warning: {record.path} is still flagged open by its writer (the run was "
-            f"killed?); shown as of its last flush. `labrig recover {record.path}` closes it."
+            f"warning: {record.path} is still flagged open by its writer (a run still "
+            "writing it, or one that was killed); shown as of its last flush. Once no run "
+            f"writes it, `labrig recover {record.path}` closes it."
         )
 
 

@@ -25,7 +25,7 @@ def rig() -> None:
 def check(rig_file: Path | None, sim: bool, fault: str | None) -> None:
     """Connect to every device of RIG_FILE (or of the simulated rig) and read it;
     nothing moves. Exit 0 when every device passes, 2 otherwise."""
-    from labrig.config.rig_file import RigConfig
+    from labrig.config.rig_file import RigConfig, read_rig_text
     from labrig.config.yaml_schema import parse_yaml_model
     from labrig.errors import InputError
     from labrig.rig.check import check_rig, report
@@ -34,10 +34,7 @@ def check(rig_file: Path | None, sim: bool, fault: str | None) -> None:
         raise InputError("rig check: give a rig file (RIG.yaml) or --sim")
     bench = None
     if rig_file is not None:
-        try:
-            text = rig_file.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise InputError(f"{rig_file}: cannot read the rig file ({exc.strerror})") from None
+        text = read_rig_text(rig_file)
         bench = parse_yaml_model(text, str(rig_file), RigConfig, what="a rig configuration")
     simulated = sim or (bench is not None and bench.sim is not None)
     if fault is not None and not simulated:

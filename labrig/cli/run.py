@@ -25,6 +25,12 @@ def default_out_path(protocol_name: str) -> Path:
     "--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), help="Run file (.h5)."
 )
 @click.option(
+    "--overwrite",
+    is_flag=True,
+    help="If the run file exists, move it aside first (to FILE.replaced-<time>.h5; "
+    "never deleted). Without it an existing file is refused.",
+)
+@click.option(
     "--speed",
     type=click.FloatRange(min=0.0, min_open=True),
     default=None,
@@ -57,6 +63,7 @@ def run(
     protocol_file: Path,
     sim: bool,
     out_path: Path | None,
+    overwrite: bool,
     speed,
     seed,
     dry_run: bool,
@@ -77,6 +84,11 @@ def run(
         raise click.exceptions.Exit(2)
     if dry_run:
         return
+    from labrig.recording.run_file_lock import claim_out_path
+
+    out_path = out_path or default_out_path(loaded.protocol.name)
+    for line in claim_out_path(out_path, overwrite=overwrite):
+        click.echo(line, err=True)
     live_view = None
     if live or live_port is not None:
         from labrig.live.session import LiveView
@@ -84,7 +96,7 @@ def run(
         live_view = LiveView(loaded.protocol, live_port or 0).start()
         click.echo(f"live view: {live_view.url}", err=True)
     try:
-        _run(loaded, rig_config, out_path or default_out_path(loaded.protocol.name), live_view)
+        _run(loaded, rig_config, out_path, live_view)
     finally:
         if live_view is not None:
             live_view.close(live_hold)

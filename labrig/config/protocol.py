@@ -33,14 +33,20 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, Discriminator, Field, Tag, model_validator
 
-from labrig.config.yaml_schema import Strict, parse_yaml_model
-from labrig.errors import InputError
+from labrig.config.yaml_schema import Line, Strict, Text, parse_yaml_model
+from labrig.user_files import MAX_CONFIG_BYTES, read_text_file
 
 STEP_KINDS = ("zero_pressure", "infuse", "withdraw", "hold", "prompt", "reservoir", "repeat")
 
 
+# a name becomes part of the run file's name (at most 255 bytes on most file systems)
+MAX_NAME_CHARS = 200
+MAX_PATH_CHARS = 1000
+MAX_TEXT_CHARS = 10_000
+
+
 class Specimen(Strict):
-    segments: list[str] = Field(
+    segments: list[Annotated[Line, Field(max_length=MAX_PATH_CHARS)]] = Field(
         min_length=1,
         description="Segments in the actuator: library names (B46-T20) or CSV paths",
     )
@@ -122,7 +128,11 @@ class HoldParams(Strict):
 
 
 class PromptParams(Strict):
-    message: str = Field(min_length=1, description="What the technician does, then Enter")
+    message: Text = Field(
+        min_length=1,
+        max_length=MAX_TEXT_CHARS,
+        description="What the technician does, then Enter",
+    )
     connect: Literal["pump", "reservoir"] | None = Field(
         None,
         description="What the specimen is connected to once the technician is done "
@@ -209,11 +219,19 @@ class RepeatStep(Strict):
 class Protocol(Strict):
     """A validated protocol (the schema behind ``labrig protocol schema``)."""
 
-    name: str = Field(min_length=1, description="Title of the run; it names the run file")
-    description: str = Field("", description="Free text, stored with the run")
+    name: Line = Field(
+        min_length=1,
+        max_length=MAX_NAME_CHARS,
+        description="Title of the run; it names the run file",
+    )
+    description: Text = Field(
+        "", max_length=MAX_TEXT_CHARS, description="Free text, stored with the run"
+    )
     specimen: Specimen = Field(description="What is inflated")
-    rig: str = Field(
-        "sim", description="'sim' or the path of a rig YAML file, relative to the protocol"
+    rig: Line = Field(
+        "sim",
+        max_length=MAX_PATH_CHARS,
+        description="'sim' or the path of a rig YAML file, relative to the protocol",
     )
     limits: Limits = Field(description="The interlocks' ceilings")
     acquisition: Acquisition = Field(Acquisition(), description="What is recorded, how often")
@@ -355,12 +373,7 @@ class LoadedProtocol:
 def load_protocol(path: str | Path) -> LoadedProtocol:
     """Read and validate a protocol file; raise InputError naming file, key and line."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such protocol file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot be read ({exc})") from None
+    text = read_text_file(path, what="protocol file", max_bytes=MAX_CONFIG_BYTES)
     return LoadedProtocol(path, text, parse_protocol(text, str(path)))
 
 

@@ -15,8 +15,9 @@ import yaml
 from pydantic import Field, model_validator
 
 from labrig.config.protocol import LoadedProtocol
-from labrig.config.yaml_schema import Strict, parse_yaml_model
+from labrig.config.yaml_schema import IndexOrLine, Line, Strict, parse_yaml_model
 from labrig.errors import InputError
+from labrig.user_files import MAX_CONFIG_BYTES, read_text_file
 
 # A 50 mL Hamilton 1000-series gastight syringe (the paper's), inner diameter in mm.
 DEFAULT_SYRINGE_DIAMETER_MM = 27.6
@@ -36,7 +37,7 @@ class SyringeConfig(Strict):
 
 
 class PumpConfig(Strict):
-    port: str = Field(description="Serial device (/dev/ttyACM0, COM3) or pyserial URL")
+    port: Line = Field(description="Serial device (/dev/ttyACM0, COM3) or pyserial URL")
     address: int = Field(0, ge=0, le=99, description="The address set on the pump")
     baud: Literal[9600, 19200, 38400, 57600, 115200] = Field(
         115200, description="RS-232 only (USB ignores it): the pump's own setting"
@@ -64,13 +65,13 @@ class PumpConfig(Strict):
 
 
 class PressureConfig(Strict):
-    channel: str = Field("Dev1/ai0", description="DAQ channel of the sensor's output")
+    channel: Line = Field("Dev1/ai0", description="DAQ channel of the sensor's output")
     terminal: Literal["RSE", "DIFF"] = Field(
         "RSE", description="Single-ended (ai0-ai7) or differential (ai0-ai3)"
     )
     min_v: float = Field(-10.0, description="Input range asked of DAQmx (RSE: always +-10 V)")
     max_v: float = Field(10.0, description="Input range asked of DAQmx (RSE: always +-10 V)")
-    supply_channel: str | None = Field(
+    supply_channel: Line | None = Field(
         None, description="Channel measuring the sensor supply (the MPX5100 is ratiometric)"
     )
     supply_v: float = Field(5.0, gt=0, description="Assumed supply when none is measured")
@@ -79,14 +80,14 @@ class PressureConfig(Strict):
 class LoadCellConfig(Strict):
     """A load cell's bridge amplifier on another input of the pressure's USB-6009."""
 
-    channel: str = Field("Dev1/ai2", description="The amplifier's output")
+    channel: Line = Field("Dev1/ai2", description="The amplifier's output")
     n_per_v: float = Field(10.0, gt=0, description="Calibration: newtons per volt")
     offset_v: float = Field(0.0, description="Calibration: the output at no load (V)")
     capacity_n: float = Field(100.0, gt=0, description="The cell's rated force")
 
 
 class CameraConfig(Strict):
-    source: int | str = Field(0, description="Camera index, /dev/video* path or video file")
+    source: IndexOrLine = Field(0, description="Camera index, /dev/video* path or video file")
     mm_per_px: float | None = Field(
         None, gt=0, description="Scale in the specimen's plane at this width and height"
     )
@@ -108,7 +109,7 @@ class CameraConfig(Strict):
     warmup_frames: int = Field(
         5, ge=0, le=300, description="Frames dropped at start while the auto exposure settles"
     )
-    fourcc: str | None = Field(
+    fourcc: Line | None = Field(
         "MJPG",
         min_length=4,
         max_length=4,
@@ -229,11 +230,16 @@ def _rig_file(loaded: LoadedProtocol) -> RigConfig:
     path = Path(loaded.protocol.rig)
     if not path.is_absolute():
         path = loaded.path.parent / path
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"{loaded.path}: rig: cannot read rig file {path} ({exc})") from None
+    text = read_rig_text(path, f"{loaded.path}: rig: ")
     return parse_yaml_model(text, str(path), RigConfig, what="a rig configuration")
+
+
+def read_rig_text(path: Path, context: str = "") -> str:
+    """The text of a rig file (a regular file only); InputError after ``context``."""
+    try:
+        return read_text_file(path, what="rig file", max_bytes=MAX_CONFIG_BYTES)
+    except InputError as exc:
+        raise InputError(f"{context}cannot read rig file {exc}") from None
 
 
 def rig_config_text(config: RigConfig) -> str:

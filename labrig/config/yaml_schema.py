@@ -1,28 +1,62 @@
 """Validated YAML files: safe loading, strict schemas, and errors a person can act on.
 
-Protocols and rig configurations are data, never code: they are read with
-``yaml.safe_load`` and validated by a strict pydantic model (unknown keys and strings
-where numbers belong are errors). A validation error names the file, the line (from
-the YAML node tree) and the key path, and says what is allowed.
+Protocols and rig configurations are data, never code: they are read as
+``yaml.safe_load`` reads them, with bounds and no duplicate keys
+(``labrig.config.bounded_yaml``), and validated by a strict pydantic model (unknown keys,
+strings where numbers belong, and infinite or NaN numbers are errors). A validation
+error names the file, the line (from the YAML node tree) and the key path, and says
+what is allowed.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable
-from typing import TypeVar
+from typing import Annotated, TypeVar
 
 import yaml
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError
 
+from labrig.config.bounded_yaml import load_with_nodes
 from labrig.errors import InputError
 
 Model = TypeVar("Model", bound=BaseModel)
 
 
 class Strict(BaseModel):
-    """Forbid unknown keys and silent type coercion from strings."""
+    """Forbid unknown keys, silent type coercion from strings, and infinite or NaN
+    numbers (``.inf`` as a hold or a limit would make a run endless or an interlock
+    blind)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+
+def _printable(line_breaks: bool):
+    """A validator refusing control characters (NUL and the like; tabs and line breaks
+    too unless ``line_breaks``): they end strings early in HDF5 and C libraries, and
+    make names that cannot be file names."""
+    allowed = "\n\t" if line_breaks else ""
+
+    def check(value):
+        if not isinstance(value, str):  # the other member of a union (a camera index)
+            return value
+        for position, char in enumerate(value, start=1):
+            if not char.isprintable() and char not in allowed:
+                raise ValueError(
+                    f"character {position} is a control character (code {ord(char)}); "
+                    + ("only text and line breaks" if line_breaks else "only printable text")
+                )
+        return value
+
+    return AfterValidator(check)
+
+
+_KEY = re.compile(r"[A-Za-z_][A-Za-z0-9_-]{0,63}")
+
+# a name or a path on one line, free text, and a device's index or path
+Line = Annotated[str, _printable(line_breaks=False)]
+Text = Annotated[str, _printable(line_breaks=True)]
+IndexOrLine = Annotated[int | str, _printable(line_breaks=False)]
 
 
 def parse_yaml_model(
@@ -38,8 +72,7 @@ def parse_yaml_model(
     ``hide`` lists tagged-union tags that pydantic repeats in error locations.
     """
     try:
-        data = yaml.safe_load(text)
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        data, root = load_with_nodes(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = f" line {mark.line + 1}:" if mark is not None else ""
@@ -95,7 +128,13 @@ def _message(error: dict) -> str:
 def _format_loc(loc: list) -> str:
     text = ""
     for part in loc:
-        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
+        if isinstance(part, int):
+            text += f"[{part}]"
+            continue
+        # an unknown key is shown only if it looks like one: a file that is no YAML
+        # config (a mistyped path) would otherwise show its lines as keys
+        name = part if _KEY.fullmatch(str(part)) else "(a key that is no name)"
+        text += f".{name}" if text else name
     return text
 
 

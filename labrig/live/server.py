@@ -6,6 +6,11 @@ never the run. Every request reads a snapshot that ``labrig.live.state.LiveState
 publishes; nothing a request does can reach the runner or the devices, and only GET
 (and HEAD) are answered.
 
+Every request must name this server in its ``Host`` header (localhost, 127.0.0.1, [::1]
+or the bound address, with or without the port), else 421 Misdirected Request: a web
+page on another site that points its own host name at 127.0.0.1 (DNS rebinding) would
+otherwise read the run through the visitor's browser, as if from the same origin.
+
 Routes: ``/`` the page; ``/static/<file>`` its script and style (package data: the page
 works offline, with no CDN); ``/api/state`` the latest state (fixed fields, a contract);
 ``/api/series?pressure=N&length=M`` the points since those indices, with the detected
@@ -65,7 +70,29 @@ class _Handler(BaseHTTPRequestHandler):
     def do_GET(self) -> None:
         self._answer(head=False)
 
+    def _host_allowed(self) -> bool:
+        host = self.headers.get("Host")
+        if host is None:
+            return False
+        port = str(self.server.server_address[1])
+        names = {"localhost", "127.0.0.1", "[::1]", self.server.server_address[0]}
+        allowed = names | {f"{name}:{port}" for name in names}
+        return host.strip().lower() in allowed
+
     def _answer(self, head: bool) -> None:
+        if not self._host_allowed():
+            body = (
+                "421 Misdirected Request: this live view answers only requests addressed "
+                f"to localhost or 127.0.0.1 (port {self.server.server_address[1]}), not to "
+                "another host name\n"
+            ).encode()
+            self.send_response(HTTPStatus.MISDIRECTED_REQUEST)
+            self.send_header("Content-Type", "text/plain; charset=utf-8")
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            if not head:
+                self.wfile.write(body)
+            return
         url = urlsplit(self.path)
         route = url.path
         if route in ("/", "/index.html"):

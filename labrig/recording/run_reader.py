@@ -12,6 +12,10 @@ import numpy as np
 from labrig.errors import InputError
 from labrig.recording.run_layout import repetition_name
 
+# 48 kS/s, the USB-6009's fastest, for 87 minutes: more is no run of this rig, and
+# 2e9 values (16 GB) would be asked of memory before anything could say so
+MAX_DATASET_VALUES = 250_000_000
+
 
 @dataclass(frozen=True)
 class LogSeries:
@@ -33,6 +37,8 @@ def open_run(path: str | Path) -> h5py.File:
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path}: no such file")
+    if not path.is_file():  # HDF5 would wait forever on a pipe's open
+        raise InputError(f"{path}: not a regular file (a folder, a device or a pipe)")
     try:
         return h5py.File(path, "r")
     except OSError as plain_error:
@@ -42,14 +48,29 @@ def open_run(path: str | Path) -> h5py.File:
             raise InputError(f"{path}: not a readable HDF5 file ({plain_error})") from None
 
 
+def read_values(dataset: h5py.Dataset, where: str):
+    """A dataset's whole value; InputError, not MemoryError, for one too large."""
+    if dataset.size > MAX_DATASET_VALUES:
+        raise InputError(
+            f"{where}: {dataset.name} holds {dataset.size} values, more than the "
+            f"{MAX_DATASET_VALUES} of any run of this rig"
+        )
+    try:
+        return dataset[()]
+    except MemoryError:
+        raise InputError(
+            f"{where}: {dataset.name}: {dataset.size} values do not fit in memory"
+        ) from None
+
+
 def read_log(run: h5py.File, repetition: int, log: str) -> LogSeries:
     """Read one repetition's NXlog; InputError naming what is missing if absent."""
     where = f"entry/repetitions/{repetition_name(repetition)}/{log}"
     if where not in run:
         raise InputError(f"{run.filename}: missing {where}")
     group = run[where]
-    fields = {name: group[name][:] for name in group if name != "time"}
-    return LogSeries(group["time"][:], fields)
+    fields = {name: read_values(group[name], run.filename) for name in group if name != "time"}
+    return LogSeries(read_values(group["time"], run.filename), fields)
 
 
 def repetition_statuses(run: h5py.File) -> list[tuple[str, str]]:

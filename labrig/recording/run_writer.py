@@ -13,6 +13,10 @@ flag; ``labrig.recording.run_reader.open_run`` reads it anyway and
 ``labrig.recording.repair.clear_write_flag`` (``labrig recover``) clears it.
 Status strings live in fixed-size datasets, not attributes, because SWMR allows only
 writes to existing datasets.
+
+The file is never overwritten: the writer takes the run file's lock
+(``labrig.recording.run_file_lock``) before it creates the file, creates it only if it
+does not exist, and holds the lock until the file is closed, SWMR or not.
 """
 
 from __future__ import annotations
@@ -29,6 +33,8 @@ import h5py
 import numpy as np
 
 import labrig
+from labrig.errors import InputError
+from labrig.recording.run_file_lock import RunFileLock
 from labrig.recording.run_layout import (
     CHUNK,
     EVENT_FIELDS,
@@ -110,7 +116,10 @@ class RunWriter:
         self.path = Path(path)
         # sees every append (repetition, log, columns) as written: the live view's feed
         self.tap = tap
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InputError(f"{self.path}: cannot create its folder ({exc.strerror})") from None
         if repetitions < 1:
             raise ValueError("a run has at least one repetition")
         self.repetitions = repetitions
@@ -125,10 +134,31 @@ class RunWriter:
         # rows appended since the last write, per group path, in arrival order
         self._pending: dict[str, list[dict[str, np.ndarray]]] = {}
         self._datasets: dict[tuple[str, str], h5py.Dataset] = {}
-        self._file = h5py.File(self.path, "w", libver="latest")
-        self._create_layout(title, protocol_text, protocol_path, rig_config_text)
-        self._file.swmr_mode = True
+        self._claim = RunFileLock(self.path, "run").acquire("choose another --out")
+        created: h5py.File | None = None
+        try:
+            self._file = created = self._create_file()
+            self._create_layout(title, protocol_text, protocol_path, rig_config_text)
+            self._file.swmr_mode = True
+        except BaseException:
+            if created is not None:  # this writer's own new file, half laid out
+                created.close()
+                self.path.unlink(missing_ok=True)
+            self._claim.release()
+            raise
         self._last_flush = time.monotonic()
+
+    def _create_file(self) -> h5py.File:
+        """The new, empty file (under the lock); InputError if one is already there."""
+        try:
+            return h5py.File(self.path, "x", libver="latest")
+        except FileExistsError:
+            raise InputError(
+                f"{self.path}: a file is already there; a run never writes over one "
+                "(labrig run --overwrite moves it aside first)"
+            ) from None
+        except OSError as exc:
+            raise InputError(f"{self.path}: cannot create the run file ({exc})") from None
 
     # --- layout --------------------------------------------------------------------
     def _create_layout(
@@ -378,6 +408,7 @@ class RunWriter:
             self._file.flush()
             self._file.close()
             self._closed = True
+            self._claim.release()
 
     @property
     def closed(self) -> bool:

@@ -149,7 +149,9 @@ def video_ratio(tmp: Path, pairs: int) -> str:
     b.write_text(demo.replace("camera_fps: 30}", "camera_fps: 30, video: true}"))
     ratios, rows = [], []
     for k in range(pairs):
-        (wa, ra, ca), (wb, rb, cb) = (run_protocol(p, tmp / f"ratio_{k}.h5") for p in (a, b))
+        (wa, ra, ca), (wb, rb, cb) = (
+            run_protocol(p, tmp / f"ratio_{k}_{p.stem}.h5") for p in (a, b)
+        )
         ratios.append((wb / wa, rb / ra, cb / ca))
         rows.append(
             (

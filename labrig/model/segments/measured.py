@@ -46,10 +46,14 @@ from labrig.model.segments.shape_fit import (
     smooth_with_shape,
 )
 from labrig.model.segments.stair_edges import refine_extrema, shows_dip
+from labrig.user_files import MAX_TABLE_BYTES, read_text_file
 
 HEADER = ("volume_ml", "pressure_kpa", "length_mm")
 MIN_ROWS = 10
 MAX_FIRST_VOLUME_ML = 0.5  # the first row must be (close to) the unpressurised state
+# no segment's curve reaches a million mL, kPa or mm; numbers beyond (1e308) overflow
+# the fit's arithmetic to inf
+MAX_MAGNITUDE = 1e6
 MAX_BINS = 250
 STEEP_NOISE_FACTOR = 10.0
 STEEP_WEIGHT_GAIN = 100.0
@@ -76,21 +80,15 @@ def read_csv_table(path: Path) -> np.ndarray:
     """The (n, 3) table of a measured-curve CSV, validated: a fault is refused with one
     line naming the file, the line, the column and what is allowed."""
     where = str(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise InputError(f"{where}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{where}: cannot be read as a text file ({exc})") from None
+    text = read_text_file(path, what="file", max_bytes=MAX_TABLE_BYTES, encoding="utf-8-sig")
     rows = [(n, line) for n, line in enumerate(text.splitlines(), start=1) if line]
     expected = ",".join(HEADER)
     if not rows:
         raise InputError(f"{where}: the file is empty; expected the header {expected} and rows")
     line, header = rows[0][0], next(csv.reader([rows[0][1]]))
     if tuple(field.strip() for field in header) != HEADER:
-        raise InputError(
-            f"{where}: line {line}: the header must be {expected}, got {','.join(header)}"
-        )
+        # what the line holds is not shown: a mistyped path may name any file
+        raise InputError(f"{where}: line {line}: the header must be {expected}")
     data = rows[1:]
     values = _numbers_at_once(data)
     if values is None:
@@ -141,9 +139,16 @@ def _numbers_row_by_row(data: list[tuple[int, str]], where: str) -> np.ndarray:
 
 
 def _check_volumes_and_lengths(values: np.ndarray, lines: list[int], where: str) -> None:
-    """The rules on the numbers, the first row that breaks one named by its line: the
-    first volume at the unpressurised state, volumes that never decrease, lengths > 0,
-    and enough rows."""
+    """The rules on the numbers, the first row that breaks one named by its line: every
+    number within MAX_MAGNITUDE, the first volume at the unpressurised state, volumes
+    that never decrease, lengths > 0, and enough rows."""
+    huge = np.abs(values) > MAX_MAGNITUDE
+    if huge.any():
+        k, col = np.argwhere(huge)[0]
+        raise InputError(
+            f"{where}: line {lines[k]}, column {HEADER[col]}: beyond +-{MAX_MAGNITUDE:g} "
+            "(mL, kPa, mm): not a segment's curve"
+        )
     v, length = values[:, 0], values[:, 2]
     first_volume_bad = len(v) > 0 and not 0 <= v[0] <= MAX_FIRST_VOLUME_ML
     decreasing = np.flatnonzero(np.diff(v) < 0) + 1

@@ -1,0 +1,216 @@
+"""Who may write a run file: one process at a time, from before the file exists until it
+is closed.
+
+HDF5's own lock cannot do this. Opening in HDF5's create-or-truncate mode empties the
+file before it asks for that lock (another program holding the file open found it
+emptied), and a writer in single-writer/multiple-reader (SWMR) mode gives the lock up
+so that readers can follow the file as it grows (a second run then wrote into the first
+one's file).
+So a run, and ``labrig recover``, take labrig's own lock on a sidecar, ``RUN.h5.lock``:
+an OS lock (``flock`` on POSIX, ``msvcrt.locking`` on Windows) that the kernel drops
+however the process ends, so a killed run leaves no lock that holds, at most the empty
+sidecar, which the next holder takes over and removes. Readers (``show``, ``watch``, the
+live page) never take it: they open a live file in SWMR read mode.
+
+Another program holding the file open (h5py, HDFView) holds HDF5's lock on the file
+itself, shared for a reader; ``refuse_if_open_elsewhere`` asks for that lock before the
+file is touched.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+import os
+from pathlib import Path
+
+from labrig.errors import InputError
+
+try:
+    import fcntl
+except ImportError:  # Windows
+    fcntl = None
+    import msvcrt
+
+# Windows locks a byte range, and a locked range cannot be read: the lock sits past the
+# holder's line so that a refused process can still read who holds it
+_WINDOWS_LOCK_OFFSET = 1 << 20
+
+
+def lock_path(run_path: Path) -> Path:
+    """The sidecar lock of a run file: ``RUN.h5.lock`` beside it."""
+    return run_path.with_name(run_path.name + ".lock")
+
+
+def _try_lock(fd: int) -> bool:
+    """Lock ``fd`` without waiting; False if another process holds it."""
+    try:
+        if fcntl is not None:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        else:
+            os.lseek(fd, _WINDOWS_LOCK_OFFSET, os.SEEK_SET)
+            msvcrt.locking(fd, msvcrt.LK_NBLCK, 1)
+    except OSError:
+        return False
+    return True
+
+
+class RunFileLock:
+    """The sidecar lock of one run file, held by this process from ``acquire`` to
+    ``release`` (also a context manager). ``purpose`` ("run", "recover", ...) is written
+    into the sidecar so that a refused process can say who holds the file."""
+
+    def __init__(self, run_path: str | Path, purpose: str) -> None:
+        self.run_path = Path(run_path)
+        self.path = lock_path(self.run_path)
+        self.purpose = purpose
+        self._fd: int | None = None
+
+    def acquire(self, refusal: str) -> RunFileLock:
+        """Take the lock, or InputError: the run file, who holds it and ``refusal``
+        (what to do about it)."""
+        while True:
+            try:
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as exc:
+                raise InputError(
+                    f"{self.run_path}: cannot create its lock file {self.path} ({exc.strerror})"
+                ) from None
+            if not _try_lock(fd):
+                os.close(fd)
+                raise InputError(f"{self.run_path}: {self._holder()}; {refusal}")
+            # the previous holder removes the sidecar as it lets go: a lock taken on a
+            # sidecar that is no longer at the path would lock nothing
+            try:
+                same = os.path.samestat(os.fstat(fd), os.stat(self.path))
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)
+        os.ftruncate(fd, 0)
+        os.lseek(fd, 0, os.SEEK_SET)  # Windows' lock moved the position
+        os.write(fd, f"{os.getpid()} {self.purpose}\n".encode())
+        self._fd = fd
+        return self
+
+    def _holder(self) -> str:
+        """Who holds the lock, as the holder wrote it."""
+        try:
+            words = self.path.read_text(encoding="utf-8", errors="replace").split()
+        except OSError:
+            words = []
+        if len(words) == 2 and words[0].isdigit():
+            pid, purpose = words
+            doing = "writing" if purpose == "run" else f"using ({purpose})"
+            return f"a labrig process (pid {pid}) is {doing} this file"
+        return f"another labrig process holds its lock ({self.path})"
+
+    def release(self) -> None:
+        """Let go (idempotent): the sidecar is removed while still locked, then closed."""
+        if self._fd is None:
+            return
+        fd, self._fd = self._fd, None
+        if fcntl is not None:
+            self.path.unlink(missing_ok=True)
+            os.close(fd)
+        else:  # Windows removes no file that is open
+            os.close(fd)
+            # another process that opened it meanwhile takes it over
+            with contextlib.suppress(PermissionError):
+                self.path.unlink(missing_ok=True)
+
+    def __enter__(self) -> RunFileLock:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.release()
+
+
+def refuse_if_open_elsewhere(path: Path, refusal: str) -> None:
+    """InputError if another program has the HDF5 file at ``path`` open with HDF5's
+    file locking (its default): a reader holds a shared lock, so an exclusive one is
+    refused. Asked for and let go at once: HDF5 in this process must get it later."""
+    if fcntl is None:  # Windows refuses to move or replace an open file: told where it happens
+        return
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        raise InputError(
+            f"{path}: open in another program (an HDF5 viewer or a script holds it); {refusal}"
+        ) from None
+    finally:
+        os.close(fd)
+
+
+def replaced_path(path: Path, stamp: str) -> Path:
+    """Where ``--overwrite`` moves an old run file: ``RUN.replaced-<stamp>.h5``, with a
+    counter if that is taken."""
+    candidate = path.with_name(f"{path.stem}.replaced-{stamp}{path.suffix}")
+    counter = 2
+    while candidate.exists() or candidate.with_suffix(".avi").exists():
+        candidate = path.with_name(f"{path.stem}.replaced-{stamp}-{counter}{path.suffix}")
+        counter += 1
+    return candidate
+
+
+def claim_out_path(path: Path, *, overwrite: bool) -> list[str]:
+    """Make ``path`` free for a new run before anything moves; one line per file moved.
+
+    An existing file is refused unless ``overwrite``, which moves it (and its video,
+    ``RUN.avi``) aside, never deletes. A file another labrig process writes, or another
+    program holds open, is refused either way. The run's writer takes the lock again
+    and creates the file only if it is still absent: a run started meanwhile onto the
+    same path makes this one stop with one line, and nothing is lost.
+    """
+    video = path.with_suffix(".avi")  # where the run records its video, if it does
+    advice = "choose another --out"
+    try:
+        there = [p for p in (path, video) if p.exists() or p.is_symlink()]
+    except OSError as exc:  # a name too long, a folder that cannot be searched
+        raise InputError(f"{path}: not a usable run file name ({exc.strerror})") from None
+    if not there:
+        return []
+    with RunFileLock(path, "overwrite").acquire(advice):
+        if any(not p.is_file() for p in there):
+            raise InputError(f"{there[0]}: exists and is not a regular file; {advice}")
+        if not overwrite:
+            what = "a run file" if there[0] == path else "a run's video"
+            raise InputError(
+                f"{there[0]}: {what} is already there; {advice}, or --overwrite to move it "
+                "aside first (it is never deleted)"
+            )
+        if path in there:
+            refuse_if_open_elsewhere(path, f"close it there, or {advice}")
+        target = replaced_path(path, dt.datetime.now().strftime("%Y%m%d-%H%M%S"))
+        moved = [_move(p, target.with_suffix(p.suffix)) for p in there]
+        if (
+            path in there
+            and video in there
+            and not _rename_video_in(target, target.with_suffix(".avi").name)
+        ):
+            moved.append(f"{target} still names its video {video.name}: not a run file")
+        return moved
+
+
+def _move(source: Path, target: Path) -> str:
+    try:
+        os.rename(source, target)
+    except OSError as exc:
+        raise InputError(f"{source}: cannot be moved aside to {target} ({exc.strerror})") from None
+    return f"moved the old {source} to {target}"
+
+
+def _rename_video_in(run_path: Path, video_name: str) -> bool:
+    """Point the moved run file at its moved video (``/entry/video@file``); False if
+    the file cannot be opened to do so."""
+    import h5py
+
+    try:
+        with h5py.File(run_path, "r+") as run:
+            if "entry/video" in run:
+                run["entry/video"].attrs["file"] = video_name
+    except OSError:
+        return False
+    return True
