@@ -4,7 +4,7 @@ import cv2
 import h5py
 import numpy as np
 import pytest
-from conftest import QUICK_PROTOCOL
+from support.api_runs import QUICK_PROTOCOL
 
 import labrig
 

@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import cli
+from support.api_runs import cli
 
 import labrig
 

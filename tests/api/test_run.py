@@ -9,7 +9,7 @@ import warnings
 import h5py
 import numpy as np
 import pytest
-from conftest import cli
+from support.api_runs import cli
 
 import labrig
 from labrig.analysis.runfile import writer_flag_set
