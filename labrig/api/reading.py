@@ -10,17 +10,13 @@ takes it; SWMR itself needs no lock on the reader's side. Nothing here repairs a
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import h5py
 
 from labrig.analysis.runfile import open_checked, writer_flag_set
 from labrig.errors import InputError
-
-# The runner flushes a file at least every 0.5 s while samples arrive; a file still
-# flagged open whose last change is older than this is taken as left by a killed writer.
-LIVE_WINDOW_S = 10.0
+from labrig.recording.run_file_lock import held_by_a_process
 
 
 def open_readonly(path: Path) -> h5py.File:
@@ -47,8 +43,7 @@ def writer_state(path: Path, status: str) -> tuple[bool, bool]:
 
     ``writer_open``: the file still carries its writer's "open for writing" flag (it is
     being recorded, or its writer was killed). ``live``: flagged open, status
-    ``running`` and changed within ``LIVE_WINDOW_S``: a writer is recording it now.
+    ``running``, and a process holds the run's lock: a writer is recording it now.
     """
     flagged = writer_flag_set(path)
-    recent = time.time() - path.stat().st_mtime <= LIVE_WINDOW_S
-    return flagged, flagged and status == "running" and recent
+    return flagged, flagged and status == "running" and held_by_a_process(path)

@@ -29,7 +29,7 @@ from labrig.recording.run_layout import LOG_DESCRIPTION, LOG_FIELDS, repetition_
 from labrig.recording.run_reader import decode
 
 from .axes import panel_axes
-from .reading import LIVE_WINDOW_S, open_readonly, open_run_file, writer_state
+from .reading import open_readonly, open_run_file, writer_state
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -91,8 +91,8 @@ class Run:
     its writer was killed); ``reason`` (why it ended so); ``start_time``, ``end_time``
     (ISO 8601); ``protocol_text`` and ``rig_config_text`` (YAML as run); ``versions``;
     ``has_video``; ``writer_open`` (the file still carries its writer's "open" flag: it
-    is being recorded, or its writer was killed); ``live`` (open and written to within
-    the last 10 s: being recorded now).
+    is being recorded, or its writer was killed); ``live`` (open, and a labrig process
+    holds the run's lock: being recorded now).
     """
 
     def __init__(self, path: Path) -> None:
@@ -109,8 +109,7 @@ class Run:
             how = (
                 "being recorded"
                 if self.live
-                else "still flagged open by its writer, unchanged for over "
-                f"{LIVE_WINDOW_S:.0f} s (its writer was killed?)"
+                else "still flagged open, and no process holds it (its writer was killed?)"
             )
             warnings.warn(
                 f"{path} is {how}: read as of its last flush (status {self.status!r})"

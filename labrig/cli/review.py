@@ -45,11 +45,20 @@ def load(path: Path, *, compare_model: bool = True):
 
 
 def _warn_open(record) -> None:
-    if record.writer_flag_set:
+    from labrig.recording.run_file_lock import held_by_a_process
+
+    if not record.writer_flag_set:
+        return
+    if held_by_a_process(record.path):
         click.echo(
-            f"warning: {record.path} is still flagged open by its writer (a run still "
-            "writing it, or one that was killed); shown as of its last flush. Once no run "
-            f"writes it, `labrig recover {record.path}` closes it."
+            f"note: {record.path} is being recorded by a labrig process; shown as of its "
+            "last flush."
+        )
+    else:
+        click.echo(
+            f"warning: {record.path} is still flagged open, and no process writes it (its "
+            f"run was killed); shown as of its last flush. `labrig recover {record.path}` "
+            "closes it."
         )
 
 

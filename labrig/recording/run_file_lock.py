@@ -127,6 +127,27 @@ class RunFileLock:
         self.release()
 
 
+def held_by_a_process(run_path: Path) -> bool:
+    """Whether a live process holds ``run_path``'s sidecar lock (a run writing it, or a
+    recover), asked without creating or writing anything: a sidecar left by a killed
+    run locks nothing, so a killed run's file reads as not held."""
+    try:
+        fd = os.open(lock_path(Path(run_path)), os.O_RDWR)
+    except OSError:
+        return False
+    try:
+        if not _try_lock(fd):
+            return True
+        if fcntl is not None:
+            fcntl.flock(fd, fcntl.LOCK_UN)
+        else:
+            os.lseek(fd, _WINDOWS_LOCK_OFFSET, os.SEEK_SET)
+            msvcrt.locking(fd, msvcrt.LK_UNLCK, 1)
+        return False
+    finally:
+        os.close(fd)
+
+
 def refuse_if_open_elsewhere(path: Path, refusal: str) -> None:
     """InputError if another program has the HDF5 file at ``path`` open with HDF5's
     file locking (its default): a reader holds a shared lock, so an exclusive one is

@@ -158,7 +158,7 @@ def test_recover_a_killed_run(killed_file, capsys):
 def test_show_a_killed_run_warns_and_shows_what_was_flushed(killed_file, capsys):
     code, out, _ = run(["show", killed_file], capsys)
     assert code == 0
-    assert "still flagged open by its writer" in out and "labrig recover" in out
+    assert "no process writes it (its run was killed)" in out and "labrig recover" in out
     assert "running" in out
 
 

@@ -12,7 +12,12 @@ import pytest
 from labrig.analysis.recovery import recover_run
 from labrig.analysis.runfile import superblock_facts
 from labrig.errors import InputError
-from labrig.recording.run_file_lock import RunFileLock, claim_out_path, lock_path
+from labrig.recording.run_file_lock import (
+    RunFileLock,
+    claim_out_path,
+    held_by_a_process,
+    lock_path,
+)
 from labrig.recording.run_reader import open_run, read_log
 from labrig.recording.run_writer import RunWriter
 from tests.support.simulated_runs import PROTOCOL, tiny_run
@@ -73,6 +78,7 @@ def make_writer(path):
 def test_a_second_writer_never_opens_a_live_file(live_run):
     path, process = live_run
     size = path.stat().st_size
+    assert held_by_a_process(path)
     with pytest.raises(InputError, match=rf"pid {process.pid}\) is writing this file"):
         make_writer(path)
     with pytest.raises(InputError, match="is writing this file"):
@@ -84,7 +90,7 @@ def test_a_second_writer_never_opens_a_live_file(live_run):
     with open_run(path) as run:  # the first run closed its own file, whole
         assert run["entry/status"][()] == b"complete"
         assert len(read_log(run, 1, "pressure")) == 10
-    assert not lock_path(path).exists()
+    assert not lock_path(path).exists() and not held_by_a_process(path)
 
 
 def test_recover_refuses_a_live_file_and_changes_nothing(live_run):
@@ -159,6 +165,7 @@ def test_overwrite_moves_the_old_run_and_its_video_aside(tmp_path):
 def test_a_killed_holder_leaves_no_lock_that_holds(tmp_path):
     path = tmp_path / "run.h5"
     lock_path(path).write_text("4242 run\n")  # the sidecar of a killed run
+    assert not held_by_a_process(path)
     writer = make_writer(path)
     writer.append_pressure(1, np.arange(3.0), np.zeros(3), np.zeros(3, bool))
     writer.finalise("complete")
