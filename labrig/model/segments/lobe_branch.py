@@ -17,11 +17,11 @@ Equilibrium in phi is Laplace's law: dPi/dphi = p dV/dphi gives p = T/rho with T
 mu H W_theta/lambda_z the membrane's hoop tension and rho the lobe's radius (dA/ds =
 rho at a fixed chord). Equilibrium in theta, G = dPi/dtheta - p dV/dtheta = 0, is the
 strips pushed open; G > 0 holds them where they are (the tube can push the strips out,
-not pull them in; where the bulge met them they stay until pushed). So the branch:
-
-1. the strips held at the start angle, the lobes growing (phi rising) until G falls
-   to zero or the pressure reaches P_END_KPA;
-2. then both: theta rising, phi from G(theta, phi) = 0, until P_END_KPA.
+not pull them in; where the bulge met them they stay until pushed). So the branch runs
+in phi, from the lobes at the start's pressure to P_END_KPA, with theta the start angle
+while G(start, phi) >= 0 and G's root otherwise (at most the envelope's largest volume):
+the lobes stretch with the strips held until the pressure pushes the strips open, then
+both move, the segment shortening.
 """
 
 from __future__ import annotations
@@ -182,7 +182,8 @@ class LobeBranch:
         theta[opening] = high - g_high * (high - low) / (g_high - g_low)
         return theta
 
-    def _state_along(self, phi):
+    def state_along(self, phi):
+        """(v_ml, p_kpa, l_mm) at lobe half-angles phi, theta from ``braid_angle``."""
         phi = np.atleast_1d(np.asarray(phi, dtype=float))
         return self.state(self.braid_angle(phi), phi)
 
@@ -190,7 +191,7 @@ class LobeBranch:
     def end_half_angle(self) -> float:
         """phi where the branch reaches P_END_KPA."""
         return brentq(
-            lambda phi: float(self._state_along(phi)[1][0]) - P_END_KPA,
+            lambda phi: float(self.state_along(phi)[1][0]) - P_END_KPA,
             self.start_half_angle,
             HALF_ANGLE_HIGH,
             xtol=1e-13,
@@ -199,7 +200,7 @@ class LobeBranch:
     def _evaluate(self, t):
         """t in [0, 1]: phi from the start to the end."""
         phi0 = self.start_half_angle
-        return self._state_along(phi0 + np.asarray(t, dtype=float) * (self.end_half_angle - phi0))
+        return self.state_along(phi0 + np.asarray(t, dtype=float) * (self.end_half_angle - phi0))
 
     @cached_property
     def table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -102,8 +102,8 @@ def test_the_branchs_work_is_its_energy(branch):
         return branch.terms(branch.envelope(branch.braid_angle(phi)), phi)[1]
 
     def p_dv(phi, h=1e-7):
-        v_hi, v_lo = branch._state_along(phi + h)[0], branch._state_along(phi - h)[0]
-        return branch._state_along(phi)[1] * (v_hi - v_lo) / (2 * h)
+        v_hi, v_lo = branch.state_along(phi + h)[0], branch.state_along(phi - h)[0]
+        return branch.state_along(phi)[1] * (v_hi - v_lo) / (2 * h)
 
     cuts = sorted({phi0, opens, phi1})
     work = sum(gauss_legendre(p_dv, a, b, 200) for a, b in itertools.pairwise(cuts))
