@@ -45,7 +45,8 @@ if TYPE_CHECKING:
 ANGLE_STEP = 1e-6
 # The envelope's volume is a cubic spline in theta through this many elastica volumes
 # (relative error below 1e-10 over the branch's angles); theta from G = 0 in at most
-# this many false-position steps over whole arrays (until no step exceeds 1e-14 rad).
+# this many false-position steps over whole arrays, until no step exceeds 1e-10 rad (G's
+# central difference carries rounding of about 1e-11 rad in its root).
 _ENVELOPE_KNOTS = 801
 _ROOT_STEPS = 60
 # phi's range: a flat gap membrane at 1e-9, nearly a full circle at 0.99 pi
@@ -167,7 +168,7 @@ class LobeBranch:
         previous = low
         for _ in range(_ROOT_STEPS):
             guess = high - g_high * (high - low) / (g_high - g_low)
-            if np.all(np.abs(guess - previous) < 1e-14):
+            if np.all(np.abs(guess - previous) < 1e-10):
                 break
             previous = guess
             g = self.imbalance(guess, phi_open)
