@@ -25,8 +25,7 @@ a segment can be built at all (docs/explanation/segments.md derives both):
   segments reach straight braids before that volume: they meet them at theta = 0, on
   the fixed-length branch above.
 
-After contact the SI's constrained energy (``BraidedSegment.contact_state``) holds,
-starting at theta = 0 for a segment that met straight braids.
+A segment that met straight braids meets them at theta = 0.
 
 Two more things decide when the tube meets the braids (docs/decisions/0007):
 
@@ -37,8 +36,12 @@ Two more things decide when the tube meets the braids (docs/decisions/0007):
   instead (``Bulge``): the rest of the tube keeps its length, the pressure falls to the
   free tube's Maxwell pressure with the bulged phase at the envelope's widest radius,
   and the bulge spreads along the strips until the tube fills the envelope at the
-  peak's length. Then the constrained contact branch takes over, the braids opening
-  and the segment shortening.
+  peak's length.
+
+Past the fill (or, without a bulge, past first contact) the tube lies on the eight
+strips and bulges out between them as lobes (docs/decisions/0008,
+``labrig.model.segments.lobe_branch``): the lobes stretch at the strips' length until the
+pressure pushes the strips open, then both, the segment shortening, to P_END_KPA.
 """
 
 from __future__ import annotations
@@ -58,6 +61,8 @@ from labrig.model.segments.braided import (
     interior_maximum,
 )
 from labrig.model.segments.curve import SegmentCurve
+from labrig.model.segments.lobe_branch import LobeBranch
+from labrig.model.segments.lobes import STRIP_COUNT
 from labrig.model.segments.tabulate import tabulate
 
 # Tubing sold by its inner diameter (paper, Materials): the latex tube 1/4" x 1/32", the
@@ -71,11 +76,10 @@ STRAIGHT_ANGLE = 1e-4
 _SAMPLES = 33
 # The bulge (docs/decisions/0007): the fall from the peak takes this share of the bulged
 # volume range (assumed: the bulge meets the strips half-way), the plateau then falls by
-# at most PLATEAU_FALL_KPA (a strictly ordered falling branch) and rises to the contact
-# branch over RISE_ML (numerical).
+# at most PLATEAU_FALL_KPA (a strictly ordered falling branch) until the lobes between
+# the strips hold its pressure (docs/decisions/0008).
 DROP_SHARE = 0.5
 PLATEAU_FALL_KPA = 1.0
-RISE_ML = 0.01
 # the step of the central difference of the envelope's volume in the braid angle
 _ANGLE_STEP = 1e-7
 
@@ -224,7 +228,8 @@ class PaperBraidedSegment(BraidedSegment):
         return (self.peak_stretch - self.lambda_z0) / (self.free_end_stretch - self.lambda_z0)
 
     def _branches(self):
-        """The non-empty branches in order, each s in [0, 1] -> (v_ml, p_kpa, l_mm)."""
+        """The non-empty branches before contact in order, each s in [0, 1] -> (v_ml,
+        p_kpa, l_mm); at least one (the free tube, or the tube held by straight braids)."""
         branches = []
         if self.free_end_stretch > self.lambda_z0:
             span = self.free_end_stretch - self.lambda_z0
@@ -232,8 +237,6 @@ class PaperBraidedSegment(BraidedSegment):
         if self.meets_straight_braids:
             start, end = self.capped_start_hoop, self.contact_hoop
             branches.append(lambda s: self.capped_state(start + s * (end - start)))
-        th0, th1 = self.contact_angle, self.end_angle
-        branches.append(lambda s: self.contact_state(th0 + s * (th1 - th0)))
         return branches
 
     def _state(self, t):
@@ -304,13 +307,9 @@ class PaperBraidedSegment(BraidedSegment):
         angle = float(np.arccos(min(peak_length / self.l_braid_mm, 1.0)))
         with np.errstate(divide="ignore"):
             fill_ml = float(self.contact_state(min(angle, self.wall_angle))[0])
-        if fill_ml <= float(self.tube_state(self.peak_stretch)[0]) + 2 * RISE_ML:
+        if fill_ml <= float(self.tube_state(self.peak_stretch)[0]):
             return None
         return Bulge(plateau, thin, bulged, angle, fill_ml)
-
-    @cached_property
-    def end_angle(self) -> float:
-        return self._end_angle_from(self.contact_angle)
 
     @cached_property
     def wall_angle(self) -> float:
@@ -318,36 +317,30 @@ class PaperBraidedSegment(BraidedSegment):
         less as they bow further."""
         return brentq(self._braid_volume_slope, STRAIGHT_ANGLE, 0.5 * np.pi - 1e-6)
 
-    def _end_angle_from(self, theta: float) -> float:
-        """The braid angle where the contact branch started at ``theta`` reaches
-        P_END_KPA, on its way to the wall from either side (a tube that fills an
-        envelope already past its largest volume lengthens the segment toward it). The
-        volume's slope is a central difference, so the bracket stays 100 steps clear."""
-        wall = self.wall_angle
-        stop = wall - np.sign(wall - theta) * 100 * _ANGLE_STEP
-        return brentq(lambda th: self.contact_state(th)[1] - P_END_KPA, theta, stop, xtol=1e-13)
+    @cached_property
+    def lobes(self) -> LobeBranch:
+        """The branch past the fill (with a bulge: at the plateau's end pressure, at the
+        peak's length or the envelope's largest volume) or past first contact."""
+        bulge = self.bulge
+        if bulge is None:
+            before = self._branches()[-1](np.array([1.0]))
+            return LobeBranch(self, self.contact_angle, float(before[1][0]))
+        p_peak = float(self.tube_state(self.peak_stretch)[1])
+        p_end = bulge.plateau_kpa - min(PLATEAU_FALL_KPA, p_peak - bulge.plateau_kpa)
+        return LobeBranch(self, min(bulge.peak_angle, self.wall_angle), p_end)
 
     def _bulged_tables(self, bulge: Bulge):
         """(v_ml, p_kpa, l_mm) from the unpressurised state through the peak, the fall,
-        the plateau and the contact branch from the peak's length."""
+        the plateau and the lobes past the fill."""
         free = np.linspace(self.lambda_z0, self.peak_stretch, _SAMPLES)
         v_free, p_free, l_free = self.tube_state(free)
         v_pk, p_pk, l_pk = float(v_free[-1]), float(p_free[-1]), float(l_free[-1])
         v_a, _, l_a = (float(x) for x in self.tube_state(bulge.thin_stretch))
-        # a peak's length past the envelope's largest volume fills it at the wall
-        start = min(bulge.peak_angle, self.wall_angle)
-        with np.errstate(divide="ignore"):  # at the wall itself the pressure is infinite
-            v_c, p_c, l_c = self.contact_state(np.array([start]))
-        if start < self.wall_angle - 100 * _ANGLE_STEP and p_c[0] < P_END_KPA:
-            end = self._end_angle_from(start)
-            v_c, p_c, l_c = self.contact_state(np.linspace(start, end, _SAMPLES))
-        else:  # filling the envelope at this length is the wall itself: the table ends
-            p_c = np.array([P_END_KPA])
-        v_end = float(v_c[0]) - RISE_ML
-        p_end = bulge.plateau_kpa - min(PLATEAU_FALL_KPA, p_pk - bulge.plateau_kpa)
+        v_c, p_c, l_c = self.lobes.table  # starts at the plateau's end pressure
+        v_end, l_end = float(v_c[0]), float(l_c[0])
 
         def mixture_mm(v):  # the bulged phase spans the strips at the length they have
-            return l_a + (v - v_a) / (float(v_c[0]) - v_a) * (float(l_c[0]) - l_a)
+            return l_a + (v - v_a) / (v_end - v_a) * (l_end - l_a)
 
         drop_end = v_pk + DROP_SHARE * (v_end - v_pk)
         s = np.linspace(0.0, 1.0, _SAMPLES)[1:]
@@ -355,10 +348,10 @@ class PaperBraidedSegment(BraidedSegment):
         p_drop = bulge.plateau_kpa + (p_pk - bulge.plateau_kpa) * 0.5 * (1 + np.cos(np.pi * s))
         l_drop = l_pk + s * (mixture_mm(drop_end) - l_pk)
         v_flat = drop_end + s * (v_end - drop_end)
-        p_flat = bulge.plateau_kpa - s * (bulge.plateau_kpa - p_end)
-        v = np.concatenate([v_free, v_drop, v_flat, v_c])
-        p = np.concatenate([p_free, p_drop, p_flat, p_c])
-        length = np.concatenate([l_free, l_drop, mixture_mm(v_flat), l_c])
+        p_flat = bulge.plateau_kpa - s * (bulge.plateau_kpa - float(p_c[0]))
+        v = np.concatenate([v_free, v_drop, v_flat, v_c[1:]])
+        p = np.concatenate([p_free, p_drop, p_flat, p_c[1:]])
+        length = np.concatenate([l_free, l_drop, mixture_mm(v_flat), l_c[1:]])
         return v, p, length
 
     def describe(self) -> str:
@@ -370,6 +363,7 @@ class PaperBraidedSegment(BraidedSegment):
             if bulge
             else f"contact at {self.contact_ml:.3f} mL{straight}"
         )
+        shape += f"; lobes between the {STRIP_COUNT} strips to {P_END_KPA:g} kPa"
         return (
             f"braided segment from the paper's numbers (R = {self.radius_mm:g} mm, H = "
             f"{self.thickness_mm:g} mm, elastica braids from {self.end_radius_mm:g} mm, mu = "
@@ -387,6 +381,9 @@ class PaperBraidedSegment(BraidedSegment):
             if self.peak_knot() is not None:
                 knots.append([self.peak_knot()])  # the free branch is the first
             _, v, p, length = tabulate(self._state, np.unique(np.concatenate(knots)))
+            v_c, p_c, l_c = self.lobes.table  # starts at first contact's state
+            v, p = np.concatenate([v, v_c[1:]]), np.concatenate([p, p_c[1:]])
+            length = np.concatenate([length, l_c[1:]])
         v[0], p[0] = 0.0, 0.0  # the unpressurised state, exactly
         label = name or f"B{self.l_braid_mm:g}-T{self.l_tube_mm:g}"
         return SegmentCurve(label, v, p, length, V0_ml=self.V0_ml, source=self.describe())

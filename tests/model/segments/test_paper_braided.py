@@ -5,7 +5,7 @@ energy after contact by quadrature of p dv, the peak by a second parametrisation
 stretch, bisection) of the same membrane, and the bulge: the free tube's energy against
 quadrature of p dv, Maxwell's equal areas by quadrature, and the bulged curve's plateau
 and fill volume from the elastica envelope (tests/model/segments/test_elastica.py checks
-the envelope itself)."""
+the envelope itself, tests/model/segments/test_lobes.py the lobes past the fill)."""
 
 import numpy as np
 import pytest
@@ -193,6 +193,30 @@ def test_bulged_curve_falls_to_the_plateau_and_fills_the_envelope(library):
         length = max(seg.peak_stretch * seg.l_tube_mm, seg.l_braid_mm * np.cos(seg.wall_angle))
         inner = elastica.envelope_volume_mm3(length, seg.l_braid_mm, 3.97) - seg.wall_volume_mm3
         assert bulge.fill_ml == pytest.approx(inner / 1000 - seg.V0_ml, rel=1e-9)
-        plateau = (curve.v_ml > curve.valley.v_ml - 1e-9) & (curve.v_ml < bulge.fill_ml - 0.005)
-        assert curve.valley.v_ml == pytest.approx(bulge.fill_ml - 0.01, abs=1e-9)
+        # the plateau ends where the lobes between the strips hold its pressure: near the
+        # fill (gap membranes flatter than the filled envelope's circle below it)
+        start_v, start_p = (float(x[0]) for x in seg.lobes.table[:2])
+        assert curve.valley.v_ml == pytest.approx(start_v, abs=1e-12)
+        assert curve.valley.p_kpa == pytest.approx(start_p, abs=1e-9)
+        assert abs(start_v - bulge.fill_ml) < 0.5
+        plateau = (curve.v_ml > curve.valley.v_ml - 1e-9) & (curve.v_ml < start_v - 0.005)
         assert np.all(np.abs(curve.p_kpa[plateau] - curve.valley.p_kpa) < 1e-9)
+
+
+def test_lobes_start_at_first_contact_without_a_bulge(library):
+    # where the uniform tube meets the strips the lobes take over at its pressure and
+    # (the gaps still almost closed) at its volume
+    plain = [s for s in library.values() if s.bulge is None]
+    assert len(plain) == 13
+    for seg in plain:
+        before = (
+            seg.capped_state(seg.contact_hoop)
+            if seg.meets_straight_braids
+            else seg.tube_state(seg.free_end_stretch)
+        )
+        v, p, _ = seg.lobes.table
+        # on straight braids the gap is 2 pi/8 - w/r with r a few 1e-9 above w's radius:
+        # rounding leaves the start's pressure good to about 1e-6
+        assert p[0] == pytest.approx(float(before[1]), rel=1e-5)
+        assert v[0] == pytest.approx(float(before[0]), abs=1e-3)
+        assert np.all(np.diff(p) > 0)  # rising to 300 kPa, no second peak
