@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from labrig.config.protocol import Protocol
 from labrig.config.rig_file import CameraConfig, LoadCellConfig, RigConfig, rig_config_text
 from labrig.rig.connect import needs_technician, pressure_driver, set_up_pump
-from labrig.run.runner import Rig
+from labrig.rig.devices import Rig
 
 # The simulated camera's sensor (px) when the rig file has no camera section: a small
 # monochrome camera, so a simulated run's video (every frame rendered whole and encoded)

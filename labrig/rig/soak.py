@@ -36,7 +36,8 @@ from labrig.config.protocol import load_protocol
 from labrig.config.rig_file import PressureConfig, PumpConfig, RigConfig, SimConfig
 from labrig.recording.run_reader import open_run, read_log
 from labrig.rig.assembly import build_rig
-from labrig.run.runner import Rig, Runner
+from labrig.rig.devices import Rig
+from labrig.run.runner import Runner
 
 # the plunger must stand still this long (rig seconds) after the fault at the latest
 MAX_STOP_S = 1.0

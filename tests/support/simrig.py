@@ -8,7 +8,8 @@ from pathlib import Path
 from labrig.config.protocol import load_protocol
 from labrig.config.rig_file import sim_rig_config
 from labrig.rig.assembly import build_rig
-from labrig.run.runner import Rig, Runner, RunResult
+from labrig.rig.devices import Rig
+from labrig.run.runner import Runner, RunResult
 
 DEMO = Path(__file__).parents[2] / "protocols" / "demo.yaml"
 
