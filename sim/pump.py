@@ -134,6 +134,8 @@ class PumpEmulator:
         self._slow_commands: frozenset[str] | None = None  # None: every command is slow
         self._silent_at_stop = False
         self._by_id = None if by_id is None else os.fspath(by_id)
+        self._closed = False
+        self._replug: threading.Timer | None = None  # a re-enumeration's comeback
         self._port: str | None = None
         self._master = self._slave = -1
         self._wake_r = self._wake_w = -1
@@ -180,6 +182,11 @@ class PumpEmulator:
 
     def close(self) -> None:
         """Stop serving and release the pseudo-terminal (and the by-id link)."""
+        with self._lock:
+            self._closed = True
+        if self._replug is not None:
+            self._replug.cancel()
+            self._replug.join()  # a plug-back under way finishes before the release
         self._shut_down()
         if self._by_id is not None:
             with contextlib.suppress(FileNotFoundError):
@@ -278,9 +285,18 @@ class PumpEmulator:
         self._shut_down()
         with self._lock:
             self._outgoing.clear()
-        timer = threading.Timer(after_s, self.start, (pty,))
-        timer.daemon = True
-        timer.start()
+        self._replug = threading.Timer(after_s, self._plug_back, (pty,))
+        self._replug.daemon = True
+        self._replug.start()
+
+    def _plug_back(self, pty: tuple[int, int]) -> None:
+        with self._lock:
+            closed = self._closed
+        if closed:  # the emulator was closed while unplugged: it stays so
+            for fd in pty:
+                os.close(fd)
+            return
+        self.start(pty)
 
     def _garbage(self, n_bytes: int) -> bytes:
         return bytes(self._rng.choice(_GARBAGE) for _ in range(n_bytes))

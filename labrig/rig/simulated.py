@@ -146,7 +146,7 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
             )
             stack.callback(length.close_tracker)
         closer = stack.pop_all()
-    simulation = SimulatedParts(plant, emulator, camera, daq_tasks, capture)
+    simulation = SimulatedParts(plant, emulator, camera, daq_tasks, capture, SimDisk(clock))
     rig = Rig(clock, pump, pressure, length, rig_config_text(config), closer.close, simulation)
     if needs_technician(protocol):
         from labrig.sim.technician import SimTechnician
@@ -193,6 +193,21 @@ class SimulatedParts:
     camera: object | None
     daq_tasks: list  # every SimDaqTask made so far; the last one is acquiring
     capture: SlowStartingCapture | None = None  # the camera as the driver sees it
+    disk: SimDisk | None = None  # a run file's disk, when the run writes through it
+
+
+class SimDisk:
+    """A disk whose writes can be made to take rig time (a USB stick, a network share,
+    a virus scanner): ``write`` is a runner's data tap, called with every append to the
+    run file, and sleeps ``write_s`` on the clock in the thread that writes."""
+
+    def __init__(self, clock) -> None:
+        self.clock = clock
+        self.write_s = 0.0
+
+    def write(self, *appended) -> None:
+        if self.write_s > 0:
+            self.clock.sleep(self.write_s)
 
 
 class SlowStartingCapture:

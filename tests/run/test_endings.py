@@ -193,8 +193,9 @@ def test_a_pump_that_re_enumerates_is_found_again_and_stopped(tmp_path):
 
 
 def slow_disk(rig):
-    """A tap that makes every write to the run file take 0.5 s of rig time."""
-    return lambda *written: rig.clock.sleep(0.5)
+    """Every write to the run file takes 0.5 s of rig time."""
+    rig.simulation.disk.write_s = 0.5
+    return rig.simulation.disk.write
 
 
 def test_a_slow_disk_does_not_delay_the_pressure_stop(tmp_path):
