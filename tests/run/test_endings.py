@@ -267,3 +267,15 @@ def pressure_samples(path) -> int:
             return len(read_log(run, 1, "pressure"))
     except (OSError, KeyError, InputError):  # not there yet, or being created
         return 0
+
+
+def test_a_camera_that_never_starts_faults_the_run(tmp_path):
+    """Watched from its first frame on, a camera that sends none is still caught."""
+
+    def dead_camera(rig):
+        rig.simulation.capture.first_frame_s = 60.0
+
+    outcome = run_sim(tmp_path, protocol(INFUSE, fps=10), prepare=dead_camera)
+    assert outcome.result.status == "faulted"
+    assert outcome.result.reason.startswith("camera: ")
+    assert plunger_still_after(outcome, outcome.end_s)
