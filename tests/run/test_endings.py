@@ -279,3 +279,29 @@ def test_a_camera_that_never_starts_faults_the_run(tmp_path):
     assert outcome.result.status == "faulted"
     assert outcome.result.reason.startswith("camera: ")
     assert plunger_still_after(outcome, outcome.end_s)
+
+
+@pytest.mark.slow
+def test_an_unconfirmed_stop_leads_the_cli_output(tmp_path, capsys, monkeypatch):
+    """``labrig run``: the warning comes first once the run has ended, before the
+    timing, the analysis and the status line."""
+    import labrig.rig.assembly as assembly
+    from labrig.cli import main
+
+    build_rig = assembly.build_rig
+
+    def stop_dies(protocol_, config):
+        rig = build_rig(protocol_, config)
+        rig.pump.timeout_s = 1.0  # the silence costs 1 s of host time, not 10 s
+        rig.simulation.emulator.go_silent_at_stop()
+        return rig
+
+    monkeypatch.setattr(assembly, "build_rig", stop_dies)
+    protocol_path = tmp_path / "p.yaml"
+    protocol_path.write_text(protocol(INFUSE, max_kpa=20))
+    with pytest.raises(SystemExit) as exited:
+        main(["run", str(protocol_path), "--sim", "--out", str(tmp_path / "run.h5")])
+    err = capsys.readouterr().err
+    assert exited.value.code == 1
+    warning = err.index(PUMP_STOP_NOT_CONFIRMED + "\n")
+    assert warning < err.index("simulated ") < err.index("faulted: ")
