@@ -5,10 +5,11 @@ Every run infuses and withdraws on the simulated rig (virtual time: a run of 22 
 rig time takes a fraction of that on the host) while one of ``FAULTS`` strikes at a
 time drawn from the seed: a sensor wire cut, a frozen sensor, a DAQ that stalls or is
 unplugged, a pump whose reply line dies mid-reply or as its stop arrives, a pump that
-drops off USB and re-enumerates, a camera whose frames stop or whose clock jumps, a
-disk that turns slow, and the endings a person or the system gives: Ctrl-C while the
-run is paced (``--speed``) or holding, SIGTERM or SIGHUP. Every run's camera is slow
-to start (its first frame 0.3-1 s after the stream starts, as a UVC webcam's). A run
+drops off USB and re-enumerates, a camera whose frames stop or whose clock jumps, and
+the endings a person or the system gives: Ctrl-C while the run is paced (``--speed``)
+or holding, SIGTERM, SIGHUP. Every run's camera is slow to start (its first frame
+0.3-1 s after the stream starts, as a UVC webcam's), and every run's disk turns slow
+as the fault strikes (each write to the run file then takes ``SLOW_WRITE_S``). A run
 is safe when
 - the emulated plunger stood still from at most ``MAX_STOP_S`` of rig time after the
   fault on (the firmware's own record of the volume, not the driver's), or the run
@@ -102,7 +103,8 @@ class Fault:
 SIGNAL_SPEED = 5.0
 # (a signal's window is short, so its paced runs cost little wall time)
 SIGNAL_WINDOW_S = (2.5, 6.0)
-# a disk turned slow takes this long (rig seconds) for each write to the run file
+# every run's disk turns slow as its fault strikes: this long (rig seconds) for each
+# write to the run file (a USB stick, a network share), so no stop may wait for it
 SLOW_WRITE_S = 0.5
 # every run's camera delivers its first frame this long after the stream starts
 CAMERA_FIRST_FRAME_S = (0.3, 1.0)
@@ -112,22 +114,12 @@ def _send(signum: int) -> Callable[[Rig, random.Random], None]:
     return lambda rig, rng: os.kill(os.getpid(), signum)
 
 
-def _term_or_hup(rig: Rig, rng: random.Random) -> None:
-    os.kill(os.getpid(), rng.choice((signal.SIGTERM, signal.SIGHUP)))
-
-
 def _ctrl_c_in_the_hold(rig: Rig, rng: random.Random) -> None:
     """Ctrl-C once the infusion has ended (the protocol holds for 1 s)."""
     emulator = rig.simulation.emulator
     rig.clock.wait_for(lambda: emulator.net_volume_ml(rig.clock.now()) >= 9.999, 60.0)
     rig.clock.sleep(rng.uniform(0.1, 0.8))
     os.kill(os.getpid(), signal.SIGINT)
-
-
-def _slow_disk(rig: Rig, rng: random.Random) -> None:
-    """The disk turns slow, and the sensor's supply is cut: the stop must not wait."""
-    rig.simulation.disk.write_s = SLOW_WRITE_S
-    _daq(rig).fail("supply-cut")
 
 
 def _stop_dies(rig: Rig, rng: random.Random) -> None:
@@ -161,10 +153,16 @@ FAULTS: dict[str, Fault] = {
         lambda rig, rng: rig.simulation.emulator.re_enumerate(rng.uniform(0.1, 1.0)),
         "pump: lost the serial port",
     ),
-    "slow-disk": Fault(_slow_disk, "not a number"),
-    "sigterm-or-sighup": Fault(
-        _term_or_hup,
-        "stopped",
+    "sigterm": Fault(
+        _send(signal.SIGTERM),
+        "stopped by SIGTERM",
+        status="aborted",
+        speed=SIGNAL_SPEED,
+        window_s=SIGNAL_WINDOW_S,
+    ),
+    "sighup": Fault(
+        _send(signal.SIGHUP),
+        "(SIGHUP)",
         status="aborted",
         speed=SIGNAL_SPEED,
         window_s=SIGNAL_WINDOW_S,
@@ -308,6 +306,7 @@ def _one_run(loaded, path: Path, index: int, kind: str, fault_s: float, seed: in
         rig.clock.sleep(struck_at_s[0] - rig.clock.now())
         fault.inflict(rig, rng)
         struck_at_s[0] = rig.clock.now()  # a fault that waits for its moment (the hold)
+        rig.simulation.disk.write_s = SLOW_WRITE_S
 
     with rig.clock.participate():
         rig.clock.start_thread(strike, "fault")
