@@ -25,9 +25,10 @@ from labrig.time.clock import Clock
 
 log = logging.getLogger(__name__)
 
-# How long (clock seconds) the writer may wait for work before it looks again; only a
-# bound on a wait, the queue wakes it.
-IDLE_WAIT_S = 60.0
+# How often (clock seconds) the writer writes what was queued: once per DAQ block, not
+# once per append (each wake-up is a hand-over of the simulated rig's clock), and well
+# within the run file's 0.5 s flush.
+WRITE_PERIOD_S = 0.2
 
 
 class BackgroundWriter:
@@ -68,9 +69,7 @@ class BackgroundWriter:
     def _serve(self) -> None:
         calls = self._calls
         while True:
-            self.clock.wait_for(lambda: bool(calls) or self._closing, IDLE_WAIT_S)
-            if not calls and self._closing:
-                return
+            closing = self.clock.wait_for(lambda: self._closing, WRITE_PERIOD_S)
             while calls:
                 self._busy = True
                 call, args, kwargs = calls.popleft()
@@ -82,3 +81,5 @@ class BackgroundWriter:
                     self._on_error(self.error)
                 finally:
                     self._busy = False
+            if closing:
+                return
