@@ -55,15 +55,16 @@ class BackgroundWriter:
         """Every call queued so far is made."""
         return not self._calls and not self._busy
 
-    def close(self, status: str, reason: str, timeout_s: float) -> None:
-        """Make what is queued (``timeout_s`` of clock time at most), then finalise the
-        file, whatever became of the queue: the file must end with its status."""
-        if not self.clock.wait_for(lambda: self.idle or self._thread.done, timeout_s):
+    def close(self, status: str, reason: str, timeout_s: float, hurry: Callable[[], bool]) -> None:
+        """Make what is queued (``timeout_s`` of clock time at most, or until ``hurry()``:
+        a second stop request waits for no disk), then finalise the file, whatever
+        became of the queue: the file must end with its status."""
+        if not self.clock.wait_for(lambda: self.idle or self._thread.done or hurry(), timeout_s):
             log.error(
                 "the run file's writes took over %g s; finalising without the rest", timeout_s
             )
         self._closing = True
-        self.clock.wait_for(lambda: self._thread.done, timeout_s)
+        self.clock.wait_for(lambda: self._thread.done or hurry(), timeout_s)
         self.writer.finalise(status, reason)
 
     def _serve(self) -> None:

@@ -463,7 +463,9 @@ class Runner:
                     self._leave_repetition(status, reason)
                 if self.writer.writer.simulated_segments:
                     self._record_simulation(self.clock.now())
-                self.writer.close(status, reason, self.timing.writer_drain_s)
+                self.writer.close(
+                    status, reason, self.timing.writer_drain_s, lambda: self.stops.hurry
+                )
             finally:
                 self.rig.close()
         return RunResult(self.out_path, status, reason, stop_problem is None)
