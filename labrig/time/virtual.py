@@ -45,6 +45,12 @@ DEFAULT_STALL_TIMEOUT_S = 120.0
 # How far the wall may fall behind a paced timeline before pacing restarts from now
 # (instead of rushing to catch up after a host stall).
 PACING_SLACK_S = 0.25
+# How often (host seconds) a participant waiting for its turn wakes to look again.
+# Python runs a signal handler only in the main thread and only while it runs: a signal
+# the kernel delivered to another thread does not cut the main thread's wait short, so
+# without this a Ctrl-C would wait for the main thread's next turn (seconds in a slowly
+# paced run, forever while another participant holds time still).
+WAKE_S = 0.05
 
 
 def _to_ns(seconds: float) -> int:
@@ -227,15 +233,18 @@ class VirtualClock:
     def _await_turn(self, member: _Member) -> None:
         """Block until the dispatcher hands this member the baton."""
         try:
-            handovers = self._handovers
-            while not member.turn.acquire(timeout=self.stall_timeout_s):
+            handovers, waited_s = self._handovers, 0.0
+            while not member.turn.acquire(timeout=min(WAKE_S, self.stall_timeout_s)):
+                waited_s += min(WAKE_S, self.stall_timeout_s)
+                if waited_s < self.stall_timeout_s:
+                    continue
                 if self._handovers == handovers:  # nobody moved at all meanwhile
                     raise ClockStalled(
                         f"virtual clock: {member.name} waited {self.stall_timeout_s:g} s of "
                         f"host time for its turn at t = {self.now():.6f} s while a participant "
                         "held time still (blocked outside the clock)"
                     )
-                handovers = self._handovers
+                handovers, waited_s = self._handovers, 0.0
         except BaseException:
             # stalled: go on running, out of turn if need be
             with self._lock:

@@ -212,3 +212,28 @@ def test_signals_landing_in_the_hand_over_are_all_seen_and_leave_the_clock_whole
         signal.signal(signal.SIGINT, previous)
     assert len(seen) == 300
     assert elapsed == pytest.approx(0.5, abs=1e-9)
+
+
+def test_a_signal_another_thread_received_is_handled_while_time_is_held():
+    """The kernel may deliver a signal to any thread; Python runs its handler in the
+    main thread, once that thread runs. A main thread waiting for its turn while
+    another participant holds time still (a serial exchange) still runs it."""
+    import signal
+
+    clock = VirtualClock()
+    handled = threading.Event()
+    held_until_handled = []
+
+    def holder():
+        # delivered to this thread, not the main one, while it holds time still
+        signal.pthread_kill(threading.get_ident(), signal.SIGINT)
+        held_until_handled.append(handled.wait(10.0))  # a deadlock guard
+
+    previous = signal.signal(signal.SIGINT, lambda *_: handled.set())
+    try:
+        with clock.participate():
+            thread = clock.start_thread(holder, "holder")
+            clock.wait_for(lambda: thread.done, 60.0)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert held_until_handled == [True]
