@@ -24,6 +24,11 @@ Safety rules, because a pump that does not stop is the rig's worst failure:
   before a stop: the stop is written first and the waiting comes after it.
 - A pump that left a stop unanswered is taken as deaf on its reply line (``_deaf``):
   later stops are written and not waited for, until any reply comes again.
+- A lost port is closed, and a stop looks for the pump again: a USB pump that drops
+  off the bus (a brown-out, a cable pulled and plugged back) comes back as another
+  /dev/ttyACM*, but under the same /dev/serial/by-id/... path, which is what a rig file
+  should name. The stop reopens that path for up to ``reconnect_s`` and is sent there;
+  the pump ran its last command meanwhile.
 - Stalls send nothing by themselves: ``status()`` reports them and
   ``wait_until_stopped()`` polls for them.
 
@@ -115,6 +120,10 @@ STOP_WAIT_S = 0.1
 # long enough for an answering pump (milliseconds), short enough not to hold up a
 # shutdown once per stop.
 DEAF_CONFIRM_S = 0.2
+# How long a stop looks for a pump whose port was lost (host seconds), and how often it
+# tries to reopen the port meanwhile: a USB pump re-enumerates within a few seconds.
+RECONNECT_S = 10.0
+REOPEN_PERIOD_S = 0.1
 _RUNNING = (PumpState.INFUSING, PumpState.WITHDRAWING)
 # The volume counters, and the one each motion moves.
 _COUNTERS = ("ivolume", "wvolume")
@@ -180,6 +189,10 @@ class PhdUltra:
         self.nvram_off_command: str | None = None
         self.connect_warnings: list[str] = []
         self._transport = transport
+        # opens the port again after it was lost (None: a transport given, not opened)
+        self._reopen = None
+        self.reconnect_s = RECONNECT_S
+        self._not_found = False  # a lost port did not come back within reconnect_s
         self._limits: dict[str, tuple[float, float]] = {}
         self._lost: Exception | None = None
         self._resync_due = False
@@ -218,8 +231,9 @@ class PhdUltra:
     ) -> PhdUltra:
         """Open ``port`` (a device path or a pyserial URL) at 8N1, no flow control, and
         connect. ``exclusive`` locks the port so a second program gets a clear error."""
-        try:
-            transport = serial.serial_for_url(
+
+        def open_port():
+            return serial.serial_for_url(
                 port,
                 baudrate=baudrate,
                 bytesize=serial.EIGHTBITS,
@@ -229,6 +243,9 @@ class PhdUltra:
                 write_timeout=timeout_s,
                 exclusive=exclusive,
             )
+
+        try:
+            transport = open_port()
         except (serial.SerialException, ValueError, OSError) as exc:
             if "exclusively lock" in str(exc):
                 raise PumpPortError(
@@ -244,6 +261,7 @@ class PhdUltra:
             timeout_s=timeout_s,
             port_name=port,
         )
+        pump._reopen = open_port
         try:
             pump.connect()
         except BaseException:
@@ -526,14 +544,48 @@ class PhdUltra:
         call returns once the pump has confirmed it (or raises saying it did not)."""
         with self._stop_first():
             if not self._io_lock.acquire(timeout=self.stop_wait_s):
-                self._write_stop_beside()
+                with contextlib.suppress(PumpDisconnected):  # found again below
+                    self._write_stop_beside()
                 self._io_lock.acquire()
             try:
+                if self._lost is not None:
+                    self._reconnect_locked()
                 state = self._stop_locked().state
             finally:
                 self._io_lock.release()
         if state in _RUNNING:
             raise PumpError(f"the pump still reports {state.value} after 'stop'")
+
+    def _reconnect_locked(self) -> None:
+        """Close the lost port and open its path again (io lock held), for up to
+        ``reconnect_s``: the pump re-enumerates under the same by-id path. Host waits
+        only: a stop never waits on the rig's clock."""
+        lost = self._lost
+        if self._reopen is None:
+            raise PumpDisconnected(f"the port {self.port_name} was lost earlier ({lost})")
+        with contextlib.suppress(serial.SerialException, OSError):
+            self._transport.close()
+        # a port that did not come back in time is tried once per later stop
+        deadline = time.monotonic() + (0.0 if self._not_found else self.reconnect_s)
+        while True:
+            try:
+                transport = self._reopen()
+                break
+            except (serial.SerialException, OSError, ValueError) as exc:
+                if time.monotonic() >= deadline:
+                    self._not_found = True
+                    raise PumpDisconnected(
+                        f"the port {self.port_name} was lost earlier ({lost}) and did not "
+                        f"come back within {self.reconnect_s:g} s: the stop was not sent"
+                    ) from exc
+                time.sleep(REOPEN_PERIOD_S)
+        log.warning("the pump's port %s came back after it was lost (%s)", self.port_name, lost)
+        self._transport = transport
+        self._lost = None
+        self._not_found = False
+        self._resync_due = self._deaf = False  # a new port: nothing in flight on it
+        # not under the status lock: a poll holding it waits for this stop
+        self._stale_counters.update(_COUNTERS)
 
     def _write_stop_beside(self) -> None:
         """Write a stop while another thread holds the port: that exchange abandons its
@@ -796,8 +848,7 @@ class PhdUltra:
     def _disconnected(self, exc: Exception) -> PumpDisconnected:
         self._lost = exc
         return PumpDisconnected(
-            f"lost the serial port {self.port_name} ({exc}); the pump may still be running: "
-            "press Stop on the pump"
+            f"lost the serial port {self.port_name} ({exc}); the pump may still be running"
         )
 
     def _discard_pending(self) -> None:

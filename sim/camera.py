@@ -515,12 +515,6 @@ class SimCamera:
         """Every later frame's stamp is off by ``by_s`` (the camera's clock jumped)."""
         self._clock_jump_s = float(by_s)
 
-    def restart_slowly(self, first_frame_delay_s: float) -> None:
-        """The stream restarts (a UVC camera re-initialising, as after a USB reset) and
-        its first frame comes ``first_frame_delay_s`` after the next grab."""
-        self.first_frame_delay_s = float(first_frame_delay_s)
-        self._restart_stream()
-
     def _restart_stream(self) -> None:
         """A new format: the stream stops (its queued buffers are dropped) and starts
         again at the next read, where the exposure settles again."""

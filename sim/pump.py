@@ -13,8 +13,13 @@ pumps); the firmware's own options (poll mode, strict addressing, infuse-only, m
 command) pass through to ``PumpFirmware``. In ``poll on`` each prompt is followed by XON
 and no event prompt is sent; in ``poll remote`` no prompt at all. A reply is framed in
 the mode in force when its command arrived.
-Faults are injected on demand: garbage, dropped or slow replies, a disconnect, a stall,
-a reply line that dies mid-reply (``go_silent``: commands still arrive and act).
+Faults are injected on demand: garbage, dropped or slow replies (to every command or
+to some), a disconnect, a stall, a reply line that dies mid-reply (``go_silent``:
+commands still arrive and act; ``go_silent_at_stop``: as the next stop arrives), and a
+USB link that drops and re-enumerates (``re_enumerate``): the port disappears and comes
+back as another pseudo-terminal. Like udev's ``/dev/serial/by-id/...`` links, ``by_id``
+gives a stable symbolic link that always points at the current one; the plunger keeps
+doing what it did meanwhile.
 One thread serves the port with ``select`` and a timeout, so it never blocks for long.
 
 The plunger's own events are timers on the shared clock (``Clock.call_at``), not host
@@ -29,6 +34,7 @@ set before the reply goes out, so nothing can move time past it unseen.
 from __future__ import annotations
 
 import collections
+import contextlib
 import logging
 import os
 import random
@@ -82,10 +88,13 @@ class PumpEmulator:
         infuse_only: bool = False,
         memory_command: str | None = "nvram",
         echo_settings: bool = False,
+        by_id: str | os.PathLike | None = None,
     ) -> None:
         """The syringe, load and force options are the firmware's (``PumpFirmware``).
         Replies are written ``reply_chunk_bytes`` at a time, ``chunk_gap_s`` apart, to
-        exercise the driver on partial lines; ``seed`` makes injected garbage repeatable."""
+        exercise the driver on partial lines; ``seed`` makes injected garbage repeatable.
+        ``by_id``: the path of a symbolic link kept pointing at the current port (the
+        port the driver should open, as a rig file names /dev/serial/by-id/...)."""
         if reply_style not in ("plain", "prefixed"):
             raise ValueError(f"reply_style must be 'plain' or 'prefixed', got {reply_style!r}")
         if target_prompt not in ("T*", "T:", ":T*"):
@@ -122,6 +131,11 @@ class PumpEmulator:
         self._cut_next = False
         self._garble = 0
         self._delay_s = 0.0
+        self._slow_commands: frozenset[str] | None = None  # None: every command is slow
+        self._silent_at_stop = False
+        self._by_id = None if by_id is None else os.fspath(by_id)
+        self._closed = False
+        self._replug: threading.Timer | None = None  # a re-enumeration's comeback
         self._port: str | None = None
         self._master = self._slave = -1
         self._wake_r = self._wake_w = -1
@@ -137,18 +151,28 @@ class PumpEmulator:
 
     @property
     def port(self) -> str:
-        """The device path the driver opens."""
+        """The device path the driver opens: the stable link with ``by_id``, else the
+        pseudo-terminal's own path."""
         if self._port is None:
             raise RuntimeError("the emulator is not started")
+        return self._by_id or self._port
+
+    @property
+    def tty_path(self) -> str | None:
+        """The pseudo-terminal the pump is on, or was on last (None before a start)."""
         return self._port
 
-    def start(self) -> PumpEmulator:
-        self._master, self._slave = os.openpty()
+    def start(self, pty: tuple[int, int] | None = None) -> PumpEmulator:
+        """Serve on a new pseudo-terminal (or on ``pty``, a (master, slave) pair)."""
+        self._master, self._slave = pty or os.openpty()
         # Raw at once: in the default cooked mode the line discipline would echo our own
         # replies back to us until the driver opens the port and sets raw mode.
         tty.setraw(self._slave)
         os.set_blocking(self._master, False)
         self._port = os.ttyname(self._slave)
+        if self._by_id is not None:
+            _point_link(self._by_id, self._port)
+        self._inbuf.clear()
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_w, False)
         self._serving = True
@@ -157,8 +181,16 @@ class PumpEmulator:
         return self
 
     def close(self) -> None:
-        """Stop serving and release the pseudo-terminal."""
+        """Stop serving and release the pseudo-terminal (and the by-id link)."""
+        with self._lock:
+            self._closed = True
+        if self._replug is not None:
+            self._replug.cancel()
+            self._replug.join()  # a plug-back under way finishes before the release
         self._shut_down()
+        if self._by_id is not None:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(self._by_id)
 
     def __enter__(self) -> PumpEmulator:
         return self.start()
@@ -225,14 +257,46 @@ class PumpEmulator:
             self._silent = True
             self._cut_next = True
 
-    def slow_replies(self, delay_s: float) -> None:
-        """Delay every reply by ``delay_s`` real seconds (0 to stop)."""
+    def go_silent_at_stop(self) -> None:
+        """The reply line dies as the next stop arrives: the stop acts (the plunger
+        stops), its reply stops half-way, and nothing is sent after it."""
+        with self._lock:
+            self._silent_at_stop = True
+
+    def slow_replies(self, delay_s: float, commands: tuple[str, ...] | None = None) -> None:
+        """Delay the replies to ``commands`` (default every command) by ``delay_s`` real
+        seconds (0 to stop)."""
         with self._lock:
             self._delay_s = delay_s
+            self._slow_commands = None if commands is None else frozenset(commands)
 
     def disconnect(self) -> None:
         """Pull the cable: the port disappears. The plunger keeps doing what it did."""
         self._shut_down()
+
+    def re_enumerate(self, after_s: float) -> None:
+        """The USB link drops now and the pump comes back ``after_s`` real seconds later
+        as another pseudo-terminal (the by-id link follows it), as after a brown-out or
+        a cable pulled and plugged back. The plunger keeps doing what it did; whatever
+        was in flight on the line is lost."""
+        # the new port is opened while the old one is still open, so it cannot take
+        # the old one's number: a driver holding the dead port must find the new path
+        pty = os.openpty()
+        self._shut_down()
+        with self._lock:
+            self._outgoing.clear()
+        self._replug = threading.Timer(after_s, self._plug_back, (pty,))
+        self._replug.daemon = True
+        self._replug.start()
+
+    def _plug_back(self, pty: tuple[int, int]) -> None:
+        with self._lock:
+            closed = self._closed
+        if closed:  # the emulator was closed while unplugged: it stays so
+            for fd in pty:
+                os.close(fd)
+            return
+        self.start(pty)
 
     def _garbage(self, n_bytes: int) -> bytes:
         return bytes(self._rng.choice(_GARBAGE) for _ in range(n_bytes))
@@ -293,6 +357,9 @@ class PumpEmulator:
         if not data:
             return  # poll remote: a command without payload gets nothing back
         with self._lock:
+            if self._silent_at_stop and answer.command in ("stop", "stp"):
+                self._silent_at_stop = False
+                self._silent = self._cut_next = True
             if self._silent:
                 if not self._cut_next:
                     return
@@ -304,7 +371,8 @@ class PumpEmulator:
             if self._garble:
                 data = b"\n" + self._garbage(self._garble) + b"\r" + data
                 self._garble = 0
-            self._queue(data, self._delay_s)
+            slow = self._slow_commands is None or answer.command in self._slow_commands
+            self._queue(data, self._delay_s if slow else 0.0)
 
     def _frame(self, answer, poll_mode: str) -> bytes:
         prompt = self._prompt(answer.state)
@@ -371,3 +439,13 @@ class PumpEmulator:
                 os.write(self._master, data)
             except BlockingIOError:
                 log.warning("pty buffer full: nobody reads the pump, dropped %r", data)
+
+
+def _point_link(link: str, target: str) -> None:
+    """Point the symbolic link ``link`` at ``target`` in one step (as udev replaces a
+    by-id link): a reader never sees it missing or half-made."""
+    temporary = f"{link}.{os.getpid()}.new"
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(temporary)
+    os.symlink(target, temporary)
+    os.replace(temporary, link)

@@ -15,11 +15,16 @@ class SimTechnician:
         self.clock = clock
         self.plant = plant
         self.answer_s = float(answer_s)
+        self.withdrawn = False
 
     def prompt(self, message: str, connect: str | None) -> None:
         self.clock.sleep(self.answer_s)
-        if connect is not None:
+        if connect is not None and not self.withdrawn:
             self.plant.connect(connect, self.clock.now())
+
+    def withdraw(self, reason: str) -> None:
+        """The run stopped: a prompt being answered is not acted on."""
+        self.withdrawn = True
 
     def reservoir(self, volume_ml: float, duration_s: float) -> None:
         self.plant.push_reservoir(volume_ml, duration_s, self.clock.now())

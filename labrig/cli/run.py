@@ -107,6 +107,8 @@ def _run(loaded, rig_config, out_path: Path, live_view=None) -> None:
     from rich.progress import BarColumn, Progress, TextColumn
 
     from labrig.rig.assembly import build_rig
+    from labrig.run.keep_awake import system_kept_awake
+    from labrig.run.pump_stop import PUMP_STOP_NOT_CONFIRMED
     from labrig.run.runner import Runner, Timing
 
     console = Console(stderr=True)
@@ -152,8 +154,13 @@ def _run(loaded, rig_config, out_path: Path, live_view=None) -> None:
         rig_t0 = rig.clock.now()
         tap = live_view.state.tap if live_view is not None else None
         timing = Timing(signal_timeout_s=rig_config.signal_timeout_s)
-        result = Runner(loaded, rig, out_path, on_progress=show, data_tap=tap, timing=timing).run()
+        runner = Runner(loaded, rig, out_path, on_progress=show, data_tap=tap, timing=timing)
+        with system_kept_awake():
+            result = runner.run()
         rig_s, wall_s = rig.clock.now() - rig_t0, time.monotonic() - wall0
+    if not result.stop_confirmed:
+        # first, before anything else is printed: the plunger may still be moving
+        console.print(f"[bold red]{PUMP_STOP_NOT_CONFIRMED}[/]", highlight=False)
     if live_view is not None:
         live_view.finish(result.status, result.reason)
     if rig.simulation is not None:

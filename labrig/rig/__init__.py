@@ -15,6 +15,7 @@ __getattr__, __dir__ = lazy_exports(
             "Pump",
             "PumpState",
             "PumpStatus",
+            "Rig",
         ],
         "assembly": ["build_rig"],
         "simulated": ["SimulatedParts"],

@@ -13,8 +13,8 @@ from labrig.config.protocol import Protocol
 from labrig.config.rig_file import RigConfig, rig_config_text
 from labrig.errors import InputError
 from labrig.rig.connect import needs_technician, pressure_driver, set_up_pump
+from labrig.rig.devices import Rig
 from labrig.rig.simulated import build_simulated_rig
-from labrig.run.runner import Rig
 from labrig.time.clock import RealClock
 
 
@@ -64,5 +64,5 @@ def _build_real_rig(protocol: Protocol, config: RigConfig) -> Rig:
     if needs_technician(protocol):
         from labrig.run.technician import ConsoleTechnician
 
-        rig.technician = ConsoleTechnician()
+        rig.technician = ConsoleTechnician(clock)
     return rig

@@ -1,5 +1,5 @@
 """The device contracts: what the runner needs from a pump, a pressure source and a
-length source.
+length source, and the ``Rig`` that holds one of each with the clock they share.
 
 Small runtime-checkable protocols in physical units, after bluesky's ``protocols.py``:
 a real driver and a simulator are interchangeable because both fit the same contract,
@@ -10,10 +10,13 @@ device's own units. Every timestamp is on the run's shared clock (``labrig.time.
 from __future__ import annotations
 
 import enum
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
+
+from labrig.time.clock import Clock
 
 
 class PumpState(enum.Enum):
@@ -143,3 +146,20 @@ class LengthSource(Protocol):
         ...
 
     def close(self) -> None: ...
+
+
+@dataclass
+class Rig:
+    """The devices of one run and the clock they share."""
+
+    clock: Clock
+    pump: Pump
+    pressure: PressureSource
+    length: LengthSource | None
+    config_text: str
+    close: Callable[[], None] = lambda: None
+    # The simulated specimen and emulators behind the drivers, when simulated: the
+    # truth that tests and benchmarks compare the recorded data with.
+    simulation: object | None = None
+    # who answers the protocol's prompts and pushes the reservoir (labrig.run.technician)
+    technician: object | None = None

@@ -5,19 +5,24 @@ behind the capture — all fed by one plant on one simulated clock."""
 from __future__ import annotations
 
 import math
+import tempfile
 from contextlib import ExitStack
 from dataclasses import dataclass
+from pathlib import Path
 
 from labrig.config.protocol import Protocol
 from labrig.config.rig_file import CameraConfig, LoadCellConfig, RigConfig, rig_config_text
 from labrig.rig.connect import needs_technician, pressure_driver, set_up_pump
-from labrig.run.runner import Rig
+from labrig.rig.devices import Rig
 
 # The simulated camera's sensor (px) when the rig file has no camera section: a small
 # monochrome camera, so a simulated run's video (every frame rendered whole and encoded)
 # costs a fraction of a 1280x720 colour one; tracking reads only the markers' windows
 # at any size.
 SIM_CAMERA_SIZE = (640, 360)
+# How long the simulated rig's pump driver looks for a lost port (host seconds; 10 s on
+# the bench): the emulator's re-enumerations take at most a second.
+SIM_RECONNECT_S = 2.0
 
 
 def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
@@ -36,8 +41,12 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
     clock = VirtualClock(speed=sim.speed)
     syringe = config.pump.syringe
     plant_box: list[Plant] = []
+    # the pump is opened by a stable link, like udev's /dev/serial/by-id/... one, which
+    # follows it when it re-enumerates as another pseudo-terminal
+    link_dir = Path(tempfile.mkdtemp(prefix="labrig-sim-serial-"))
     emulator = PumpEmulator(
         clock,
+        by_id=link_dir / "usb-Harvard_Apparatus_PHD_ULTRA_SIM-if00",
         address=config.pump.address,
         diameter_mm=syringe.diameter_mm,
         syringe_ml=syringe.volume_ml,
@@ -57,6 +66,7 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
         )
     plant_box.append(plant)
     with ExitStack() as stack:
+        stack.callback(link_dir.rmdir)
         emulator.start()
         stack.callback(emulator.close)
         pump = PhdUltra.open(
@@ -66,6 +76,8 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
             timeout_s=sim.reply_timeout_s,
         )
         stack.callback(pump.close)
+        # the emulator re-enumerates within a second of host time when told to
+        pump.reconnect_s = SIM_RECONNECT_S
         set_up_pump(pump, config.pump, protocol)
         p = config.pressure
         daq_tasks: list[SimDaqTask] = []
@@ -101,7 +113,7 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
 
         factories = {"task_factory": new_task, "reader_factory": SimAnalogMultiChannelReader}
         pressure = pressure_driver(NiDaqPressure, clock, config, protocol, factories)
-        length = camera = None
+        length = camera = capture = None
         if protocol.acquisition.camera_fps > 0:
             size = SIM_CAMERA_SIZE
             if config.camera is not None and config.camera.width and config.camera.height:
@@ -121,8 +133,9 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
             wanted = config.camera or CameraConfig(
                 mm_per_px=mm_per_px, width=size[0], height=size[1]
             )
+            capture = SlowStartingCapture(camera, clock)
             frames = FrameSource.live(
-                camera, clock, "simulated camera", warmup_frames=wanted.warmup_frames
+                capture, clock, "simulated camera", warmup_frames=wanted.warmup_frames
             )
             frames.configure(wanted.settings(protocol.acquisition.camera_fps))
             stack.callback(frames.close)
@@ -133,7 +146,7 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
             )
             stack.callback(length.close_tracker)
         closer = stack.pop_all()
-    simulation = SimulatedParts(plant, emulator, camera, daq_tasks)
+    simulation = SimulatedParts(plant, emulator, camera, daq_tasks, capture, SimDisk(clock))
     rig = Rig(clock, pump, pressure, length, rig_config_text(config), closer.close, simulation)
     if needs_technician(protocol):
         from labrig.sim.technician import SimTechnician
@@ -179,6 +192,44 @@ class SimulatedParts:
     emulator: object
     camera: object | None
     daq_tasks: list  # every SimDaqTask made so far; the last one is acquiring
+    capture: SlowStartingCapture | None = None  # the camera as the driver sees it
+    disk: SimDisk | None = None  # a run file's disk, when the run writes through it
+
+
+class SimDisk:
+    """A disk whose writes can be made to take rig time (a USB stick, a network share,
+    a virus scanner): ``write`` is a runner's data tap, called with every append to the
+    run file, and sleeps ``write_s`` on the clock in the thread that writes."""
+
+    def __init__(self, clock) -> None:
+        self.clock = clock
+        self.write_s = 0.0
+
+    def write(self, *appended) -> None:
+        if self.write_s > 0:
+            self.clock.sleep(self.write_s)
+
+
+class SlowStartingCapture:
+    """The simulated camera as a UVC webcam starts: its first frame comes
+    ``first_frame_s`` of rig time after the first grab (0.3-1 s is common; 0 unless a
+    test or the soak sets it, so the simulated rig's data stay as they were). Every
+    other call goes to the camera."""
+
+    def __init__(self, camera, clock) -> None:
+        self.camera = camera
+        self.clock = clock
+        self.first_frame_s = 0.0
+        self._started = False
+
+    def read(self):
+        if not self._started:
+            self._started = True
+            self.clock.sleep(self.first_frame_s)
+        return self.camera.read()
+
+    def __getattr__(self, name: str):
+        return getattr(self.camera, name)
 
 
 def _fitting_scale_mm_per_px(segments, protocol: Protocol, width_px: int) -> float:

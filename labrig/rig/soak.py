@@ -1,15 +1,22 @@
-"""The fault soak: many simulated runs, each killed by one device fault at a random rig
-time, each checked for what a technician counts on.
+"""The fault soak: many simulated runs, each ended by one fault at a random rig time,
+each checked for what a technician counts on.
 
 Every run infuses and withdraws on the simulated rig (virtual time: a run of 22 s of
 rig time takes a fraction of that on the host) while one of ``FAULTS`` strikes at a
 time drawn from the seed: a sensor wire cut, a frozen sensor, a DAQ that stalls or is
-unplugged, a pump whose reply line dies mid-reply, a camera whose frames stop or whose
-clock jumps. A run is safe when
+unplugged, a pump whose reply line dies mid-reply or as its stop arrives, a pump that
+drops off USB and re-enumerates, a camera whose frames stop or whose clock jumps, and
+the endings a person or the system gives: Ctrl-C while the run is paced (``--speed``)
+or holding, SIGTERM, SIGHUP. Every run's camera is slow to start (its first frame
+0.3-1 s after the stream starts, as a UVC webcam's), and every run's disk turns slow
+as the fault strikes (each write to the run file then takes ``SLOW_WRITE_S``). A run
+is safe when
 - the emulated plunger stood still from at most ``MAX_STOP_S`` of rig time after the
-  fault on (the firmware's own record of the volume, not the driver's),
-- the run file is finalised (readable, not "running") with status faulted and a reason
-  that names the fault,
+  fault on (``IN_RANGE_DEATH_STOP_S`` for a dead sensor that reads in range; the
+  firmware's own record of the volume, not the driver's), or the run says first of
+  all that the pump's stop was not confirmed (the operator is told);
+- the run file is finalised (readable, not "running") with the fault's status and a
+  reason that names the fault;
 - no pressure sample and no camera frame from before the fault is missing (the
   samples are evenly spaced from the first to the fault, the frames up to one
   allowance before it).
@@ -21,8 +28,10 @@ from __future__ import annotations
 
 import contextlib
 import gc
+import os
 import random
 import resource
+import signal
 import tempfile
 import time
 from collections import Counter
@@ -36,7 +45,9 @@ from labrig.config.protocol import load_protocol
 from labrig.config.rig_file import PressureConfig, PumpConfig, RigConfig, SimConfig
 from labrig.recording.run_reader import open_run, read_log
 from labrig.rig.assembly import build_rig
-from labrig.run.runner import Rig, Runner
+from labrig.rig.devices import Rig
+from labrig.run.pump_stop import PUMP_STOP_NOT_CONFIRMED
+from labrig.run.runner import Runner
 
 # the plunger must stand still this long (rig seconds) after the fault at the latest
 MAX_STOP_S = 1.0
@@ -44,9 +55,10 @@ MAX_STOP_S = 1.0
 # (virtual time stands still meanwhile); the runs' default 10 s would make the soak
 # wait minutes for nothing
 REPLY_TIMEOUT_S = 1.0
-# the fault strikes between these rig times after the run starts: after the zeroing
-# and the first samples, before the protocol's end
-FAULT_WINDOW_S = (1.5, 20.0)
+# the fault strikes between these rig times after the run starts: after the zeroing,
+# the first samples and the camera's first frame (which comes up to 1 s after the
+# stream starts), before the protocol's end
+FAULT_WINDOW_S = (2.5, 20.0)
 # memory is flat when the last run's resident size exceeds the one after the warm-up
 # runs (the first tenth, at least 5) by less than this
 RSS_GROWTH_LIMIT_MB = 32.0
@@ -72,10 +84,56 @@ def _daq(rig: Rig):
 
 @dataclass(frozen=True)
 class Fault:
-    """How to inflict one fault on a simulated rig, and what its run's reason says."""
+    """How to inflict one fault on a simulated rig, and what its run's reason says.
+
+    ``status``: how the run must end; ``unconfirmed``: the fault leaves the pump's stop
+    unconfirmed (the run must say so first); ``speed``: the run paced to this many
+    times real time (a signal comes in host time); ``window_s``: the rig times the
+    fault strikes between, when not ``FAULT_WINDOW_S``; ``stop_s``: how long after the
+    fault the plunger may still move."""
 
     inflict: Callable[[Rig, random.Random], None]
     reason: str
+    status: str = "faulted"
+    unconfirmed: bool = False
+    speed: float | None = None
+    window_s: tuple[float, float] | None = None
+    stop_s: float = MAX_STOP_S
+
+
+# a signal's run is paced: the handler runs in host time, and an unpaced rig would
+# run on meanwhile at many times real time
+SIGNAL_SPEED = 5.0
+# (a signal's window is short, so its paced runs cost little wall time)
+SIGNAL_WINDOW_S = (2.5, 6.0)
+# every run's disk turns slow as its fault strikes: this long (rig seconds) for each
+# write to the run file (a USB stick, a network share), so no stop may wait for it
+SLOW_WRITE_S = 0.5
+# every run's camera delivers its first frame this long after the stream starts
+CAMERA_FIRST_FRAME_S = (0.3, 1.0)
+# A dead sensor that still reads in range is seen only by the pressure's response to
+# the volume infused: it strikes while the infusion is judged (1-3.5 mL infused at
+# 60 mL/min), and the pump may run on for the judged millilitre (1 s) and the stop.
+IN_RANGE_DEATH_WINDOW_S = (2.5, 4.0)
+IN_RANGE_DEATH_STOP_S = 1.5
+
+
+def _send(signum: int) -> Callable[[Rig, random.Random], None]:
+    return lambda rig, rng: os.kill(os.getpid(), signum)
+
+
+def _ctrl_c_in_the_hold(rig: Rig, rng: random.Random) -> None:
+    """Ctrl-C once the infusion has ended (the protocol holds for 1 s)."""
+    emulator = rig.simulation.emulator
+    rig.clock.wait_for(lambda: emulator.net_volume_ml(rig.clock.now()) >= 9.999, 60.0)
+    rig.clock.sleep(rng.uniform(0.1, 0.8))
+    os.kill(os.getpid(), signal.SIGINT)
+
+
+def _stop_dies(rig: Rig, rng: random.Random) -> None:
+    """The reply line dies as the stop arrives, the stop sent for a cut supply."""
+    rig.simulation.emulator.go_silent_at_stop()
+    _daq(rig).fail("supply-cut")
 
 
 FAULTS: dict[str, Fault] = {
@@ -83,11 +141,18 @@ FAULTS: dict[str, Fault] = {
         lambda rig, rng: _daq(rig).fail("vout-cut"), "outside the sensor's range"
     ),
     "sensor-supply-cut": Fault(lambda rig, rng: _daq(rig).fail("supply-cut"), "not a number"),
-    "sensor-frozen": Fault(lambda rig, rng: _daq(rig).fail("frozen"), "pressure signal stuck"),
+    "sensor-frozen": Fault(
+        lambda rig, rng: _daq(rig).fail("frozen"),
+        "did not respond to the volume infused",
+        window_s=IN_RANGE_DEATH_WINDOW_S,
+        stop_s=IN_RANGE_DEATH_STOP_S,
+    ),
     "daq-stall": Fault(lambda rig, rng: _daq(rig).fail("stall"), "pressure: no sample"),
     "daq-unplugged": Fault(lambda rig, rng: _daq(rig).fail("vanish"), "cannot be reached"),
     "pump-silent": Fault(
-        lambda rig, rng: rig.simulation.emulator.go_silent(), "no complete reply from the pump"
+        lambda rig, rng: rig.simulation.emulator.go_silent(),
+        "no complete reply from the pump",
+        unconfirmed=True,
     ),
     "camera-stops": Fault(
         lambda rig, rng: rig.simulation.camera.stop_frames(), "camera: no sample"
@@ -95,17 +160,47 @@ FAULTS: dict[str, Fault] = {
     # the sensor's output wire cut: the open input floats at 27 kPa; only the pressure's
     # response to the volume infused can tell (where the model expects it to move)
     "floating-wire": Fault(
-        lambda rig, rng: _daq(rig).fail("vout-floating"), "did not respond to the volume infused"
-    ),
-    # the camera's stream restarts and its first frame comes 0.6-1 s late: beyond the
-    # frame allowance once the run is under way
-    "camera-slow-start": Fault(
-        lambda rig, rng: rig.simulation.camera.restart_slowly(rng.uniform(0.6, 1.0)),
-        "camera: no sample",
+        lambda rig, rng: _daq(rig).fail("vout-floating"),
+        "did not respond to the volume infused",
+        window_s=IN_RANGE_DEATH_WINDOW_S,
+        stop_s=IN_RANGE_DEATH_STOP_S,
     ),
     "camera-clock-jump": Fault(
         lambda rig, rng: rig.simulation.camera.jump_clock(rng.choice((-1, 1)) * rng.uniform(2, 30)),
         "the camera's clock jumped",
+    ),
+    "pump-stop-unconfirmed": Fault(_stop_dies, "not a number", unconfirmed=True),
+    "pump-re-enumerates": Fault(
+        lambda rig, rng: rig.simulation.emulator.re_enumerate(rng.uniform(0.1, 1.0)),
+        "pump: lost the serial port",
+    ),
+    "sigterm": Fault(
+        _send(signal.SIGTERM),
+        "stopped by SIGTERM",
+        status="aborted",
+        speed=SIGNAL_SPEED,
+        window_s=SIGNAL_WINDOW_S,
+    ),
+    "sighup": Fault(
+        _send(signal.SIGHUP),
+        "(SIGHUP)",
+        status="aborted",
+        speed=SIGNAL_SPEED,
+        window_s=SIGNAL_WINDOW_S,
+    ),
+    "ctrl-c-paced": Fault(
+        _send(signal.SIGINT),
+        "stopped by the operator (Ctrl-C)",
+        status="aborted",
+        speed=SIGNAL_SPEED,
+        window_s=SIGNAL_WINDOW_S,
+    ),
+    "ctrl-c-holding": Fault(
+        _ctrl_c_in_the_hold,
+        "stopped by the operator (Ctrl-C)",
+        status="aborted",
+        speed=SIGNAL_SPEED,
+        window_s=(2.5, 5.0),
     ),
 }
 
@@ -153,7 +248,8 @@ class SoakSummary:
         return (
             f"soak {'PASS' if self.ok else 'FAIL'}: {self.safe}/{self.runs} runs safe "
             f"(seed {self.seed}; {kinds}); pump stopped at most {self.max_stop_s:.2f} s "
-            f"after the fault ({MAX_STOP_S:g} s allowed); memory {self.rss_start_mb:.0f} -> "
+            f"after the fault ({MAX_STOP_S:g} s allowed, {IN_RANGE_DEATH_STOP_S:g} s for a "
+            f"sensor dead in range); memory {self.rss_start_mb:.0f} -> "
             f"{self.rss_end_mb:.0f} MB ({'flat' if self.memory_flat else 'GROWING'}); "
             f"{self.wall_s:.0f} s"
         )
@@ -173,7 +269,11 @@ def fault_plan(runs: int, seed: int) -> list[tuple[str, float]]:
     rng = random.Random(seed)
     kinds = list(FAULTS)
     rng.shuffle(kinds)
-    return [(kinds[i % len(kinds)], rng.uniform(*FAULT_WINDOW_S)) for i in range(runs)]
+    plan = []
+    for i in range(runs):
+        kind = kinds[i % len(kinds)]
+        plan.append((kind, rng.uniform(*(FAULTS[kind].window_s or FAULT_WINDOW_S))))
+    return plan
 
 
 def soak(
@@ -211,30 +311,40 @@ def soak(
 
 def _one_run(loaded, path: Path, index: int, kind: str, fault_s: float, seed: int) -> RunVerdict:
     wall0 = time.monotonic()
+    fault = FAULTS[kind]
     config = RigConfig(
         pump=PumpConfig(port="emulator"),
         # the supply measured, as the docs advise: a cut supply then reads NaN
         pressure=PressureConfig(supply_channel="Dev1/ai1"),
-        sim=SimConfig(seed=seed * 1009 + index, reply_timeout_s=REPLY_TIMEOUT_S),
+        sim=SimConfig(seed=seed * 1009 + index, reply_timeout_s=REPLY_TIMEOUT_S, speed=fault.speed),
     )
     rig = build_rig(loaded.protocol, config)
     rng = random.Random(seed * 7919 + index)
+    rig.simulation.capture.first_frame_s = rng.uniform(*CAMERA_FIRST_FRAME_S)
     start_s = rig.clock.now()
-    fault_at_s = start_s + fault_s
+    struck_at_s = [start_s + fault_s]
 
     def strike() -> None:
-        rig.clock.sleep(fault_at_s - rig.clock.now())
-        FAULTS[kind].inflict(rig, rng)
+        rig.clock.sleep(struck_at_s[0] - rig.clock.now())
+        fault.inflict(rig, rng)
+        struck_at_s[0] = rig.clock.now()  # a fault that waits for its moment (the hold)
+        rig.simulation.disk.write_s = SLOW_WRITE_S
 
     with rig.clock.participate():
         rig.clock.start_thread(strike, "fault")
-        result = Runner(loaded, rig, path).run()
+        result = Runner(loaded, rig, path, data_tap=rig.simulation.disk.write).run()
     end_s = rig.clock.now()
+    fault_at_s = struck_at_s[0]
     problems = []
-    if result.status != "faulted" or FAULTS[kind].reason not in result.reason:
+    if result.status != fault.status or fault.reason not in result.reason:
         problems.append(f"ended {result.status}: {result.reason!r}")
+    told = result.reason.startswith(PUMP_STOP_NOT_CONFIRMED)
+    if told == result.stop_confirmed:
+        problems.append(f"stop confirmed {result.stop_confirmed}, reason {result.reason!r}")
+    if fault.unconfirmed and result.stop_confirmed:
+        problems.append("the stop was confirmed by a pump that cannot answer")
     stopped_after_s = _stopped_after_s(rig, fault_at_s, end_s)
-    if stopped_after_s > MAX_STOP_S:
+    if stopped_after_s > fault.stop_s and result.stop_confirmed:
         problems.append(f"the plunger moved until {stopped_after_s:.2f} s after the fault")
     finalised, samples_kept, frames_kept = _check_file(path, result, fault_at_s, problems)
     path.unlink(missing_ok=True)

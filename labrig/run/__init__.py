@@ -7,7 +7,7 @@ from labrig.exports import lazy_exports
 __getattr__, __dir__ = lazy_exports(
     "labrig.run",
     {
-        "runner": ["Rig", "Runner"],
+        "runner": ["Runner"],
         "interlocks": ["InterlockMonitor"],
         "dry_run": ["dry_run_report"],
     },

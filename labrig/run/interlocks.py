@@ -86,43 +86,6 @@ class PressureSignal(Interlock):
         )
 
 
-class PressureStuck(Interlock):
-    """Trips when every sample for ``stuck_s`` (and at least ``min_samples``) is the
-    same number: a live sensor's noise moves the ADC's last bits, a frozen input does
-    not. Only the latest stretch of equal samples is followed, across blocks."""
-
-    outcome = "faulted"
-
-    def __init__(self, stuck_s: float, min_samples: int = 50) -> None:
-        self.stuck_s = stuck_s
-        self.min_samples = min_samples
-        self._value = np.nan
-        self._since_s = 0.0
-        self._count = 0
-
-    def check_pressure(self, block: PressureBlock) -> str | None:
-        p, t = block.pressure_kpa, block.t_s
-        if len(p) == 0:
-            return None
-        changes = np.flatnonzero(p[1:] != p[:-1])
-        if len(changes):
-            start = int(changes[-1]) + 1
-            self._since_s, self._count = float(t[start]), len(p) - start
-        elif p[0] == self._value:
-            self._count += len(p)
-        else:
-            self._since_s, self._count = float(t[0]), len(p)
-        self._value = float(p[-1])
-        stuck_s = float(t[-1]) - self._since_s
-        if stuck_s >= self.stuck_s and self._count >= self.min_samples:
-            return (
-                f"pressure signal stuck at {self._value:.2f} kPa for {stuck_s:.2f} s since "
-                f"t = {self._since_s:.2f} s ({self._count} identical samples: a frozen "
-                "sensor or input)"
-            )
-        return None
-
-
 # The pressure-response interlock's numbers (docs/reference/interlocks.md derives them).
 # The pressure is judged in 0.1 s means: five mains periods at 50 Hz, six at 60 Hz, so
 # hum cancels, and a 0.05 kPa sample noise (the USB-6009's 13-bit RSE step) becomes 0.005.

@@ -6,6 +6,10 @@ or is unplugged, or a camera that stops streaming, sends none, and nothing would
 first signal that has been quiet for longer than its allowance; the runner asks it a
 few times a second from a loop of its own, so a reading loop blocked inside a driver
 cannot hide its own silence.
+
+A device slow to start (a UVC webcam takes 0.3-1 s to its first frame) is watched only
+from its first sample on: ``expect(..., start_s=...)`` takes the first time reported
+as the stream's start, and gives the first sample after it ``start_s`` to come.
 """
 
 from __future__ import annotations
@@ -23,24 +27,40 @@ class SignalWatch:
         self._lock = threading.Lock()
         self._newest_s: dict[str, float] = {}
         self._allowed_s: dict[str, float] = {}
+        # per signal still starting: (the clock time it was expected, its allowance to
+        # the first sample, the start time first reported or None)
+        self._starting: dict[str, tuple[float, float, float | None]] = {}
 
-    def expect(self, name: str, allowed_s: float) -> None:
-        """Watch ``name`` from now on: its first sample is due within ``allowed_s``."""
+    def expect(self, name: str, allowed_s: float, start_s: float | None = None) -> None:
+        """Watch ``name`` from now on: its first sample is due within ``allowed_s``;
+        with ``start_s``, the first time reported is the stream's start, and the first
+        sample after it is due within ``start_s`` of now."""
+        now_s = self.clock.now()
         with self._lock:
-            self._newest_s[name] = self.clock.now()
+            self._newest_s[name] = now_s
             self._allowed_s[name] = allowed_s
+            if start_s is not None:
+                self._starting[name] = (now_s, start_s, None)
 
     def forget(self) -> None:
         """Stop watching every signal (acquisition paused: nothing is due)."""
         with self._lock:
             self._newest_s.clear()
             self._allowed_s.clear()
+            self._starting.clear()
 
     def arrived(self, name: str, t_s: float) -> None:
         """A sample of ``name`` taken at clock time ``t_s``."""
         with self._lock:
-            if name in self._newest_s:
-                self._newest_s[name] = max(self._newest_s[name], t_s)
+            if name not in self._newest_s:
+                return
+            if name in self._starting:
+                since_s, start_s, first_s = self._starting[name]
+                if first_s is None or t_s <= first_s:
+                    self._starting[name] = (since_s, start_s, t_s)
+                    return
+                del self._starting[name]  # started: watched from this sample on
+            self._newest_s[name] = max(self._newest_s[name], t_s)
 
     def quiet_s(self, name: str) -> float:
         """How long ``name`` has sent nothing (0 when it is not watched)."""
@@ -52,7 +72,14 @@ class SignalWatch:
         """The reason to stop for the first signal quiet beyond its allowance, or None."""
         now_s = self.clock.now()
         with self._lock:
-            watched = list(self._newest_s.items())
+            watched = [(n, t) for n, t in self._newest_s.items() if n not in self._starting]
+            starting = list(self._starting.items())
+        for name, (since_s, start_s, _) in starting:
+            if now_s - since_s >= start_s:
+                return (
+                    f"{name}: no first sample within {start_s:g} s of starting (since "
+                    f"t = {since_s:.2f} s): the device did not start or was disconnected"
+                )
         for name, newest_s in watched:
             quiet_s = now_s - newest_s
             if quiet_s >= self._allowed_s[name]:

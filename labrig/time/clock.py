@@ -68,11 +68,6 @@ class Clock(Protocol):
         """Make the calling thread a participant of the clock for a ``with`` block."""
         ...
 
-    def interruptible(self) -> bool:
-        """Whether an exception raised now in the calling thread by a signal handler
-        leaves the clock intact (a virtual clock's hand-over must not be cut short)."""
-        ...
-
 
 @runtime_checkable
 class Timer(Protocol):
@@ -123,9 +118,6 @@ class RealClock:
     @contextlib.contextmanager
     def participate(self) -> Iterator[None]:
         yield
-
-    def interruptible(self) -> bool:
-        return True
 
 
 class ScaledClock(RealClock):

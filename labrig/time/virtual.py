@@ -45,6 +45,12 @@ DEFAULT_STALL_TIMEOUT_S = 120.0
 # How far the wall may fall behind a paced timeline before pacing restarts from now
 # (instead of rushing to catch up after a host stall).
 PACING_SLACK_S = 0.25
+# How often (host seconds) a participant waiting for its turn wakes to look again.
+# Python runs a signal handler only in the main thread and only while it runs: a signal
+# the kernel delivered to another thread does not cut the main thread's wait short, so
+# without this a Ctrl-C would wait for the main thread's next turn (seconds in a slowly
+# paced run, forever while another participant holds time still).
+WAKE_S = 0.05
 
 
 def _to_ns(seconds: float) -> int:
@@ -154,15 +160,11 @@ class VirtualClock:
 
     def start_thread(self, target: Callable[[], None], name: str) -> _VirtualThread:
         member = _Member(name)
-        self._enter_bookkeeping()
-        try:
-            with self._lock:
-                # runnable at once, in order: it joins time before the caller moves on
-                self._enqueue(member, self._now_ns, None)
-            thread = self._spawn(member, target, name)
-            self._dispatch()  # started by a thread outside time: nobody else would wake it
-        finally:
-            self._exit_bookkeeping()
+        with self._lock:
+            # runnable at once, in order: it joins time before the caller moves on
+            self._enqueue(member, self._now_ns, None)
+        thread = self._spawn(member, target, name)
+        self._dispatch()  # started by a thread outside time: nobody else would wake it
         return _VirtualThread(member, thread)
 
     def _spawn(self, member: _Member, target: Callable[[], None], name: str) -> threading.Thread:
@@ -192,25 +194,18 @@ class VirtualClock:
             yield  # already taking part: nothing changes
             return
         member = _Member(threading.current_thread().name)
-        self._enter_bookkeeping()
-        try:
-            self._local.member = member
-            with self._lock:
-                join_now = self._running == 0 and not self._waiting
-                if join_now:
-                    self._running += 1
-                else:
-                    self._enqueue(member, self._now_ns, None)
-            if not join_now:
-                self._dispatch()  # nobody may be running to hand time on
-        except BaseException:
-            self._exit_bookkeeping()
-            raise
-        try:
+        self._local.member = member
+        with self._lock:
+            join_now = self._running == 0 and not self._waiting
             if join_now:
-                self._exit_bookkeeping()
+                self._running += 1
             else:
-                self._await_turn(member, bookkeeping=True)
+                self._enqueue(member, self._now_ns, None)
+        if not join_now:
+            self._dispatch()  # nobody may be running to hand time on
+        try:
+            if not join_now:
+                self._await_turn(member)
             yield
         finally:
             self._leave(member)
@@ -228,50 +223,28 @@ class VirtualClock:
         self._waiting.append(member)
 
     def _wait(self, member: _Member, wake_ns: int, predicate) -> bool:
-        self._enter_bookkeeping()
-        try:
-            with self._lock:
-                self._enqueue(member, wake_ns, predicate)
-                self._running -= 1
-            self._dispatch()
-        except BaseException:
-            self._exit_bookkeeping()
-            raise
-        self._await_turn(member, bookkeeping=True)
+        with self._lock:
+            self._enqueue(member, wake_ns, predicate)
+            self._running -= 1
+        self._dispatch()
+        self._await_turn(member)
         return member.result
 
-    # A signal handler's exception (a second Ctrl-C's stop-now) may land between any two
-    # bytecodes of the main thread. Landing inside the hand-over bookkeeping it would
-    # leave the count of running participants wrong and time stopped for good (seen: a
-    # run hung with its only participant waiting for a turn nobody would give). So the
-    # bookkeeping is marked, and a handler asks ``interruptible`` before it raises.
-    def interruptible(self) -> bool:
-        return getattr(self._local, "bookkeeping", 0) == 0
-
-    def _enter_bookkeeping(self) -> None:
-        self._local.bookkeeping = getattr(self._local, "bookkeeping", 0) + 1
-
-    def _exit_bookkeeping(self) -> None:
-        self._local.bookkeeping -= 1
-
-    def _await_turn(self, member: _Member, bookkeeping: bool = False) -> None:
-        """Block until the dispatcher hands this member the baton. The wait is part of
-        the hand-over (``interruptible`` is false throughout: an exception landing just
-        after the turn was taken could not tell whether it was), so a signal handler
-        defers its exception to the turn's start; ``bookkeeping``: the caller already
-        marked it."""
-        if not bookkeeping:
-            self._enter_bookkeeping()
+    def _await_turn(self, member: _Member) -> None:
+        """Block until the dispatcher hands this member the baton."""
         try:
-            handovers = self._handovers
-            while not member.turn.acquire(timeout=self.stall_timeout_s):
+            handovers, waited_s = self._handovers, 0.0
+            while not member.turn.acquire(timeout=min(WAKE_S, self.stall_timeout_s)):
+                waited_s += min(WAKE_S, self.stall_timeout_s)
+                if waited_s < self.stall_timeout_s:
+                    continue
                 if self._handovers == handovers:  # nobody moved at all meanwhile
                     raise ClockStalled(
                         f"virtual clock: {member.name} waited {self.stall_timeout_s:g} s of "
                         f"host time for its turn at t = {self.now():.6f} s while a participant "
                         "held time still (blocked outside the clock)"
                     )
-                handovers = self._handovers
+                handovers, waited_s = self._handovers, 0.0
         except BaseException:
             # stalled: go on running, out of turn if need be
             with self._lock:
@@ -282,19 +255,13 @@ class VirtualClock:
             if dispatched:
                 member.turn.acquire()  # the hand-over is on its way: take it now
             raise
-        finally:
-            self._exit_bookkeeping()
 
     def _leave(self, member: _Member) -> None:
-        self._enter_bookkeeping()
-        try:
-            with self._lock:
-                self._running -= 1
-                member.done = True
-            self._local.member = None
-            self._dispatch()
-        finally:
-            self._exit_bookkeeping()
+        with self._lock:
+            self._running -= 1
+            member.done = True
+        self._local.member = None
+        self._dispatch()
 
     def _dispatch(self) -> None:
         """Hand the baton to the next participant if nobody runs, running every timer

@@ -30,7 +30,6 @@ from support.sensor_runs import Leg, acquire, infuse_judged, shipped_infusions
 from labrig.drivers.ni_daq import NiDaqPressure
 from labrig.model.segments.catalog import load_segment
 from labrig.rig.devices import PressureBlock, PumpState, PumpStatus
-from labrig.run.interlocks import PressureStuck
 from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
 from labrig.time.virtual import VirtualClock
 
@@ -65,16 +64,21 @@ def floating_wire(seeds: int) -> None:
         )
 
 
-class StuckWhileMoving:
-    """The candidate: every sample one number for ``window_s`` while the pump moves."""
+class StuckSignal:
+    """Every sample one number for ``window_s``: labrig's former stuck-signal interlock
+    (``while_moving=False``, 0.5 s) and the candidates judged only while the pump moves."""
 
-    def __init__(self, window_s: float) -> None:
+    def __init__(self, window_s: float, while_moving: bool = True) -> None:
         self.window_s = window_s
+        self.while_moving = while_moving
         self.value = np.nan
         self.since_s: float | None = None
 
     def check(self, block: PressureBlock, status: PumpStatus) -> str | None:
-        moving = status.state in (PumpState.INFUSING, PumpState.WITHDRAWING)
+        moving = not self.while_moving or status.state in (
+            PumpState.INFUSING,
+            PumpState.WITHDRAWING,
+        )
         for t_s, p in zip(block.t_s, block.pressure_kpa, strict=True):
             if not moving or self.since_s is None or p != self.value:
                 self.since_s = None if not moving else float(t_s)
@@ -101,15 +105,14 @@ def stuck_signal(seeds: int, rate_ml_min: float, hold_s: float) -> None:
         tripped = {"always, 0.5 s": 0, **{f"moving, {w:g} s": 0 for w in MOVING_WINDOWS_S}}
         states = set()
         for seed in range(seeds):
-            checks = {"always, 0.5 s": PressureStuck(0.5, 50)}
-            moving = {f"moving, {w:g} s": StuckWhileMoving(w) for w in MOVING_WINDOWS_S}
+            checks = {
+                "always, 0.5 s": StuckSignal(0.5, while_moving=False),
+                **{f"moving, {w:g} s": StuckSignal(w) for w in MOVING_WINDOWS_S},
+            }
             seen: dict[str, str] = {}
 
-            def judge(block, status, checks=checks, moving=moving, seen=seen):
+            def judge(block, status, checks=checks, seen=seen):
                 for name, check in checks.items():
-                    if name not in seen and check.check_pressure(block):
-                        seen[name] = status.state.value
-                for name, check in moving.items():
                     if name not in seen and check.check(block, status):
                         seen[name] = status.state.value
                 return None

@@ -54,13 +54,17 @@ def inject_after(volume_ml, action):
 
 
 def test_serial_disconnect_faults_the_run(tmp_path):
+    """A pulled cable that never comes back: the stop cannot be sent, and the run says
+    so first (the pump keeps running its last command)."""
     outcome = run_sim(
         tmp_path,
         short_protocol(),
         inject=inject_after(5.0, lambda rig: rig.simulation.emulator.disconnect()),
     )
     assert outcome.result.status == "faulted"
-    assert outcome.result.reason.startswith("pump:")
+    assert not outcome.result.stop_confirmed
+    assert outcome.result.reason.startswith("PUMP STOP NOT CONFIRMED: press Stop on the pump")
+    assert "; pump: lost the serial port" in outcome.result.reason
     assert_kept_data_up_to_the_fault(outcome)
     with open_run(outcome.path) as run:
         assert repetition_statuses(run)[0][0] == "faulted"

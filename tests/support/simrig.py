@@ -8,7 +8,8 @@ from pathlib import Path
 from labrig.config.protocol import load_protocol
 from labrig.config.rig_file import sim_rig_config
 from labrig.rig.assembly import build_rig
-from labrig.run.runner import Rig, Runner, RunResult
+from labrig.rig.devices import Rig
+from labrig.run.runner import Runner, RunResult
 
 DEMO = Path(__file__).parents[2] / "protocols" / "demo.yaml"
 
@@ -48,21 +49,35 @@ class Outcome:
 
 
 def run_sim(
-    tmp_path, text, *, inject=None, speed=None, seed=0, name="run.h5", config=None
+    tmp_path,
+    text,
+    *,
+    inject=None,
+    speed=None,
+    seed=0,
+    name="run.h5",
+    config=None,
+    prepare=None,
+    tap=None,
 ) -> Outcome:
     """Run protocol ``text`` on a fresh simulated rig; ``inject(rig)`` runs in a thread
     that takes part in the rig's time, so it acts at a definite rig time and holds time
-    still while it acts. ``config``: a simulated rig configuration of the test's own."""
+    still while it acts. ``config``: a simulated rig configuration of the test's own;
+    ``prepare(rig)`` acts on the rig before the run; ``tap(rig)`` gives the run's data
+    tap (it sees every append to the run file)."""
     protocol_path = tmp_path / "protocol.yaml"
     protocol_path.write_text(text)
     loaded = load_protocol(protocol_path)
     rig = build_rig(loaded.protocol, config or sim_rig_config(speed, seed))
+    if prepare is not None:
+        prepare(rig)
     # the main thread takes part in time before the injector starts: alone, a waiting
     # injector would see everyone waiting and let time run to its timeout
     with rig.clock.participate():
         if inject is not None:
             rig.clock.start_thread(lambda: inject(rig), "inject")
-        result = Runner(loaded, rig, tmp_path / name).run()
+        data_tap = tap(rig) if tap is not None else None
+        result = Runner(loaded, rig, tmp_path / name, data_tap=data_tap).run()
     return Outcome(result, rig, rig.clock.now())
 
 
