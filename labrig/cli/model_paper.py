@@ -4,8 +4,8 @@
 and D, Fig. S4's trends, Movies S3-S6, Fig. 3, Fig. 4) beside what a library gives:
 the paper's value, labrig's, the two-sided tolerance, whether it holds, its role (input,
 fitted, prediction) and, where it does not hold, what the model does instead.
-``--library`` picks the library (``paper``, ``calibrated``, ``si``; the default
-library's otherwise), ``--si`` is ``--library si``. ``calibrate`` repeats the fit that
+``--library`` picks the library (``paper``, ``paper-r``, ``calibrated``, ``si``; the
+default library's otherwise), ``--si`` is ``--library si``. ``calibrate`` repeats the fit that
 produced the calibrated library (``labrig.model.paper.fit``) and prints the fitted
 constants and the objective; it changes nothing on disk.
 """
@@ -19,7 +19,10 @@ import click
 
 from labrig.cli.options import plot_option
 
-_LIBRARY_HELP = "paper (the paper's numbers), calibrated or si (the SI as printed)"
+_LIBRARY_HELP = (
+    "paper (the paper's numbers, tubing read as diameters), paper-r (the same with the braid "
+    "tubing's radius as printed), calibrated or si (the SI as printed)"
+)
 
 
 def _table(outcomes, title: str) -> None:
@@ -55,7 +58,7 @@ def _fitted(library: str) -> dict | None:
 @click.option(
     "--library",
     "library",
-    type=click.Choice(["paper", "calibrated", "si"], case_sensitive=False),
+    type=click.Choice(["paper", "paper-r", "calibrated", "si"], case_sensitive=False),
     default=None,
     help=f"The segment library to check: {_LIBRARY_HELP}. Default: the default library's.",
 )

@@ -141,6 +141,14 @@ def test_the_table_is_printed_and_si_conflicts_with_another_library(capsys):
     assert code == 2 and "--si is --library si" in err
 
 
+def test_the_libraries_offered_include_the_braid_tubing_read_as_a_radius(capsys):
+    # refused before anything is computed, the message names every library
+    code, _, err = run(["model", "paper", "--library", "paper-x"], capsys)
+    assert code == 2
+    for library in ("'paper'", "'paper-r'", "'calibrated'", "'si'"):
+        assert library in err
+
+
 def test_calibrate_reports_the_fit_and_never_worsens_the_start(capsys):
     code, out, _ = run(["model", "calibrate", "--max-evaluations", "1", "--json"], capsys)
     assert code == 0

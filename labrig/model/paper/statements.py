@@ -5,7 +5,7 @@ paper gives as "about x" or "up to x" holds within a factor of two of x, a volum
 3 mL; decision record 0006 fixed them before the paper-numbers library was computed),
 its role (``input``: a constant the paper gives; ``fitted``: in the subset a library was
 fitted to; ``prediction``: the rest) and the library it was computed on
-(``labrig.model.segments.catalog``: ``paper``, ``calibrated``, ``si``).
+(``labrig.model.segments.catalog``: ``paper``, ``paper-r``, ``calibrated``, ``si``).
 
 The statements live in ``segment_statements`` (Fig. 1C, D, Fig. S4, the paper's
 constants), ``actuator_statements`` (Movies S3-S6, Fig. 3, Fig. 4) and
@@ -132,7 +132,7 @@ def snaps_text(snaps: list[Snap]) -> str:
 
 
 def evaluate(library_name: str) -> list[Outcome]:
-    """Every statement for the library ``library_name`` (``paper``, ``calibrated``,
+    """Every statement for the library ``library_name`` (``paper``, ``paper-r``, ``calibrated``,
     ``si``): a few seconds, most of them the 630 pairs of Fig. 3 and Fig. 4 and Movie
     S7's three runs of the simulated plumbing."""
     from labrig.model.paper import actuation_statements, actuator_statements, segment_statements

@@ -108,7 +108,7 @@ def plan_solver(
 def named_library(spec: str | None) -> tuple[str, tuple[str, ...]] | None:
     """The name and segment names of a named library, or None where ``spec`` names a
     folder of measured curves: ``analytical`` (the default: the 36 braided segments by
-    their bare names, the default library's), ``paper``, ``calibrated`` and ``si`` (the
+    their bare names, the default library's), ``paper``, ``paper-r``, ``calibrated`` and ``si`` (the
     36 of that library, named with its prefix as ``labrig.model.segments.catalog``
     spells them: ``paper:B46-T20``), ``gent``. The one place that knows what each named
     library holds: ``load_library`` builds from it, and the plan counts from it without

@@ -75,9 +75,9 @@ class ScanLibrary:
 
 def load_library(spec: str | None) -> ScanLibrary:
     """``analytical`` (default: the 36 braided segments of the default library, by bare
-    name), ``paper``, ``calibrated`` or ``si`` (the 36 of that library, by prefixed name),
-    ``gent`` (the three membranes of Fig. S1) or a folder of measured curves (every
-    ``*.csv`` in it, by file name)."""
+    name), ``paper``, ``paper-r``, ``calibrated`` or ``si`` (the 36 of that library, by
+    prefixed name), ``gent`` (the three membranes of Fig. S1) or a folder of measured
+    curves (every ``*.csv`` in it, by file name)."""
     named = named_library(spec)
     if named is not None:
         name, segment_names = named
@@ -90,8 +90,8 @@ def load_library(spec: str | None) -> ScanLibrary:
     if not folder.is_dir():
         raise InputError(
             f"--library {spec!r}: use 'analytical' (the 36 braided segments of the default "
-            "library), 'paper', 'calibrated' or 'si' (the 36 of that library), 'gent', or a "
-            "folder of measured curves (CSV files volume_ml,pressure_kpa,length_mm)"
+            "library), 'paper', 'paper-r', 'calibrated' or 'si' (the 36 of that library), 'gent', "
+            "or a folder of measured curves (CSV files volume_ml,pressure_kpa,length_mm)"
         )
     from labrig.model.segments.measured import load_csv
 

@@ -7,6 +7,9 @@ library as a prefix (docs/reference/segments.md):
 
 - ``paper:B46-T20``: the SI's segment from the paper's own numbers, tubing read as
   diameters, nothing fitted (``labrig.model.segments.paper_braided``);
+- ``paper-r:B46-T20``: the same segment with the braid tubing's inner radius read as
+  the paper prints it, a radius (7.94 mm), the latex tube still read as diameters
+  (docs/decisions/0009);
 - ``calibrated:B46-T20``: the calibrated form, eight fitted constants
   (``labrig.model.segments.calibrated``);
 - ``si:B46-T20`` (also ``SI-B46-T20``): the SI as printed, R = 6.35 mm
@@ -33,27 +36,27 @@ TUBE_LENGTHS_MM = tuple(range(20, 31, 2))
 LIBRARY_NAMES: tuple[str, ...] = tuple(
     f"B{braid}-T{tube}" for braid in BRAID_LENGTHS_MM for tube in TUBE_LENGTHS_MM
 )
-PAPER, CALIBRATED, SI = "paper", "calibrated", "si"
-LIBRARIES = (PAPER, CALIBRATED, SI)
+PAPER, PAPER_RADIUS, CALIBRATED, SI = "paper", "paper-r", "calibrated", "si"
+LIBRARIES = (PAPER, PAPER_RADIUS, CALIBRATED, SI)
 # The library bare names resolve to, and so the simulated rig's and the demo's: the one
 # that holds more of the paper's statements with fewer fitted constants
 # (docs/explanation/calibration.md).
 DEFAULT_LIBRARY = CALIBRATED
 SI_PREFIX = "SI-"
 SI_NAMES: tuple[str, ...] = tuple(SI_PREFIX + name for name in LIBRARY_NAMES)
-_NAME = re.compile(r"(?:(paper|calibrated|si):|(si-))?(B(\d+)-T(\d+))", re.IGNORECASE)
+_NAME = re.compile(r"(?:(paper-r|paper|calibrated|si):|(si-))?(B(\d+)-T(\d+))", re.IGNORECASE)
 MEASURED_ENV_VAR = "LABRIG_LIBRARY"
 MEASURED_DEFAULT_DIR = Path("library")
 _MEASURED_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 _VALID = (
     f"B{BRAID_LENGTHS_MM[0]}..B{BRAID_LENGTHS_MM[-1]} x T{TUBE_LENGTHS_MM[0]}.."
     f"T{TUBE_LENGTHS_MM[-1]} in steps of 2, e.g. B46-T20, or with a library: paper:B46-T20, "
-    "calibrated:, si:"
+    "paper-r:, calibrated:, si:"
 )
 
 
 def library_names(library: str | None = None) -> tuple[str, ...]:
-    """The 36 names of ``library`` (``paper``, ``calibrated``, ``si``) with its prefix;
+    """The 36 names of ``library`` (``paper``, ``paper-r``, ``calibrated``, ``si``) with its prefix;
     bare names (the default library) for None."""
     if library is None:
         return LIBRARY_NAMES
@@ -82,13 +85,18 @@ def library_geometry(name: str) -> tuple[int, int]:
 
 def library_segment(name: str):
     """The segment object behind a library name (``paper:`` a ``PaperBraidedSegment``,
-    ``si:`` the SI's ``BraidedSegment``, ``calibrated:`` an ``OgdenBraidedSegment``)."""
+    ``paper-r:`` one with the braid tubing's radius as printed, ``si:`` the SI's
+    ``BraidedSegment``, ``calibrated:`` an ``OgdenBraidedSegment``)."""
     braid, tube = library_geometry(name)
     library = parse_library_name(name)[0]
-    if library == PAPER:
-        from labrig.model.segments.paper_braided import PaperBraidedSegment
+    if library in (PAPER, PAPER_RADIUS):
+        from labrig.model.segments import paper_braided
 
-        return PaperBraidedSegment(braid, tube)
+        radius = {
+            PAPER: paper_braided.BRAID_INNER_RADIUS_MM,
+            PAPER_RADIUS: paper_braided.BRAID_INNER_RADIUS_AS_PRINTED_MM,
+        }[library]
+        return paper_braided.PaperBraidedSegment(braid, tube, envelope_radius_mm=radius)
     if library == SI:
         from labrig.model.segments.braided import BraidedSegment
 

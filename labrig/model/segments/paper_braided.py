@@ -42,6 +42,13 @@ Past the fill (or, without a bulge, past first contact) the tube lies on the eig
 strips and bulges out between them as lobes (docs/decisions/0008,
 ``labrig.model.segments.lobe_branch``): the lobes stretch at the strips' length until the
 pressure pushes the strips open, then both, the segment shortening, to P_END_KPA.
+
+The same segment with the braid tubing's inner radius read as the paper prints it, a
+radius (``BRAID_INNER_RADIUS_AS_PRINTED_MM``, the ``paper-r:`` library,
+docs/decisions/0009): the strips' envelope starts at 7.94 mm and the strips are 2 pi
+7.94/8 = 6.24 mm wide (``LobeBranch`` takes the width from the end radius). The latex
+tube, 3.97 mm outside, then does not touch the braid tubing at rest; both are held by
+the end couplings, and nothing else in the form changes.
 """
 
 from __future__ import annotations
@@ -70,6 +77,8 @@ from labrig.model.segments.tabulate import tabulate
 TUBE_INNER_RADIUS_MM = 3.175
 TUBE_THICKNESS_MM = 0.79
 BRAID_INNER_RADIUS_MM = 3.97
+# The braid tubing's "inner radius of 7.94 mm" read as printed (docs/decisions/0009).
+BRAID_INNER_RADIUS_AS_PRINTED_MM = 7.94
 # The first braid angle of the contact branch when the tube meets straight braids: S40
 # is 0/0 at theta = 0; 1e-4 rad changes the enclosed volume by about 1e-3 mm^3.
 STRAIGHT_ANGLE = 1e-4
