@@ -1,7 +1,8 @@
 """``labrig runs DIR``: a campaign of run files as one table (``labrig.open_runs``).
 
 One row per run: what was run, how it ended, and each snap-through the model predicts
-with the measured volume, pressure and length jumps, the model's and the error
+(counted as the paper counts them: ``compare --json``'s ``paper_transitions`` of type
+``snap``) with the measured volume, pressure and length jumps, the model's and the error
 (``labrig.api.campaign``). ``--json`` prints ``{"runs": [row, ...]}`` (null for a
 missing value), ``--csv FILE`` writes the same table; both carry every column.
 """

@@ -98,19 +98,27 @@ def test_open_runs_is_runs_json_and_csv(campaign, tmp_path, capsys):
     assert "not an HDF5 file" in broken["error"] and broken["status"] is None
 
 
-def test_a_campaigns_snaps_are_compares(campaign, quick_run):
-    """Each snap column is the compare document's snap, and the error is measured minus
-    model."""
-    row = labrig.open_runs([campaign / "a_quick.h5"]).iloc[0]
-    document = labrig.open_run(quick_run).comparison_document
-    snaps = [t for t in document["transitions"] if t["type"] == "snap"]
+def test_a_campaigns_snaps_are_compares_paper_transitions(campaign, capsys):
+    """The snap columns are the snaps of ``compare --json``'s ``paper_transitions`` (a
+    peak crossing and the snap it sets off counted as one, as the paper counts them),
+    in order and no more; the error is measured minus model."""
+    run_file = campaign / "a_quick.h5"
+    code, out, err = cli(["compare", run_file, "--json"], capsys)
+    assert code == 0, err
+    snaps = [t for t in json.loads(out)["paper_transitions"] if t["type"] == "snap"]
     assert len(snaps) >= 2
+    code, out, err = cli(["runs", run_file, "--json"], capsys)
+    assert code == 0, err
+    (row,) = json.loads(out)["runs"]
+    assert f"snap{len(snaps)}_phase" in row and f"snap{len(snaps) + 1}_phase" not in row
     for k, snap in enumerate(snaps, 1):
         assert row[f"snap{k}_phase"] == snap["phase"]
-        assert row[f"snap{k}_v_model_ml"] == snap["v_ml"]
-        if snap["v_meas_ml"] is not None:
-            assert row[f"snap{k}_v_error_ml"] == pytest.approx(snap["v_meas_ml"] - snap["v_ml"])
-            assert row[f"snap{k}_dp_kpa"] == snap["dp_meas_kpa"]
+        for short, unit in (("v", "ml"), ("dp", "kpa"), ("dl", "mm")):
+            seen, model = snap[f"{short}_meas_{unit}"], snap[f"{short}_{unit}"]
+            assert row[f"snap{k}_{short}_{unit}"] == seen
+            assert row[f"snap{k}_{short}_model_{unit}"] == model
+            error = row[f"snap{k}_{short}_error_{unit}"]
+            assert error is None if seen is None else error == pytest.approx(seen - model)
 
 
 def test_runs_refuses_what_names_no_run(tmp_path, capsys):
