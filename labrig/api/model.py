@@ -1,10 +1,10 @@
 """The stability model from Python: ``labrig.segment``, ``labrig.actuator``.
 
 A segment is what ``labrig model curve SEG`` shows, an actuator's path what
-``labrig model path SEG SEG ... --json`` prints: the path's tables are built from that
-command's own JSON document (``path_document``), so their columns are its fields
-(volumes in mL, pressures in kPa, lengths in mm; dE, dv, dl, dp normalised as in the
-paper), and a field the command gains appears here too.
+``labrig model path SEG SEG ... --json`` prints: the path is solved and its tables are
+built by what that command uses (``labrig.model.path_document``), so their columns are
+its JSON's fields (volumes in mL, pressures in kPa, lengths in mm; dE, dv, dl, dp
+normalised as in the paper), and a field the command gains appears here too.
 """
 
 from __future__ import annotations
@@ -82,10 +82,10 @@ class Segment:
     def plot(self, ax: Axes | Sequence[Axes] | None = None) -> Axes | list[Axes]:
         """Draw what ``labrig model curve --plot`` draws (p-v and l-v, peak and valley
         marked) on ``ax``: one Axes (p-v), two, or None (a new figure)."""
-        from labrig.cli.model_curve import _contact_ml, draw_curve
+        from labrig.model.segment_figure import braid_contact_ml, draw_curve
 
         axes, shown = panel_axes(ax, 2)
-        draw_curve(axes, self.model, _contact_ml(self.spec))
+        draw_curve(axes, self.model, braid_contact_ml(self.spec))
         return shown
 
     def __repr__(self) -> str:
@@ -119,13 +119,11 @@ class Actuator:
         default: where no further transition is possible) and, with ``deflate``, back
         to zero, as ``labrig model path`` computes it."""
         prefer_plain_python()
-        from labrig.model.actuator.equilibria import Actuator as ModelActuator
-        from labrig.model.actuator.path import quasi_static_path, sample_path
-        from labrig.model.actuator.transitions import transitions
+        from labrig.model.path_document import solve_path
 
-        model = ModelActuator([s.model for s in self.segments])
-        found_path = quasi_static_path(model, v_end_ml, deflate=deflate)
-        return ActuatorPath(found_path, sample_path(found_path), tuple(transitions(found_path)))
+        return ActuatorPath(
+            *solve_path([s.model for s in self.segments], v_end_ml, deflate=deflate)
+        )
 
     def __repr__(self) -> str:
         return f"<labrig.Actuator {' + '.join(self.names)}>"
@@ -143,7 +141,7 @@ class ActuatorPath:
     @property
     def document(self) -> dict[str, Any]:
         """Exactly what ``labrig model path ... --json`` prints."""
-        from labrig.cli.model_path import path_document
+        from labrig.model.path_document import path_document
 
         return path_document(self.solved.actuator.names, self.sampled, self.found)
 

@@ -42,6 +42,7 @@ def test_path_is_model_path_json(capsys):
     assert code == 0, err
     printed = json.loads(out)
     path = labrig.actuator(*segments).path(deflate=True)
+    assert out == json.dumps(path.document) + "\n"  # byte for byte: one builder
     assert path.document == printed
     assert path.transitions.to_dict("records") == printed["transitions"]
     assert path.paper_transitions.to_dict("records") == printed["paper_transitions"]
@@ -52,6 +53,15 @@ def test_path_is_model_path_json(capsys):
         assert table[f"v{i}_ml"].tolist() == values
     # an invariant, not the code's own output: the segments' volumes add up to the total
     np.testing.assert_allclose(table["v1_ml"] + table["v2_ml"], table["v_ml"], atol=2e-6)
+
+
+def test_three_segments_path_is_model_path_json_byte_for_byte(capsys):
+    segments = ("B46-T20", "B46-T22", "B46-T24")
+    code, out, err = cli(["model", "path", *segments, "--v-end-ml", "30", "--json"], capsys)
+    assert code == 0, err
+    path = labrig.actuator(*segments).path(v_end_ml=30.0)
+    assert out == json.dumps(path.document) + "\n"
+    assert len(json.loads(out)["path"]["v_i_ml"]) == 3
 
 
 def test_segment_is_model_curve_json(capsys):
