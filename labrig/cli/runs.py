@@ -66,7 +66,9 @@ def _table(rows: list[dict]):
 )
 def runs(runs: tuple[str, ...], as_json: bool, csv_path: Path | None) -> None:
     """A campaign as one table: each run file's protocol, specimen, seed, date and
-    outcome, and each snap's volume, dp and dl beside the model's and the error."""
+    outcome, and each snap the model predicts (counted as the paper counts them, as in
+    compare --json's paper_transitions) with its volume, dp and dl beside the model's
+    and the error."""
     from labrig.api.campaign import campaign_rows
     from labrig.errors import InputError
 
