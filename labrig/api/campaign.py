@@ -17,7 +17,6 @@ the rest.
 from __future__ import annotations
 
 import glob
-import math
 import warnings
 from collections.abc import Iterable
 from pathlib import Path
@@ -58,10 +57,6 @@ def run_files(runs: str | Path | Iterable[str | Path]) -> list[Path]:
     return found
 
 
-def _number(value) -> float | None:
-    return None if value is None or not math.isfinite(value) else float(value)
-
-
 def run_row(path: Path) -> dict[str, Any]:
     """One run's row of the campaign table (see the module docstring)."""
     row: dict[str, Any] = {"file": str(path)}
@@ -96,7 +91,7 @@ def run_row(path: Path) -> dict[str, Any]:
     for k, snap in enumerate(snaps, 1):
         row[f"snap{k}_phase"] = snap["phase"]
         for measured, (model, short, unit) in SNAP_FIELDS.items():
-            seen, predicted = _number(snap[measured]), _number(snap[model])
+            seen, predicted = snap[measured], snap[model]  # compare's JSON: a number or null
             row[f"snap{k}_{short}_{unit}"] = seen
             row[f"snap{k}_{short}_model_{unit}"] = predicted
             error = None if seen is None or predicted is None else seen - predicted

@@ -1,10 +1,10 @@
 """The stability model from Python: ``labrig.segment``, ``labrig.actuator``.
 
-A segment is what ``labrig model curve SEG`` shows, an actuator's path what
-``labrig model path SEG SEG ... --json`` prints: the path is solved and its tables are
-built by what that command uses (``labrig.model.path_document``), so their columns are
-its JSON's fields (volumes in mL, pressures in kPa, lengths in mm; dE, dv, dl, dp
-normalised as in the paper), and a field the command gains appears here too.
+A segment is what ``labrig model curve SEG --json`` prints, an actuator's path what
+``labrig model path SEG SEG ... --json`` prints: both are built by what those commands
+use (``labrig.model.curve_document``, ``labrig.model.path_document``), so the tables'
+columns are the JSON's fields (volumes in mL, pressures in kPa, lengths in mm; dE, dv,
+dl, dp normalised as in the paper), and a field a command gains appears here too.
 """
 
 from __future__ import annotations
@@ -59,15 +59,27 @@ class Segment:
 
     @property
     def peak(self) -> dict[str, float] | None:
-        """The pressure peak, ``{"v_ml", "p_kpa"}``; None if p(v) only rises."""
-        peak = self.model.peak
-        return None if peak is None else {"v_ml": peak.v_ml, "p_kpa": peak.p_kpa}
+        """The pressure peak, ``{"v_ml", "p_kpa"}`` (mL, kPa); None if p(v) only rises."""
+        from labrig.model.curve_document import extremum_document
+
+        return extremum_document(self.model.peak)
 
     @property
     def valley(self) -> dict[str, float] | None:
-        """The pressure valley after the peak, ``{"v_ml", "p_kpa"}``; None without one."""
-        valley = self.model.valley
-        return None if valley is None else {"v_ml": valley.v_ml, "p_kpa": valley.p_kpa}
+        """The pressure valley after the peak, ``{"v_ml", "p_kpa"}`` (mL, kPa); None
+        without one."""
+        from labrig.model.curve_document import extremum_document
+
+        return extremum_document(self.model.valley)
+
+    @property
+    def document(self) -> dict[str, Any]:
+        """Exactly what ``labrig model curve SEG --json`` prints: name, V0_ml, peak,
+        valley, the arrays v_ml, p_kpa, l_mm and, for a measured table, ``measured``
+        (what was done to it)."""
+        from labrig.model.curve_document import curve_document
+
+        return curve_document(self.model)
 
     @property
     def curve(self) -> pd.DataFrame:
@@ -188,5 +200,11 @@ class ActuatorPath:
         return shown
 
     def __repr__(self) -> str:
+        from labrig.model.actuator.paper_counting import paper_transitions
+
         names = " + ".join(self.solved.actuator.names)
-        return f"<labrig.ActuatorPath {names}: {len(self.found)} transitions>"
+        counted = len(paper_transitions(self.found))
+        return (
+            f"<labrig.ActuatorPath {names}: {counted} transitions as the paper counts them "
+            f"({len(self.found)} events)>"
+        )

@@ -30,6 +30,7 @@ from labrig.recording.run_reader import decode
 
 from .axes import panel_axes
 from .reading import open_readonly, open_run_file, writer_state
+from .solver_mode import prefer_plain_python
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -326,8 +327,6 @@ class Run:
         from labrig.analysis.analyse import analyse
         from labrig.analysis.results import read_analysis
         from labrig.analysis.runfile import load_run
-
-        from .solver_mode import prefer_plain_python
 
         if not self.writer_open:
             with open_run_file(self.path) as h5:

@@ -1,10 +1,11 @@
 """``labrig model curve SEG``: one segment's p(v) and l(v), as a summary, JSON or a plot.
 
 SEG is a library name (``B46-T20``), a Gent membrane (``gent-a``) or a measured-curve
-CSV. The JSON carries the segment's table itself, so the peak and valley it reports are
-samples of the arrays. For a measured table it also says what was done to it (used as
-tabulated or fitted), the table's resolution (spacing, step, noise) and whether a peak
-was kept; the plot then overlays the raw rows on the curve used.
+CSV. The JSON (``labrig.model.curve_document``) carries the segment's table itself, so
+the peak and valley it reports are samples of the arrays. For a measured table it also
+says what was done to it (used as tabulated or fitted), the table's resolution (spacing,
+step, noise) and whether a peak was kept; the plot then overlays the raw rows on the
+curve used.
 """
 
 from __future__ import annotations
@@ -15,10 +16,6 @@ from pathlib import Path
 import click
 
 from labrig.cli.options import plot_option
-
-
-def _extremum(extremum) -> dict | None:
-    return None if extremum is None else {"v_ml": extremum.v_ml, "p_kpa": extremum.p_kpa}
 
 
 def summary_lines(curve, contact_ml: float | None) -> list[str]:
@@ -58,25 +55,6 @@ def summary_lines(curve, contact_ml: float | None) -> list[str]:
     return lines
 
 
-def measured_document(curve) -> dict:
-    """What was done to a measured table, for ``--json``."""
-    measured = curve.measured
-    res = measured.resolution
-    return {
-        "route": measured.route,
-        "rows": res.rows,
-        "spacing_ml": res.spacing_ml,
-        "spacing_min_ml": res.spacing_min_ml,
-        "spacing_max_ml": res.spacing_max_ml,
-        "uniform": res.uniform,
-        "step_kpa": res.step_kpa,
-        "noise_kpa": res.noise_kpa,
-        "prominence_kpa": measured.min_dip_kpa,
-        "peaks_kept": int(measured.peak_kept),
-        "dip_kpa": measured.dip_kpa,
-    }
-
-
 @click.command("curve")
 @click.argument("seg")
 @click.option("--json", "as_json", is_flag=True, help="Print the curve as one JSON object.")
@@ -92,18 +70,9 @@ def curve(seg: str, as_json: bool, plot_png: Path | None) -> None:
     if plot_png is not None:
         plot_curve(segment, contact_ml, plot_png)
     if as_json:
-        document = {
-            "name": segment.name,
-            "V0_ml": segment.V0_ml,
-            "peak": _extremum(segment.peak),
-            "valley": _extremum(segment.valley),
-            "v_ml": segment.v_ml.tolist(),
-            "p_kpa": segment.p_kpa.tolist(),
-            "l_mm": segment.l_mm.tolist(),
-        }
-        if segment.measured is not None:
-            document["measured"] = measured_document(segment)
-        click.echo(json.dumps(document))
+        from labrig.model.curve_document import curve_document
+
+        click.echo(json.dumps(curve_document(segment)))
         return
     for line in summary_lines(segment, contact_ml):
         click.echo(line)

@@ -69,6 +69,7 @@ def test_segment_is_model_curve_json(capsys):
     assert code == 0, err
     printed = json.loads(out)
     segment = labrig.segment("B46-T20")
+    assert out == json.dumps(segment.document) + "\n"  # byte for byte: one builder
     assert segment.name == printed["name"] and segment.V0_ml == printed["V0_ml"]
     assert segment.peak == printed["peak"] and segment.valley == printed["valley"]
     for name in ("v_ml", "p_kpa", "l_mm"):
