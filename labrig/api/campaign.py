@@ -1,19 +1,22 @@
 """A campaign of runs as one table: ``labrig.open_runs`` and ``labrig runs DIR``.
 
 One row per run file: what was run (title, protocol, specimen, seed, date), how it
-ended (status, reason, the writer's flags), the RMSE against the model and, for each
-snap-through the model predicts, the measured volume, pressure jump and length jump
-beside the model's and the error (measured minus model). The snaps are the
-``transitions`` of ``labrig compare --json`` whose ``type`` is ``snap``, in its order,
-numbered ``snap1_...``, ``snap2_...``; a run with fewer snaps has nulls there. A run
-without a comparison says why in ``note``; a file that cannot be read is a row with its
-``error``, so one bad file does not hide the rest.
+ended (status, reason, the writer's flags), the RMSE against the model (kPa, mm) and,
+for each snap-through the model predicts, the measured volume (mL), pressure jump (kPa)
+and length jump (mm) beside the model's and the error (measured minus model).
+
+The snaps are counted as the paper counts transitions: they are the
+``paper_transitions`` of ``labrig compare --json`` whose ``type`` is ``snap`` (the
+unstable ones; a peak crossing and the snap it sets off are one, at the crossing's
+volume, with the jumps summed), in its order, numbered ``snap1_...``, ``snap2_...``; a
+run with fewer snaps has nulls there. A run without a comparison says why in ``note``;
+a file that cannot be read is a row with its ``error``, so one bad file does not hide
+the rest.
 """
 
 from __future__ import annotations
 
 import glob
-import math
 import warnings
 from collections.abc import Iterable
 from pathlib import Path
@@ -54,10 +57,6 @@ def run_files(runs: str | Path | Iterable[str | Path]) -> list[Path]:
     return found
 
 
-def _number(value) -> float | None:
-    return None if value is None or not math.isfinite(value) else float(value)
-
-
 def run_row(path: Path) -> dict[str, Any]:
     """One run's row of the campaign table (see the module docstring)."""
     row: dict[str, Any] = {"file": str(path)}
@@ -88,11 +87,11 @@ def run_row(path: Path) -> dict[str, Any]:
         return row
     for name, value in document["rmse"].items():
         row[f"rmse_{name}"] = value
-    snaps = [t for t in document["transitions"] if t["type"] == "snap"]
+    snaps = [t for t in document["paper_transitions"] if t["type"] == "snap"]
     for k, snap in enumerate(snaps, 1):
         row[f"snap{k}_phase"] = snap["phase"]
         for measured, (model, short, unit) in SNAP_FIELDS.items():
-            seen, predicted = _number(snap[measured]), _number(snap[model])
+            seen, predicted = snap[measured], snap[model]  # compare's JSON: a number or null
             row[f"snap{k}_{short}_{unit}"] = seen
             row[f"snap{k}_{short}_model_{unit}"] = predicted
             error = None if seen is None or predicted is None else seen - predicted
@@ -116,7 +115,17 @@ def campaign_rows(runs: str | Path | Iterable[str | Path]) -> list[dict[str, Any
 
 def open_runs(runs: str | Path | Iterable[str | Path]) -> pd.DataFrame:
     """A campaign as one DataFrame, one row a run (the table ``labrig runs`` prints):
-    ``runs`` is a folder, a glob pattern (``"runs/*demo*.h5"``), a file or a list."""
+    ``runs`` is a folder, a glob pattern (``"runs/*demo*.h5"``), a file or a list.
+
+    Columns: file, title, protocol, specimen, seed, date, status, reason, repetitions,
+    writer_open, live; ``rmse_<phase>_pressure_kpa`` (kPa) and ``rmse_<phase>_length_mm``
+    (mm); for the k-th snap-through the model predicts, counted as the paper counts
+    transitions (``labrig compare --json``'s ``paper_transitions`` of type ``snap``: a
+    peak crossing and the snap it sets off are one), ``snapk_phase`` and the measured
+    ``snapk_v_ml`` (mL), ``snapk_dp_kpa`` (kPa), ``snapk_dl_mm`` (mm), each with its
+    ``_model_`` and ``_error_`` (measured minus model) twin, e.g. ``snap1_v_model_ml``,
+    ``snap1_v_error_ml``; ``note`` (why a run has no comparison) and ``error`` (why a
+    file could not be read). A missing value is NaN (None in a text column)."""
     import pandas as pd
 
     return pd.DataFrame(campaign_rows(runs))

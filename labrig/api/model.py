@@ -1,10 +1,10 @@
 """The stability model from Python: ``labrig.segment``, ``labrig.actuator``.
 
-A segment is what ``labrig model curve SEG`` shows, an actuator's path what
-``labrig model path SEG SEG ... --json`` prints: the path's tables are built from that
-command's own JSON document (``path_document``), so their columns are its fields
-(volumes in mL, pressures in kPa, lengths in mm; dE, dv, dl, dp normalised as in the
-paper), and a field the command gains appears here too.
+A segment is what ``labrig model curve SEG --json`` prints, an actuator's path what
+``labrig model path SEG SEG ... --json`` prints: both are built by what those commands
+use (``labrig.model.curve_document``, ``labrig.model.path_document``), so the tables'
+columns are the JSON's fields (volumes in mL, pressures in kPa, lengths in mm; dE, dv,
+dl, dp normalised as in the paper), and a field a command gains appears here too.
 """
 
 from __future__ import annotations
@@ -59,15 +59,27 @@ class Segment:
 
     @property
     def peak(self) -> dict[str, float] | None:
-        """The pressure peak, ``{"v_ml", "p_kpa"}``; None if p(v) only rises."""
-        peak = self.model.peak
-        return None if peak is None else {"v_ml": peak.v_ml, "p_kpa": peak.p_kpa}
+        """The pressure peak, ``{"v_ml", "p_kpa"}`` (mL, kPa); None if p(v) only rises."""
+        from labrig.model.curve_document import extremum_document
+
+        return extremum_document(self.model.peak)
 
     @property
     def valley(self) -> dict[str, float] | None:
-        """The pressure valley after the peak, ``{"v_ml", "p_kpa"}``; None without one."""
-        valley = self.model.valley
-        return None if valley is None else {"v_ml": valley.v_ml, "p_kpa": valley.p_kpa}
+        """The pressure valley after the peak, ``{"v_ml", "p_kpa"}`` (mL, kPa); None
+        without one."""
+        from labrig.model.curve_document import extremum_document
+
+        return extremum_document(self.model.valley)
+
+    @property
+    def document(self) -> dict[str, Any]:
+        """Exactly what ``labrig model curve SEG --json`` prints: name, V0_ml, peak,
+        valley, the arrays v_ml, p_kpa, l_mm and, for a measured table, ``measured``
+        (what was done to it)."""
+        from labrig.model.curve_document import curve_document
+
+        return curve_document(self.model)
 
     @property
     def curve(self) -> pd.DataFrame:
@@ -82,10 +94,10 @@ class Segment:
     def plot(self, ax: Axes | Sequence[Axes] | None = None) -> Axes | list[Axes]:
         """Draw what ``labrig model curve --plot`` draws (p-v and l-v, peak and valley
         marked) on ``ax``: one Axes (p-v), two, or None (a new figure)."""
-        from labrig.cli.model_curve import _contact_ml, draw_curve
+        from labrig.model.segment_figure import braid_contact_ml, draw_curve
 
         axes, shown = panel_axes(ax, 2)
-        draw_curve(axes, self.model, _contact_ml(self.spec))
+        draw_curve(axes, self.model, braid_contact_ml(self.spec))
         return shown
 
     def __repr__(self) -> str:
@@ -119,13 +131,11 @@ class Actuator:
         default: where no further transition is possible) and, with ``deflate``, back
         to zero, as ``labrig model path`` computes it."""
         prefer_plain_python()
-        from labrig.model.actuator.equilibria import Actuator as ModelActuator
-        from labrig.model.actuator.path import quasi_static_path, sample_path
-        from labrig.model.actuator.transitions import transitions
+        from labrig.model.path_document import solve_path
 
-        model = ModelActuator([s.model for s in self.segments])
-        found_path = quasi_static_path(model, v_end_ml, deflate=deflate)
-        return ActuatorPath(found_path, sample_path(found_path), tuple(transitions(found_path)))
+        return ActuatorPath(
+            *solve_path([s.model for s in self.segments], v_end_ml, deflate=deflate)
+        )
 
     def __repr__(self) -> str:
         return f"<labrig.Actuator {' + '.join(self.names)}>"
@@ -143,7 +153,7 @@ class ActuatorPath:
     @property
     def document(self) -> dict[str, Any]:
         """Exactly what ``labrig model path ... --json`` prints."""
-        from labrig.cli.model_path import path_document
+        from labrig.model.path_document import path_document
 
         return path_document(self.solved.actuator.names, self.sampled, self.found)
 
@@ -190,5 +200,11 @@ class ActuatorPath:
         return shown
 
     def __repr__(self) -> str:
+        from labrig.model.actuator.paper_counting import paper_transitions
+
         names = " + ".join(self.solved.actuator.names)
-        return f"<labrig.ActuatorPath {names}: {len(self.found)} transitions>"
+        counted = len(paper_transitions(self.found))
+        return (
+            f"<labrig.ActuatorPath {names}: {counted} transitions as the paper counts them "
+            f"({len(self.found)} events)>"
+        )

@@ -30,6 +30,7 @@ from labrig.recording.run_reader import decode
 
 from .axes import panel_axes
 from .reading import open_readonly, open_run_file, writer_state
+from .solver_mode import prefer_plain_python
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -327,8 +328,6 @@ class Run:
         from labrig.analysis.results import read_analysis
         from labrig.analysis.runfile import load_run
 
-        from .solver_mode import prefer_plain_python
-
         if not self.writer_open:
             with open_run_file(self.path) as h5:
                 stored = read_analysis(self.path, h5)
@@ -450,14 +449,16 @@ class Run:
 
     @cached_property
     def comparison_document(self) -> dict[str, Any]:
-        """What ``labrig compare RUN --json`` prints: ``rmse``, ``transitions``,
+        """What ``labrig compare RUN --json`` prints: ``rmse`` (kPa, mm),
+        ``transitions`` (the model's path's events, each beside the measured one),
+        ``paper_transitions`` (the same counted as the paper counts them),
         ``unpredicted`` and, for step and blocked-force runs, ``steps`` and ``force``
         (those read the finished file: a file still open by its writer has none).
         ``InputError`` when the run has no comparison with the model."""
         from labrig.analysis.report import comparison_json
 
         result = self.analysis
-        self._comparison()
+        self._comparison()  # InputError saying why there is none
         document = comparison_json(result)
         if self.writer_open:
             return document

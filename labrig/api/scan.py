@@ -12,19 +12,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .axes import panel_axes
+from .reading import open_readonly
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
     import pandas as pd
     from matplotlib.axes import Axes
-
-
-def h5py_file(path: Path):
-    """The scan file, read-only and unlocked (a scan may be writing it)."""
-    import h5py
-
-    return h5py.File(path, "r", locking=False)
 
 
 def open_scan(path: str | Path) -> Scan:
@@ -74,13 +68,10 @@ class Scan:
         from labrig.model.scan.scan import TRANSITION_FIELDS
 
         stop = len(self) if stop is None else min(stop, len(self))
-        with h5py_file(self.path) as h5:
+        with open_readonly(self.path) as h5:
             rows = h5["transitions"]
             table = {"actuator": rows["actuator"][start:stop]}
-            indices = rows["segments"][start:stop]
-            names = np.asarray(self.names, dtype=object)
-            for i in range(self.n):
-                table[f"segment{i + 1}"] = names[indices[:, i]]
+            table.update(self._segment_columns(rows["segments"][start:stop]))
             for name in TRANSITION_FIELDS:
                 table[name] = rows[name][start:stop]
         return pd.DataFrame(table)
@@ -103,12 +94,16 @@ class Scan:
 
         columns = dict(paper_columns(self.data))
         table = {"actuator": columns.pop("actuator")}
-        with h5py_file(self.path) as h5:
+        with open_readonly(self.path) as h5:
             indices = h5["transitions/segments"][:][columns["first"]]
-        names = np.asarray(self.names, dtype=object)
-        for i in range(self.n):
-            table[f"segment{i + 1}"] = names[indices[:, i]]
+        table.update(self._segment_columns(indices))
         return pd.DataFrame({**table, **columns})
+
+    def _segment_columns(self, indices: np.ndarray) -> dict[str, np.ndarray]:
+        """``segment1`` ... ``segmentN``: the names of the segments whose library
+        indices are the rows of ``indices`` (rows x n)."""
+        names = np.asarray(self.names, dtype=object)
+        return {f"segment{i + 1}": names[indices[:, i]] for i in range(self.n)}
 
     def plot(self, ax: Axes | Sequence[Axes] | None = None) -> Axes | list[Axes]:
         """Draw what ``labrig model scan --plot`` draws (the paper's Fig. 4 A-C: dv, dl,

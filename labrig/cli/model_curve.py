@@ -1,10 +1,11 @@
 """``labrig model curve SEG``: one segment's p(v) and l(v), as a summary, JSON or a plot.
 
 SEG is a library name (``B46-T20``), a Gent membrane (``gent-a``) or a measured-curve
-CSV. The JSON carries the segment's table itself, so the peak and valley it reports are
-samples of the arrays. For a measured table it also says what was done to it (used as
-tabulated or fitted), the table's resolution (spacing, step, noise) and whether a peak
-was kept; the plot then overlays the raw rows on the curve used.
+CSV. The JSON (``labrig.model.curve_document``) carries the segment's table itself, so
+the peak and valley it reports are samples of the arrays. For a measured table it also
+says what was done to it (used as tabulated or fitted), the table's resolution (spacing,
+step, noise) and whether a peak was kept; the plot then overlays the raw rows on the
+curve used.
 """
 
 from __future__ import annotations
@@ -15,21 +16,6 @@ from pathlib import Path
 import click
 
 from labrig.cli.options import plot_option
-
-RAW_POINTS_PLOTTED = 20_000  # more rows than this are thinned evenly in the plot
-
-
-def _extremum(extremum) -> dict | None:
-    return None if extremum is None else {"v_ml": extremum.v_ml, "p_kpa": extremum.p_kpa}
-
-
-def _contact_ml(spec: str) -> float | None:
-    """Volume at which the braids touch the tube, for an analytical library segment."""
-    from labrig.model.segments.catalog import is_library_name, library_segment
-
-    if not is_library_name(spec):
-        return None
-    return library_segment(spec).contact_ml
 
 
 def summary_lines(curve, contact_ml: float | None) -> list[str]:
@@ -69,71 +55,6 @@ def summary_lines(curve, contact_ml: float | None) -> list[str]:
     return lines
 
 
-def measured_document(curve) -> dict:
-    """What was done to a measured table, for ``--json``."""
-    measured = curve.measured
-    res = measured.resolution
-    return {
-        "route": measured.route,
-        "rows": res.rows,
-        "spacing_ml": res.spacing_ml,
-        "spacing_min_ml": res.spacing_min_ml,
-        "spacing_max_ml": res.spacing_max_ml,
-        "uniform": res.uniform,
-        "step_kpa": res.step_kpa,
-        "noise_kpa": res.noise_kpa,
-        "prominence_kpa": measured.min_dip_kpa,
-        "peaks_kept": int(measured.peak_kept),
-        "dip_kpa": measured.dip_kpa,
-    }
-
-
-def plot_curve(curve, contact_ml: float | None, path: Path) -> None:
-    """p-v and l-v side by side (as the paper's Fig. 1C/D), peak and valley marked."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
-    draw_curve(list(axes), curve, contact_ml)
-    fig.suptitle(curve.name)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-
-
-def draw_curve(axes: list, curve, contact_ml: float | None) -> None:
-    """The figure's two panels on ``axes``: p-v and l-v."""
-    ax_p, ax_l = axes
-    if curve.measured is not None:
-        raw = curve.measured.raw[:: max(1, len(curve.measured.raw) // RAW_POINTS_PLOTTED)]
-        ax_p.plot(raw[:, 0], raw[:, 1], ".", color="grey", markersize=2, label="raw rows")
-        ax_l.plot(raw[:, 0], raw[:, 2], ".", color="grey", markersize=2)
-    used = "" if curve.measured is None else f"curve used ({curve.measured.route})"
-    ax_p.plot(curve.v_ml, curve.p_kpa, color="tab:blue", label=used or None)
-    ax_l.plot(curve.v_ml, curve.l_mm, color="tab:green")
-    marks = [(curve.peak, "v", "peak"), (curve.valley, "o", "valley")]
-    for extremum, marker, label in marks:
-        if extremum is None:
-            continue
-        ax_p.plot(extremum.v_ml, extremum.p_kpa, marker, color="tab:red", label=label)
-        ax_l.plot(extremum.v_ml, curve.length_mm(extremum.v_ml), marker, color="tab:red")
-    if contact_ml is not None:
-        for ax in (ax_p, ax_l):
-            ax.axvline(contact_ml, color="grey", linestyle="--", linewidth=0.8)
-        ax_p.plot([], [], "--", color="grey", linewidth=0.8, label="contact")
-    highest = max([e.p_kpa for e, _, _ in marks if e is not None], default=0.0)
-    ax_p.set_ylim(0, min(curve.p_kpa[-1], max(100.0, 1.5 * highest)))
-    ax_p.set_xlabel("supplied volume v (mL)")
-    ax_p.set_ylabel("pressure p (kPa)")
-    ax_l.set_xlabel("supplied volume v (mL)")
-    ax_l.set_ylabel("length l (mm)")
-    ax_p.legend(loc="lower right")
-    for ax in (ax_p, ax_l):
-        ax.set_xlim(0, curve.v_max_ml)
-        ax.grid(alpha=0.3)
-
-
 @click.command("curve")
 @click.argument("seg")
 @click.option("--json", "as_json", is_flag=True, help="Print the curve as one JSON object.")
@@ -141,25 +62,17 @@ def draw_curve(axes: list, curve, contact_ml: float | None) -> None:
 def curve(seg: str, as_json: bool, plot_png: Path | None) -> None:
     """Show the pressure-volume and length-volume curve of one segment SEG: a library
     name (B46-T20), gent-a/b/c, or a CSV with volume_ml,pressure_kpa,length_mm."""
+    from labrig.model.segment_figure import braid_contact_ml, plot_curve
     from labrig.model.segments.catalog import load_segment
 
     segment = load_segment(seg)
-    contact_ml = _contact_ml(seg)
+    contact_ml = braid_contact_ml(seg)
     if plot_png is not None:
         plot_curve(segment, contact_ml, plot_png)
     if as_json:
-        document = {
-            "name": segment.name,
-            "V0_ml": segment.V0_ml,
-            "peak": _extremum(segment.peak),
-            "valley": _extremum(segment.valley),
-            "v_ml": segment.v_ml.tolist(),
-            "p_kpa": segment.p_kpa.tolist(),
-            "l_mm": segment.l_mm.tolist(),
-        }
-        if segment.measured is not None:
-            document["measured"] = measured_document(segment)
-        click.echo(json.dumps(document))
+        from labrig.model.curve_document import curve_document
+
+        click.echo(json.dumps(curve_document(segment)))
         return
     for line in summary_lines(segment, contact_ml):
         click.echo(line)

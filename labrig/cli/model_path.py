@@ -23,54 +23,6 @@ from labrig.cli.options import plot_option, table_console
 from labrig.errors import InputError
 
 
-def _round(values, digits: int = 6) -> list[float]:
-    return [round(float(x), digits) for x in values]
-
-
-def _significant(x: float) -> float:
-    return float(f"{x:.6g}")
-
-
-def _numbers(t) -> dict:
-    return {
-        "v_ml": round(t.v_ml, 6),
-        "alpha": t.alpha,
-        "beta": t.beta,
-        "stable": t.stable,
-        "dE": _significant(t.dE),
-        "dv": _significant(t.dv),
-        "dl": _significant(t.dl),
-        "dp": _significant(t.dp),
-        "direction": t.direction_name,
-    }
-
-
-def path_document(names, sampled, found) -> dict:
-    """The JSON scripts read from ``labrig model path --json``: segments, path arrays,
-    ``transitions`` (the path's events: every peak crossing and every snap) and
-    ``paper_transitions`` (those counted as the paper counts them, each with
-    ``events``, the indices into ``transitions`` it is made of), each with its
-    ``direction`` ("inflate" or "deflate"). ``v_i_ml`` holds one list per segment,
-    parallel to ``v_ml``."""
-    from labrig.model.actuator.paper_counting import paper_transitions
-
-    index = {id(t): k for k, t in enumerate(found)}
-    return {
-        "segments": list(names),
-        "path": {
-            "v_ml": _round(sampled.v_ml),
-            "p_kpa": _round(sampled.p_kpa),
-            "l_mm": _round(sampled.l_mm),
-            "v_i_ml": [_round(v) for v in sampled.v_i_ml],
-        },
-        "transitions": [_numbers(t) for t in found],
-        "paper_transitions": [
-            {**_numbers(t), "events": [index[id(e)] for e in t.events]}
-            for t in paper_transitions(found)
-        ],
-    }
-
-
 def _table(names, found, v_end_ml: float, seconds: float) -> None:
     from rich import box
     from rich.table import Table
@@ -135,24 +87,21 @@ def path(
         )
     if v_end_ml is not None and not v_end_ml > 0:
         raise InputError(f"--v-end-ml {v_end_ml}: must be > 0")
-    from labrig.model.actuator.equilibria import Actuator
-    from labrig.model.actuator.path import quasi_static_path, sample_path
-    from labrig.model.actuator.transitions import transitions
+    from labrig.model.path_document import path_document, solve_path
     from labrig.model.segments.catalog import load_segment
 
-    actuator = Actuator([load_segment(s) for s in segs])
+    curves = [load_segment(s) for s in segs]
     started = time.perf_counter()
-    found_path = quasi_static_path(actuator, v_end_ml, deflate=deflate)
+    found_path, sampled, found = solve_path(curves, v_end_ml, deflate=deflate)
     seconds = time.perf_counter() - started
-    found = transitions(found_path)
-    sampled = sample_path(found_path)
+    names = found_path.actuator.names
     if plot_png is not None:
         from labrig.model.plots import plot_path
 
         plot_path(found_path, sampled, found, plot_png)
     if as_json:
-        click.echo(json.dumps(path_document(actuator.names, sampled, found)))
+        click.echo(json.dumps(path_document(names, sampled, found)))
         return
-    _table(actuator.names, found, found_path.v_end_ml, seconds)
+    _table(names, found, found_path.v_end_ml, seconds)
     if plot_png is not None:
         click.echo(f"plot: {plot_png}")

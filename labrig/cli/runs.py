@@ -1,7 +1,8 @@
 """``labrig runs DIR``: a campaign of run files as one table (``labrig.open_runs``).
 
 One row per run: what was run, how it ended, and each snap-through the model predicts
-with the measured volume, pressure and length jumps, the model's and the error
+(counted as the paper counts them: ``compare --json``'s ``paper_transitions`` of type
+``snap``) with the measured volume, pressure and length jumps, the model's and the error
 (``labrig.api.campaign``). ``--json`` prints ``{"runs": [row, ...]}`` (null for a
 missing value), ``--csv FILE`` writes the same table; both carry every column.
 """
@@ -65,7 +66,9 @@ def _table(rows: list[dict]):
 )
 def runs(runs: tuple[str, ...], as_json: bool, csv_path: Path | None) -> None:
     """A campaign as one table: each run file's protocol, specimen, seed, date and
-    outcome, and each snap's volume, dp and dl beside the model's and the error."""
+    outcome, and each snap the model predicts (counted as the paper counts them, as in
+    compare --json's paper_transitions) with its volume, dp and dl beside the model's
+    and the error."""
     from labrig.api.campaign import campaign_rows
     from labrig.errors import InputError
 

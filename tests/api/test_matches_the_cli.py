@@ -42,6 +42,7 @@ def test_path_is_model_path_json(capsys):
     assert code == 0, err
     printed = json.loads(out)
     path = labrig.actuator(*segments).path(deflate=True)
+    assert out == json.dumps(path.document) + "\n"  # byte for byte: one builder
     assert path.document == printed
     assert path.transitions.to_dict("records") == printed["transitions"]
     assert path.paper_transitions.to_dict("records") == printed["paper_transitions"]
@@ -54,11 +55,21 @@ def test_path_is_model_path_json(capsys):
     np.testing.assert_allclose(table["v1_ml"] + table["v2_ml"], table["v_ml"], atol=2e-6)
 
 
+def test_three_segments_path_is_model_path_json_byte_for_byte(capsys):
+    segments = ("B46-T20", "B46-T22", "B46-T24")
+    code, out, err = cli(["model", "path", *segments, "--v-end-ml", "30", "--json"], capsys)
+    assert code == 0, err
+    path = labrig.actuator(*segments).path(v_end_ml=30.0)
+    assert out == json.dumps(path.document) + "\n"
+    assert len(json.loads(out)["path"]["v_i_ml"]) == 3
+
+
 def test_segment_is_model_curve_json(capsys):
     code, out, err = cli(["model", "curve", "B46-T20", "--json"], capsys)
     assert code == 0, err
     printed = json.loads(out)
     segment = labrig.segment("B46-T20")
+    assert out == json.dumps(segment.document) + "\n"  # byte for byte: one builder
     assert segment.name == printed["name"] and segment.V0_ml == printed["V0_ml"]
     assert segment.peak == printed["peak"] and segment.valley == printed["valley"]
     for name in ("v_ml", "p_kpa", "l_mm"):
@@ -98,19 +109,27 @@ def test_open_runs_is_runs_json_and_csv(campaign, tmp_path, capsys):
     assert "not an HDF5 file" in broken["error"] and broken["status"] is None
 
 
-def test_a_campaigns_snaps_are_compares(campaign, quick_run):
-    """Each snap column is the compare document's snap, and the error is measured minus
-    model."""
-    row = labrig.open_runs([campaign / "a_quick.h5"]).iloc[0]
-    document = labrig.open_run(quick_run).comparison_document
-    snaps = [t for t in document["transitions"] if t["type"] == "snap"]
+def test_a_campaigns_snaps_are_compares_paper_transitions(campaign, capsys):
+    """The snap columns are the snaps of ``compare --json``'s ``paper_transitions`` (a
+    peak crossing and the snap it sets off counted as one, as the paper counts them),
+    in order and no more; the error is measured minus model."""
+    run_file = campaign / "a_quick.h5"
+    code, out, err = cli(["compare", run_file, "--json"], capsys)
+    assert code == 0, err
+    snaps = [t for t in json.loads(out)["paper_transitions"] if t["type"] == "snap"]
     assert len(snaps) >= 2
+    code, out, err = cli(["runs", run_file, "--json"], capsys)
+    assert code == 0, err
+    (row,) = json.loads(out)["runs"]
+    assert f"snap{len(snaps)}_phase" in row and f"snap{len(snaps) + 1}_phase" not in row
     for k, snap in enumerate(snaps, 1):
         assert row[f"snap{k}_phase"] == snap["phase"]
-        assert row[f"snap{k}_v_model_ml"] == snap["v_ml"]
-        if snap["v_meas_ml"] is not None:
-            assert row[f"snap{k}_v_error_ml"] == pytest.approx(snap["v_meas_ml"] - snap["v_ml"])
-            assert row[f"snap{k}_dp_kpa"] == snap["dp_meas_kpa"]
+        for short, unit in (("v", "ml"), ("dp", "kpa"), ("dl", "mm")):
+            seen, model = snap[f"{short}_meas_{unit}"], snap[f"{short}_{unit}"]
+            assert row[f"snap{k}_{short}_{unit}"] == seen
+            assert row[f"snap{k}_{short}_model_{unit}"] == model
+            error = row[f"snap{k}_{short}_error_{unit}"]
+            assert error is None if seen is None else error == pytest.approx(seen - model)
 
 
 def test_runs_refuses_what_names_no_run(tmp_path, capsys):

@@ -1,5 +1,6 @@
 """``labrig.segment``, ``labrig.actuator`` and ``labrig.open_scan``: tables and plots."""
 
+import json
 import subprocess
 import sys
 
@@ -7,6 +8,7 @@ import h5py
 import matplotlib
 import numpy as np
 import pytest
+from support.api_runs import cli
 
 import labrig
 from labrig.errors import InputError
@@ -34,6 +36,13 @@ def test_a_path_plot_on_one_axes_is_the_pressure_panel():
     snaps = path.transitions[~path.transitions["stable"]]
     drawn = [line for line in ax.lines if line.get_marker() == "v" and len(line.get_xdata())]
     assert len(drawn) == len(snaps) > 0
+    # its summary counts as the paper does (the peak crossing and its snap are one)
+    counted, events = len(path.paper_transitions), len(path.transitions)
+    assert counted < events
+    assert repr(path) == (
+        f"<labrig.ActuatorPath B48-T30 + B50-T20: {counted} transitions as the paper "
+        f"counts them ({events} events)>"
+    )
 
 
 def test_a_path_plot_without_axes_has_the_commands_three_panels():
@@ -54,13 +63,18 @@ def test_a_segment_plot_and_its_errors():
         labrig.segment("no-such-segment")
 
 
-def test_a_measured_csv_segment(tmp_path):
+def test_a_measured_csv_segment(tmp_path, capsys):
     v = np.linspace(0, 10, 200)
     csv = tmp_path / "measured.csv"
     rows = "\n".join(f"{a},{3 * a},{40 + 0.5 * a}" for a in v)
     csv.write_text("volume_ml,pressure_kpa,length_mm\n" + rows + "\n")
     segment = labrig.segment(csv)
     np.testing.assert_allclose(segment.curve["p_kpa"], 3 * segment.curve["v_ml"], atol=1e-9)
+    # what was done to the table is the command's too, byte for byte
+    code, out, err = cli(["model", "curve", csv, "--json"], capsys)
+    assert code == 0, err
+    assert out == json.dumps(segment.document) + "\n"
+    assert segment.document["measured"]["rows"] == 200
 
 
 @pytest.fixture(scope="module")

@@ -160,12 +160,13 @@ def test_an_unresolvable_state_is_one_line_naming_segments_and_volume(capsys, mo
 
 
 def test_any_other_error_is_one_line_unless_debug(capsys, monkeypatch):
-    import labrig.model.actuator.transitions as transitions_module
+    import labrig.model.path_document as path_document_module
 
     def broken(path, window_ml=1e-4):
         raise ZeroDivisionError("a bug")
 
-    monkeypatch.setattr(transitions_module, "transitions", broken)
+    # the transitions of the solved path, as the command calls them
+    monkeypatch.setattr(path_document_module, "transitions", broken)
     code, _, err = run(["model", "path", "SI-B42-T24", "SI-B50-T22"], capsys)
     assert code == 1
     assert err.strip() == (

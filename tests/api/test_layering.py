@@ -1,0 +1,54 @@
+"""The library layers stand below the command line: the Python API, the analysis and
+the model never import ``labrig.cli`` (a command is one caller of what they build, the
+API another), so a notebook does not load click and a command can change its printing
+without changing the library."""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+import labrig
+
+PACKAGE = Path(labrig.__file__).parent
+LIBRARY_LAYERS = ("api", "analysis", "model")
+
+
+def _imported_modules(source: str, package: str) -> set[str]:
+    """Every module ``source`` (a module of ``package``) imports, relative imports
+    resolved against ``package``."""
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            found |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            parts = package.split(".")
+            base = parts[: len(parts) - node.level + 1] if node.level else []
+            target = ".".join([*base, node.module] if node.module else base)
+            found |= {target} | {f"{target}.{alias.name}" for alias in node.names}
+    return found
+
+
+def _package_of(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts if path.name == "__init__.py" else parts[:-1])
+
+
+@pytest.mark.parametrize("layer", LIBRARY_LAYERS)
+def test_a_library_layer_never_imports_the_command_line(layer):
+    offenders = {
+        f"{path.relative_to(PACKAGE.parent)}: {name}"
+        for path in sorted((PACKAGE / layer).rglob("*.py"))
+        for name in _imported_modules(path.read_text(encoding="utf-8"), _package_of(path))
+        if name == "labrig.cli" or name.startswith("labrig.cli.")
+    }
+    assert not offenders, sorted(offenders)
+
+
+def test_the_scan_resolves_relative_and_lazy_imports():
+    """An import inside a function, or ``from ..cli import x``, is seen as labrig.cli
+    (else the check above could pass blind)."""
+    source = "def f():\n    from ..cli.model_path import path\n    import labrig.cli\n"
+    found = _imported_modules(source, "labrig.api")
+    assert {"labrig.cli.model_path", "labrig.cli.model_path.path", "labrig.cli"} <= found
+    assert "labrig.cli.x" in _imported_modules("from . import x", "labrig.cli")
