@@ -70,9 +70,8 @@ def run_with_daq_failure(tmp_path, failure, config=None):
         ("vout-cut", None, "outside the sensor's range"),
         ("supply-cut", None, "outside the sensor's range"),  # assumed supply: -4.4 kPa
         ("supply-cut", supply_measured(), "not a number"),  # measured supply: 0/0
-        ("frozen", None, "pressure signal stuck"),
     ],
-    ids=["vout-wire", "supply-wire", "supply-wire-measured-nan", "frozen"],
+    ids=["vout-wire", "supply-wire", "supply-wire-measured-nan"],
 )
 def test_a_dead_sensor_stops_the_pump(tmp_path, failure, config, reason):
     """A cut wire reads -4.4 kPa or NaN, never high: a pressure ceiling alone would let
@@ -82,6 +81,23 @@ def test_a_dead_sensor_stops_the_pump(tmp_path, failure, config, reason):
     assert reason in outcome.result.reason
     assert plunger_stopped_after_s(outcome, fault_s) <= 1.0
     assert_samples_kept_up_to(outcome, fault_s)
+
+
+@pytest.mark.parametrize("failure", ["frozen", "vout-floating"])
+def test_a_sensor_dead_in_range_stops_the_pump_within_the_judged_millilitre(tmp_path, failure):
+    """A frozen reading or a floating output wire reads in range: only the pressure's
+    response to the volume infused sees it, over the millilitre judged (1 s at
+    60 mL/min), where the specimen's model expects the pressure to move."""
+    seen = []
+    outcome = run_sim(
+        tmp_path,
+        short_protocol(),
+        inject=strike_at(0.5, lambda rig: rig.simulation.daq_tasks[-1].fail(failure), seen),
+    )
+    assert outcome.result.status == "faulted"
+    assert "did not respond to the volume infused" in outcome.result.reason
+    assert plunger_stopped_after_s(outcome, seen[0]) <= 1.5
+    assert_samples_kept_up_to(outcome, seen[0])
 
 
 def test_a_stalled_daq_stops_the_pump_after_half_a_second_without_samples(tmp_path):
