@@ -112,9 +112,10 @@ SLOW_WRITE_S = 0.5
 # every run's camera delivers its first frame this long after the stream starts
 CAMERA_FIRST_FRAME_S = (0.3, 1.0)
 # A dead sensor that still reads in range is seen only by the pressure's response to
-# the volume infused: it strikes while the infusion is judged (1-3.5 mL infused at
-# 60 mL/min), and the pump may run on for the judged millilitre (1 s) and the stop.
-IN_RANGE_DEATH_WINDOW_S = (2.5, 4.0)
+# the volume infused: it strikes where the soak specimen's infusion is judged with a
+# millilitre of it still ahead (about 1-3 mL infused at 60 mL/min), and the pump may
+# run on for that millilitre (1 s) and the stop (at most 1.3 s, measured over the window)
+IN_RANGE_DEATH_WINDOW_S = (2.5, 3.5)
 IN_RANGE_DEATH_STOP_S = 1.5
 
 

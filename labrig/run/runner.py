@@ -338,7 +338,7 @@ class Runner:
         if quiet_s <= self.timing.signal_timeout_s:
             return True
         self.monitor.trip(
-            f"refusing to start the pump: no pressure sample for {quiet_s:.2f} s", "faulted"
+            f"refusing to start the pump: pressure: no sample for {quiet_s:.2f} s", "faulted"
         )
         return False
 
