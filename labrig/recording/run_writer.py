@@ -36,6 +36,7 @@ import labrig
 from labrig.errors import InputError
 from labrig.recording.run_file_lock import RunFileLock
 from labrig.recording.run_layout import (
+    CAMERA_FIELDS,
     CHUNK,
     EVENT_FIELDS,
     LOG_DESCRIPTION,
@@ -106,6 +107,7 @@ class RunWriter:
         rig_config_text: str,
         repetitions: int,
         with_length: bool,
+        camera_fps: float = float("nan"),
         with_force: bool = False,
         with_events: bool = False,
         simulated_segments: int = 0,
@@ -124,6 +126,7 @@ class RunWriter:
             raise ValueError("a run has at least one repetition")
         self.repetitions = repetitions
         self.with_length = with_length
+        self.camera_fps = camera_fps  # nominal, with a length log (a camera)
         self.with_force = with_force
         self.with_events = with_events
         self.simulated_segments = simulated_segments
@@ -205,6 +208,12 @@ class RunWriter:
                 ):
                     continue
                 self._create_log(rep, log)
+        if self.with_length:
+            camera = entry.create_group("camera")
+            camera.attrs["NX_class"] = "NXcollection"
+            for field, holds in CAMERA_FIELDS.items():
+                value = self.camera_fps if field == "nominal_fps" else np.nan
+                camera.create_dataset(field, data=value).attrs.update(units="Hz", description=holds)
         if self.with_events:
             events = self._create_log(entry, "events", EVENT_FIELDS)
             events.attrs["description"] = "technician prompts and reservoir steps, in order"
@@ -351,6 +360,14 @@ class RunWriter:
     def set_zero_offset(self, offset_kpa: float) -> None:
         with self._lock:
             self._file["entry/zero/offset_kpa"][()] = offset_kpa
+            self._flush_if_due(force=True)
+
+    def set_measured_fps(self, fps: float | None) -> None:
+        """The camera's real frame rate over the run (None: fewer than two frames)."""
+        if not self.with_length:
+            raise ValueError("this run was created without a camera")
+        with self._lock:
+            self._file["entry/camera/measured_fps"][()] = np.nan if fps is None else fps
             self._flush_if_due(force=True)
 
     def set_repetition_status(

@@ -197,6 +197,7 @@ class Runner:
             rig_config_text=self.rig.config_text,
             repetitions=max(1, self.plan.repetitions),
             with_length=self.rig.length is not None,
+            camera_fps=self.protocol.acquisition.camera_fps,
             with_force=getattr(self.rig.pressure, "measures_force", False),
             with_events=self.rig.technician is not None,
             simulated_segments=self._simulated_segments(),
@@ -459,6 +460,8 @@ class Runner:
             status, reason = "faulted", unconfirmed_reason(stop_problem, reason)
         try:
             self.acquisition.stop()
+            if self.rig.length is not None:
+                self.writer.put(self.writer.writer.set_measured_fps, self.rig.length.measured_fps)
             if self.video is not None:
                 self.video.close()
                 if self.video.error is not None and not reason:
