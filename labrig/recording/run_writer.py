@@ -181,6 +181,8 @@ class RunWriter:
         entry["end_time"] = np.array(b"", dtype=f"S{TIME_SIZE}")
         entry["status"] = np.array(b"running", dtype=f"S{STATUS_SIZE}")
         entry["reason"] = np.array(b"", dtype=f"S{REASON_SIZE}")
+        # False until the run's last stop is confirmed: a killed run confirmed none
+        entry["pump_stop_confirmed"] = False
         protocol = entry.create_dataset("protocol", data=protocol_text)
         protocol.attrs["source_file"] = protocol_path
         entry["rig_config"] = rig_config_text
@@ -403,8 +405,10 @@ class RunWriter:
             self._file.flush()
             self._last_flush = now
 
-    def finalise(self, status: str, reason: str = "") -> None:
-        """Record how the run ended and close the file cleanly (idempotent)."""
+    def finalise(self, status: str, reason: str = "", *, pump_stop_confirmed: bool = True) -> None:
+        """Record how the run ended and close the file cleanly (idempotent).
+        ``pump_stop_confirmed``: False when the pump never confirmed the run's last
+        stop (it may still be moving)."""
         if status not in RUN_STATUSES[1:]:
             raise ValueError(f"a run ends complete, aborted or faulted, not {status!r}")
         with self._lock:
@@ -414,6 +418,7 @@ class RunWriter:
             entry = self._file["entry"]
             entry["status"][()] = status.encode()
             entry["reason"][()] = reason.encode()[:REASON_SIZE]
+            entry["pump_stop_confirmed"][()] = pump_stop_confirmed
             entry["end_time"][()] = _now_iso().encode()
             reps = entry["repetitions"]
             states = reps["status"][:]

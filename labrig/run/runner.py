@@ -478,7 +478,11 @@ class Runner:
                 if self.writer.writer.simulated_segments:
                     self._record_simulation(self.clock.now())
                 self.writer.close(
-                    status, reason, self.timing.writer_drain_s, lambda: self.stops.hurry
+                    status,
+                    reason,
+                    self.timing.writer_drain_s,
+                    lambda: self.stops.hurry,
+                    pump_stop_confirmed=stop_problem is None,
                 )
             finally:
                 self.rig.close()

@@ -40,6 +40,7 @@ def test_layout_exists_before_the_first_sample(tmp_path):
         assert entry.attrs["NX_class"] == "NXentry"
         assert entry["protocol"][()].decode() == "name: test\n"
         assert entry["status"][()] == b"running"
+        assert entry["pump_stop_confirmed"][()] == np.False_  # no stop confirmed yet
         for rep in ("rep_01", "rep_02", "rep_03"):
             for log, units in (("pressure", "kPa"), ("pump", "mL"), ("length", "mm")):
                 group = entry["repetitions"][rep][log]

@@ -171,6 +171,7 @@ def test_an_unconfirmed_stop_faults_the_run_and_says_so(tmp_path):
     with open_run(outcome.path) as run:
         assert run["entry/status"][()] == b"faulted"
         assert run["entry/reason"][()].decode().startswith(PUMP_STOP_NOT_CONFIRMED)
+        assert run["entry/pump_stop_confirmed"][()] == np.False_
 
 
 def test_a_confirmed_stop_is_no_warning(tmp_path):
@@ -178,6 +179,8 @@ def test_a_confirmed_stop_is_no_warning(tmp_path):
     assert outcome.result.status == "aborted"
     assert outcome.result.stop_confirmed
     assert PUMP_STOP_NOT_CONFIRMED not in outcome.result.reason
+    with open_run(outcome.path) as run:
+        assert run["entry/pump_stop_confirmed"][()] == np.True_
 
 
 def test_a_pump_that_re_enumerates_is_found_again_and_stopped(tmp_path):
