@@ -179,7 +179,7 @@ class Runner:
                 refused = str(exc)
             except LabrigError as exc:
                 # an exchange cut short by a trip's stop: the trip stays the reason
-                self.monitor.trip(str(exc), "faulted")
+                self.monitor.fault(exc)
             except BaseException as exc:
                 self.monitor.trip(f"internal error: {exc!r}", "faulted")
                 raise
@@ -458,6 +458,8 @@ class Runner:
         stop_problem = final_stop(self.rig.pump)
         if stop_problem is not None:
             status, reason = "faulted", unconfirmed_reason(stop_problem, reason)
+        elif trip is not None and trip.reason_if_stopped is not None:
+            reason = trip.reason_if_stopped
         try:
             self.acquisition.stop()
             if self.rig.length is not None:

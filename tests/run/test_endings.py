@@ -198,8 +198,14 @@ def test_a_pump_that_re_enumerates_is_found_again_and_stopped(tmp_path):
     outcome = run_sim(tmp_path, protocol(INFUSE), inject=replug)
     emulator = outcome.rig.simulation.emulator
     assert outcome.result.status == "faulted"
-    assert outcome.result.reason.startswith("pump: lost the serial port")
+    # the recorded reason is true at the run's end: the pump was reached and stopped
+    reason = outcome.result.reason
+    assert reason.startswith("pump: lost the serial port ")
+    assert reason.endswith("); the pump was found again and stopped")
+    assert "may still be running" not in reason
     assert outcome.result.stop_confirmed
+    with open_run(outcome.path) as run:
+        assert run["entry/reason"][()].decode() == reason
     assert emulator.tty_path not in (None, ports[0])  # came back as another pty
     assert emulator.net_volume_ml(outcome.end_s + 60.0) < 9.0  # stopped short of 10 mL
     assert plunger_still_after(outcome, outcome.end_s)
