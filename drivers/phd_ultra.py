@@ -848,7 +848,7 @@ class PhdUltra:
     def _disconnected(self, exc: Exception) -> PumpDisconnected:
         self._lost = exc
         return PumpDisconnected(
-            f"lost the serial port {self.port_name} ({exc}); the pump may still be running"
+            f"lost the serial port {self.port_name} ({exc})", "the pump may still be running"
         )
 
     def _discard_pending(self) -> None:

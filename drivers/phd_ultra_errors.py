@@ -9,7 +9,7 @@ support talk about.
 
 from __future__ import annotations
 
-from labrig.errors import DeviceError, InputError
+from labrig.errors import DeviceError, InputError, LinkLost
 
 
 class PumpError(DeviceError):
@@ -21,9 +21,12 @@ class PumpPortError(PumpError):
     program through its exclusive lock)."""
 
 
-class PumpDisconnected(PumpError):
+class PumpDisconnected(PumpError, LinkLost):
     """The serial port went away while in use (cable pulled, pump switched off). The
-    pump may still be running: nothing more can be sent to it."""
+    pump may still be running: nothing more can be sent to it until the port is found
+    again."""
+
+    found_again = "the pump was found again and stopped"
 
 
 class PumpTimeout(PumpError):

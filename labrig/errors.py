@@ -23,3 +23,16 @@ class DeviceError(LabrigError):
     """An instrument did not do what it was asked, or could not be reached."""
 
     exit_code = 3
+
+
+class LinkLost(DeviceError):
+    """A device's link dropped while in use (a cable pulled, a USB device that
+    re-enumerated): what the device does is unknown until it is reached again.
+    ``lost`` says what was lost, ``unknown`` what that leaves unknown; once a later
+    stop of the device is confirmed, ``found_again`` replaces ``unknown``."""
+
+    found_again = "the device was found again and stopped"
+
+    def __init__(self, lost: str, unknown: str = "") -> None:
+        super().__init__(f"{lost}; {unknown}" if unknown else lost)
+        self.lost = lost

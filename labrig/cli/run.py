@@ -11,18 +11,36 @@ from pathlib import Path
 import click
 
 
-def default_out_path(protocol_name: str) -> Path:
-    """runs/<date>_<time>_<protocol>.h5: sortable, unique per second, readable."""
+def default_out_path(protocol_name: str, now: dt.datetime | None = None) -> Path:
+    """runs/<date>_<time>_<protocol>.h5: sortable and readable, with a counter (-2, -3,
+    ...) when another run of the same second has the name. The name is reserved
+    (``reserve_new_name``): two runs started at once get two names."""
+    from labrig.errors import InputError
+    from labrig.recording.run_file_lock import reserve_new_name
+
     slug = re.sub(r"[^A-Za-z0-9]+", "-", protocol_name).strip("-").lower() or "run"
-    stamp = dt.datetime.now().strftime("%Y%m%d_%H%M%S")
-    return Path("runs") / f"{stamp}_{slug}.h5"
+    stamp = (now or dt.datetime.now()).strftime("%Y%m%d_%H%M%S")
+    folder = Path("runs")
+    try:
+        folder.mkdir(exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"{folder}: cannot create the runs folder ({exc.strerror})") from None
+    counter, path = 1, folder / f"{stamp}_{slug}.h5"
+    while not reserve_new_name(path):
+        counter += 1
+        path = folder / f"{stamp}_{slug}-{counter}.h5"
+    return path
 
 
 @click.command()
 @click.argument("protocol_file", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--sim", is_flag=True, help="Run on the simulated rig, whatever the protocol says.")
 @click.option(
-    "--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), help="Run file (.h5)."
+    "--out",
+    "out_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Run file (.h5). Default: runs/<date>_<time>_<name>.h5, with -2, -3, ... when "
+    "another run of the same second has that name.",
 )
 @click.option(
     "--overwrite",
@@ -84,22 +102,25 @@ def run(
         raise click.exceptions.Exit(2)
     if dry_run:
         return
-    from labrig.recording.run_file_lock import claim_out_path
+    from labrig.recording.run_file_lock import claim_out_path, drop_reservation
 
+    reserved = out_path is None
     out_path = out_path or default_out_path(loaded.protocol.name)
-    for line in claim_out_path(out_path, overwrite=overwrite):
-        click.echo(line, err=True)
     live_view = None
-    if live or live_port is not None:
-        from labrig.live.session import LiveView
-
-        live_view = LiveView(loaded.protocol, live_port or 0).start()
-        click.echo(f"live view: {live_view.url}", err=True)
     try:
+        for line in claim_out_path(out_path, overwrite=overwrite):
+            click.echo(line, err=True)
+        if live or live_port is not None:
+            from labrig.live.session import LiveView
+
+            live_view = LiveView(loaded.protocol, live_port or 0).start()
+            click.echo(f"live view: {live_view.url}", err=True)
         _run(loaded, rig_config, out_path, live_view)
     finally:
         if live_view is not None:
             live_view.close(live_hold)
+        if reserved:
+            drop_reservation(out_path)
 
 
 def _run(loaded, rig_config, out_path: Path, live_view=None) -> None:

@@ -148,6 +148,31 @@ def held_by_a_process(run_path: Path) -> bool:
         os.close(fd)
 
 
+def reserve_new_name(path: Path) -> bool:
+    """Claim ``path`` as a new run's name; False if it is taken. Its sidecar lock is
+    created here, only if absent, so two processes asking at once never both get the
+    name; neither the file nor its video may be there. The run's writer takes the
+    sidecar over (and removes it with its lock); ``drop_reservation`` removes it when
+    no run came to write."""
+    try:
+        os.close(os.open(lock_path(path), os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
+    except FileExistsError:
+        return False
+    except OSError as exc:
+        raise InputError(f"{path}: cannot reserve the run file ({exc.strerror})") from None
+    if path.exists() or path.with_suffix(".avi").exists():
+        lock_path(path).unlink()
+        return False
+    return True
+
+
+def drop_reservation(path: Path) -> None:
+    """Remove the sidecar ``reserve_new_name`` made, when no process holds it (a run
+    that wrote the file removed it already)."""
+    if not held_by_a_process(path):
+        lock_path(path).unlink(missing_ok=True)
+
+
 def refuse_if_open_elsewhere(path: Path, refusal: str) -> None:
     """InputError if another program has the HDF5 file at ``path`` open with HDF5's
     file locking (its default): a reader holds a shared lock, so an exclusive one is

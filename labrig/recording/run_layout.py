@@ -50,6 +50,13 @@ EVENT_FIELDS = {
 }
 # The run's video (labrig.recording.video): frame i of the file was taken at time[i].
 VIDEO_FIELDS = {"time": ("f8", "s"), "repetition": ("i4", "")}
+# The camera's frame rate (entry/camera, with a camera), scalars in Hz: auto exposure
+# can lower the real rate below the nominal one while the camera still reports that.
+CAMERA_FIELDS = {
+    "nominal_fps": "the protocol's acquisition.camera_fps",
+    "measured_fps": "the rate the frames really came at over the run, set at its end "
+    "(NaN: fewer than two frames)",
+}
 
 RUN_STATUSES = ("running", "complete", "aborted", "faulted")
 REPETITION_STATUSES = ("pending", "running", "complete", "aborted", "faulted")

@@ -36,6 +36,7 @@ import labrig
 from labrig.errors import InputError
 from labrig.recording.run_file_lock import RunFileLock
 from labrig.recording.run_layout import (
+    CAMERA_FIELDS,
     CHUNK,
     EVENT_FIELDS,
     LOG_DESCRIPTION,
@@ -106,6 +107,7 @@ class RunWriter:
         rig_config_text: str,
         repetitions: int,
         with_length: bool,
+        camera_fps: float = float("nan"),
         with_force: bool = False,
         with_events: bool = False,
         simulated_segments: int = 0,
@@ -124,6 +126,7 @@ class RunWriter:
             raise ValueError("a run has at least one repetition")
         self.repetitions = repetitions
         self.with_length = with_length
+        self.camera_fps = camera_fps  # nominal, with a length log (a camera)
         self.with_force = with_force
         self.with_events = with_events
         self.simulated_segments = simulated_segments
@@ -178,6 +181,8 @@ class RunWriter:
         entry["end_time"] = np.array(b"", dtype=f"S{TIME_SIZE}")
         entry["status"] = np.array(b"running", dtype=f"S{STATUS_SIZE}")
         entry["reason"] = np.array(b"", dtype=f"S{REASON_SIZE}")
+        # False until the run's last stop is confirmed: a killed run confirmed none
+        entry["pump_stop_confirmed"] = False
         protocol = entry.create_dataset("protocol", data=protocol_text)
         protocol.attrs["source_file"] = protocol_path
         entry["rig_config"] = rig_config_text
@@ -205,6 +210,12 @@ class RunWriter:
                 ):
                     continue
                 self._create_log(rep, log)
+        if self.with_length:
+            camera = entry.create_group("camera")
+            camera.attrs["NX_class"] = "NXcollection"
+            for field, holds in CAMERA_FIELDS.items():
+                value = self.camera_fps if field == "nominal_fps" else np.nan
+                camera.create_dataset(field, data=value).attrs.update(units="Hz", description=holds)
         if self.with_events:
             events = self._create_log(entry, "events", EVENT_FIELDS)
             events.attrs["description"] = "technician prompts and reservoir steps, in order"
@@ -353,6 +364,14 @@ class RunWriter:
             self._file["entry/zero/offset_kpa"][()] = offset_kpa
             self._flush_if_due(force=True)
 
+    def set_measured_fps(self, fps: float | None) -> None:
+        """The camera's real frame rate over the run (None: fewer than two frames)."""
+        if not self.with_length:
+            raise ValueError("this run was created without a camera")
+        with self._lock:
+            self._file["entry/camera/measured_fps"][()] = np.nan if fps is None else fps
+            self._flush_if_due(force=True)
+
     def set_repetition_status(
         self,
         repetition: int,
@@ -386,8 +405,10 @@ class RunWriter:
             self._file.flush()
             self._last_flush = now
 
-    def finalise(self, status: str, reason: str = "") -> None:
-        """Record how the run ended and close the file cleanly (idempotent)."""
+    def finalise(self, status: str, reason: str = "", *, pump_stop_confirmed: bool = True) -> None:
+        """Record how the run ended and close the file cleanly (idempotent).
+        ``pump_stop_confirmed``: False when the pump never confirmed the run's last
+        stop (it may still be moving)."""
         if status not in RUN_STATUSES[1:]:
             raise ValueError(f"a run ends complete, aborted or faulted, not {status!r}")
         with self._lock:
@@ -397,6 +418,7 @@ class RunWriter:
             entry = self._file["entry"]
             entry["status"][()] = status.encode()
             entry["reason"][()] = reason.encode()[:REASON_SIZE]
+            entry["pump_stop_confirmed"][()] = pump_stop_confirmed
             entry["end_time"][()] = _now_iso().encode()
             reps = entry["repetitions"]
             states = reps["status"][:]

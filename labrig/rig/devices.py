@@ -145,6 +145,11 @@ class LengthSource(Protocol):
         """Grab one frame and measure it; None when no frame is available."""
         ...
 
+    @property
+    def measured_fps(self) -> float | None:
+        """The frame rate the camera really gave so far; None before two frames."""
+        ...
+
     def close(self) -> None: ...
 
 

@@ -254,7 +254,7 @@ class Acquisition:
             try:
                 read_once()
             except (LabrigError, OSError) as exc:
-                self.monitor.trip(f"{device}: {exc}", "faulted")
+                self.monitor.fault(exc, device)
                 return
             except Exception as exc:
                 # a loop that died quietly would leave its interlock blind: fault the run

@@ -55,7 +55,15 @@ class BackgroundWriter:
         """Every call queued so far is made."""
         return not self._calls and not self._busy
 
-    def close(self, status: str, reason: str, timeout_s: float, hurry: Callable[[], bool]) -> None:
+    def close(
+        self,
+        status: str,
+        reason: str,
+        timeout_s: float,
+        hurry: Callable[[], bool],
+        *,
+        pump_stop_confirmed: bool,
+    ) -> None:
         """Make what is queued (``timeout_s`` of clock time at most, or until ``hurry()``:
         a second stop request waits for no disk), then finalise the file, whatever
         became of the queue: the file must end with its status."""
@@ -65,7 +73,7 @@ class BackgroundWriter:
             )
         self._closing = True
         self.clock.wait_for(lambda: self._thread.done or hurry(), timeout_s)
-        self.writer.finalise(status, reason)
+        self.writer.finalise(status, reason, pump_stop_confirmed=pump_stop_confirmed)
 
     def _serve(self) -> None:
         calls = self._calls

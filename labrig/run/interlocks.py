@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from labrig.errors import LinkLost
 from labrig.rig.devices import PressureBlock, Pump, PumpState, PumpStatus
 
 
@@ -290,6 +291,9 @@ class PumpStall(Interlock):
 class Trip:
     reason: str
     kind: str  # "aborted" (an operator or limit stop) or "faulted" (a device fault)
+    # the reason once the pump's stop is confirmed, when that makes ``reason`` untrue
+    # (a lost link, found again: the pump no longer "may still be running")
+    reason_if_stopped: str | None = None
 
 
 class InterlockMonitor:
@@ -317,18 +321,28 @@ class InterlockMonitor:
         """Block up to ``timeout_s`` of host time; True once something has tripped."""
         return self._tripped.wait(timeout_s)
 
-    def trip(self, reason: str, kind: str = "aborted") -> bool:
+    def trip(
+        self, reason: str, kind: str = "aborted", reason_if_stopped: str | None = None
+    ) -> bool:
         """Stop the pump and record why. Returns False if already tripped."""
         with self._lock:
             if self._trip is not None:
                 return False
-            self._trip = Trip(reason, kind)
+            self._trip = Trip(reason, kind, reason_if_stopped)
         try:
             self.pump.stop()
         except Exception as exc:  # the pump may be the thing that failed
             self.stop_error = exc
         self._tripped.set()
         return True
+
+    def fault(self, exc: Exception, device: str = "") -> bool:
+        """Trip on a device's error, named by ``device``; a lost link is recorded as
+        found again once the pump's stop is confirmed (only a pump reached again can
+        confirm one)."""
+        where = f"{device}: " if device else ""
+        found = f"{where}{exc.lost}; {exc.found_again}" if isinstance(exc, LinkLost) else None
+        return self.trip(f"{where}{exc}", "faulted", found)
 
     def specimen_volume_ml(self, status: PumpStatus) -> float:
         """Volume in the specimen: what was there when the counters were last cleared

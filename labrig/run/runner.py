@@ -147,21 +147,14 @@ class Runner:
 
     # --- public --------------------------------------------------------------------
     def run(self) -> RunResult:
-        """Run the protocol; always returns with the pump sent a stop and the file closed."""
-        file = RunWriter(
-            self.out_path,
-            title=self.protocol.name,
-            protocol_text=self.loaded.text,
-            protocol_path=str(self.loaded.path),
-            rig_config_text=self.rig.config_text,
-            repetitions=max(1, self.plan.repetitions),
-            with_length=self.rig.length is not None,
-            with_force=getattr(self.rig.pressure, "measures_force", False),
-            with_events=self.rig.technician is not None,
-            simulated_segments=self._simulated_segments(),
-            tap=self.data_tap,
-            video_file=self._video_path().name if self._video_path() else None,
-        )
+        """Run the protocol; always returns with the pump sent a stop and the file closed.
+        A run file that cannot be made (another run writing it, an unusable path) is
+        raised before anything moves, with the rig closed: nothing of it left running."""
+        try:
+            file = self._open_run_file()
+        except BaseException:
+            self.rig.close()
+            raise
         if self._video_path() is not None:
             self.video = VideoRecorder(self._video_path(), self.protocol.acquisition.camera_fps)
         refused = ""
@@ -186,7 +179,7 @@ class Runner:
                 refused = str(exc)
             except LabrigError as exc:
                 # an exchange cut short by a trip's stop: the trip stays the reason
-                self.monitor.trip(str(exc), "faulted")
+                self.monitor.fault(exc)
             except BaseException as exc:
                 self.monitor.trip(f"internal error: {exc!r}", "faulted")
                 raise
@@ -194,6 +187,23 @@ class Runner:
                 result = self._shutdown(refused)
                 self.stops.finished.set()
         return result
+
+    def _open_run_file(self) -> RunWriter:
+        return RunWriter(
+            self.out_path,
+            title=self.protocol.name,
+            protocol_text=self.loaded.text,
+            protocol_path=str(self.loaded.path),
+            rig_config_text=self.rig.config_text,
+            repetitions=max(1, self.plan.repetitions),
+            with_length=self.rig.length is not None,
+            camera_fps=self.protocol.acquisition.camera_fps,
+            with_force=getattr(self.rig.pressure, "measures_force", False),
+            with_events=self.rig.technician is not None,
+            simulated_segments=self._simulated_segments(),
+            tap=self.data_tap,
+            video_file=self._video_path().name if self._video_path() else None,
+        )
 
     def _video_path(self) -> Path | None:
         """RUN.avi beside RUN.h5, when the protocol asks for a video and has a camera."""
@@ -448,8 +458,12 @@ class Runner:
         stop_problem = final_stop(self.rig.pump)
         if stop_problem is not None:
             status, reason = "faulted", unconfirmed_reason(stop_problem, reason)
+        elif trip is not None and trip.reason_if_stopped is not None:
+            reason = trip.reason_if_stopped
         try:
             self.acquisition.stop()
+            if self.rig.length is not None:
+                self.writer.put(self.writer.writer.set_measured_fps, self.rig.length.measured_fps)
             if self.video is not None:
                 self.video.close()
                 if self.video.error is not None and not reason:
@@ -466,7 +480,11 @@ class Runner:
                 if self.writer.writer.simulated_segments:
                     self._record_simulation(self.clock.now())
                 self.writer.close(
-                    status, reason, self.timing.writer_drain_s, lambda: self.stops.hurry
+                    status,
+                    reason,
+                    self.timing.writer_drain_s,
+                    lambda: self.stops.hurry,
+                    pump_stop_confirmed=stop_problem is None,
                 )
             finally:
                 self.rig.close()

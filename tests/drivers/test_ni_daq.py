@@ -14,6 +14,7 @@ from nidaqmx.error_codes import DAQmxErrors
 
 from labrig.drivers import mpx5100
 from labrig.drivers.ni_daq import (
+    DRIFT_CHECK_S,
     DaqConfigError,
     DaqNotInstalledError,
     DaqOverflowError,
@@ -449,6 +450,24 @@ def test_an_unplugged_daq_gets_cable_advice_and_its_buffer_is_read_first():
     with pytest.raises(DaqUnreachableError, match="while stopping"):
         rig.daq.stop()
     rig.daq.stop()  # nothing left to release
+
+
+def test_samples_read_as_the_daq_is_unplugged_are_kept_when_a_drift_check_is_due():
+    """The read that finds the device gone also runs the due drift check: that check
+    asks DAQmx nothing, so the samples taken before the unplug come back, and the
+    -201003 comes with the next read."""
+    rig = Rig(ramp_after(0.0, 1.0), buffer_s=20.0)
+    rig.daq.start(1000.0)
+    rig.clock.sleep(DRIFT_CHECK_S + 0.5)  # no read since the start: the check is due
+    rig.tasks[-1].fail("vanish")
+    rig.clock.sleep(0.3)
+    block = rig.daq.read()
+    assert len(block.t_s) == pytest.approx(1000.0 * (DRIFT_CHECK_S + 0.5), abs=2)
+    assert block.t_s[-1] == pytest.approx(DRIFT_CHECK_S + 0.5, abs=2e-3)
+    with pytest.raises(DaqUnreachableError, match="-201003"):
+        rig.daq.read()
+    with pytest.raises(DaqUnreachableError):
+        rig.daq.stop()
 
 
 @pytest.mark.parametrize(("failure", "check"), [("vout-cut", "low"), ("supply-cut", "nan")])

@@ -1,9 +1,11 @@
 """Nothing overwritten, nothing truncated: the run file's lock against a second run,
 ``labrig recover`` and another program holding the file, all in real processes."""
 
+import os
 import subprocess
 import sys
 import textwrap
+import threading
 
 import h5py
 import numpy as np
@@ -11,6 +13,8 @@ import pytest
 
 from labrig.analysis.recovery import recover_run
 from labrig.analysis.runfile import superblock_facts
+from labrig.config.protocol import load_protocol
+from labrig.config.rig_file import sim_rig_config
 from labrig.errors import InputError
 from labrig.recording.run_file_lock import (
     RunFileLock,
@@ -20,6 +24,9 @@ from labrig.recording.run_file_lock import (
 )
 from labrig.recording.run_reader import open_run, read_log
 from labrig.recording.run_writer import RunWriter
+from labrig.rig.assembly import build_rig
+from labrig.run.runner import Runner
+from tests.support.simrig import short_protocol
 from tests.support.simulated_runs import PROTOCOL, tiny_run
 
 LIVE_WRITER = textwrap.dedent(
@@ -200,3 +207,19 @@ def test_a_writer_that_fails_to_lay_out_its_file_leaves_nothing(tmp_path):
         )
     assert list(tmp_path.iterdir()) == []
     make_writer(path).finalise("complete")  # the lock was let go
+
+
+def test_a_run_refused_its_file_leaves_no_rig_running(live_run, tmp_path):
+    """A run onto a file another process is writing is refused before anything moves,
+    and its rig goes with it: no emulator, DAQ or camera thread left, the pty released."""
+    path, process = live_run
+    protocol_path = tmp_path / "run.yaml"
+    protocol_path.write_text(short_protocol())
+    loaded = load_protocol(protocol_path)
+    threads_before = set(threading.enumerate())
+    rig = build_rig(loaded.protocol, sim_rig_config())
+    pty = rig.simulation.emulator.tty_path
+    with pytest.raises(InputError, match=rf"pid {process.pid}\) is writing this file"):
+        Runner(loaded, rig, path).run()
+    assert set(threading.enumerate()) - threads_before == set()
+    assert not os.path.exists(pty)

@@ -40,6 +40,7 @@ def test_layout_exists_before_the_first_sample(tmp_path):
         assert entry.attrs["NX_class"] == "NXentry"
         assert entry["protocol"][()].decode() == "name: test\n"
         assert entry["status"][()] == b"running"
+        assert entry["pump_stop_confirmed"][()] == np.False_  # no stop confirmed yet
         for rep in ("rep_01", "rep_02", "rep_03"):
             for log, units in (("pressure", "kPa"), ("pump", "mL"), ("length", "mm")):
                 group = entry["repetitions"][rep][log]
@@ -55,9 +56,20 @@ def test_without_camera_there_is_no_length_log(tmp_path):
     writer = make_writer(tmp_path / "run.h5", with_length=False)
     with pytest.raises(ValueError, match="without a length"):
         writer.append_length(1, [0.0], [1.0], [0], [0], [1], [1], [True])
+    with pytest.raises(ValueError, match="without a camera"):
+        writer.set_measured_fps(30.0)
     writer.finalise("complete")
     with open_run(tmp_path / "run.h5") as run:
         assert "length" not in run["entry/repetitions/rep_01"]
+        assert "camera" not in run["entry"]
+
+
+def test_a_camera_that_gave_fewer_than_two_frames_has_no_measured_rate(tmp_path):
+    writer = make_writer(tmp_path / "run.h5")
+    writer.set_measured_fps(None)
+    writer.finalise("aborted", "stopped at once")
+    with open_run(tmp_path / "run.h5") as run:
+        assert np.isnan(run["entry/camera/measured_fps"][()])
 
 
 def test_concurrent_appends_round_trip(tmp_path):

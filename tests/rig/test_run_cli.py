@@ -1,6 +1,7 @@
 """`labrig run` refuses bad protocols with a clear message before anything moves, and
 the dry run answers without a rig."""
 
+import datetime as dt
 import os
 import subprocess
 import sys
@@ -127,3 +128,26 @@ def test_dry_run_on_a_rig_file_shows_the_backstop_and_what_the_pump_can_do(tmp_p
     assert code == 0
     assert "pump        infuses and withdraws" in out and "stalls above 145.0 kPa" in out
     assert "warning" not in out
+
+
+def test_the_default_run_file_gets_a_counter_when_its_name_is_taken(tmp_path, monkeypatch):
+    """Two runs of one protocol in one second: the second default name gets -2, also
+    while the first has not created its file yet (its name is reserved), and a finished
+    run's name is never reused; an explicit --out keeps refusing an existing file."""
+    from labrig.cli.run import default_out_path
+    from labrig.errors import InputError
+    from labrig.recording.run_file_lock import claim_out_path, drop_reservation, lock_path
+    from tests.support.simulated_runs import tiny_run
+
+    monkeypatch.chdir(tmp_path)
+    second = dt.datetime(2026, 12, 5, 12, 0, 7)
+    first = default_out_path("cli test", second)
+    assert first == Path("runs/20261205_120007_cli-test.h5")
+    assert lock_path(first).exists()  # reserved before the rig is built
+    assert default_out_path("cli test", second) == first.with_name(f"{first.stem}-2.h5")
+    tiny_run(first)  # the first run wrote its file (its writer let the sidecar go)
+    drop_reservation(first.with_name(f"{first.stem}-2.h5"))  # the second never ran
+    assert not lock_path(first).exists()
+    assert default_out_path("cli test", second) == first.with_name(f"{first.stem}-2.h5")
+    with pytest.raises(InputError, match="a run file is already there"):
+        claim_out_path(first, overwrite=False)

@@ -171,6 +171,7 @@ def test_an_unconfirmed_stop_faults_the_run_and_says_so(tmp_path):
     with open_run(outcome.path) as run:
         assert run["entry/status"][()] == b"faulted"
         assert run["entry/reason"][()].decode().startswith(PUMP_STOP_NOT_CONFIRMED)
+        assert run["entry/pump_stop_confirmed"][()] == np.False_
 
 
 def test_a_confirmed_stop_is_no_warning(tmp_path):
@@ -178,6 +179,8 @@ def test_a_confirmed_stop_is_no_warning(tmp_path):
     assert outcome.result.status == "aborted"
     assert outcome.result.stop_confirmed
     assert PUMP_STOP_NOT_CONFIRMED not in outcome.result.reason
+    with open_run(outcome.path) as run:
+        assert run["entry/pump_stop_confirmed"][()] == np.True_
 
 
 def test_a_pump_that_re_enumerates_is_found_again_and_stopped(tmp_path):
@@ -195,8 +198,14 @@ def test_a_pump_that_re_enumerates_is_found_again_and_stopped(tmp_path):
     outcome = run_sim(tmp_path, protocol(INFUSE), inject=replug)
     emulator = outcome.rig.simulation.emulator
     assert outcome.result.status == "faulted"
-    assert outcome.result.reason.startswith("pump: lost the serial port")
+    # the recorded reason is true at the run's end: the pump was reached and stopped
+    reason = outcome.result.reason
+    assert reason.startswith("pump: lost the serial port ")
+    assert reason.endswith("); the pump was found again and stopped")
+    assert "may still be running" not in reason
     assert outcome.result.stop_confirmed
+    with open_run(outcome.path) as run:
+        assert run["entry/reason"][()].decode() == reason
     assert emulator.tty_path not in (None, ports[0])  # came back as another pty
     assert emulator.net_volume_ml(outcome.end_s + 60.0) < 9.0  # stopped short of 10 mL
     assert plunger_still_after(outcome, outcome.end_s)

@@ -233,6 +233,8 @@ def run_file_reference() -> str:
             lines.append(f"| `{log}` | `{field}` | `{dtype}` | {units} | {holds} |")
     for field, (dtype, units) in run_layout.VIDEO_FIELDS.items():
         lines.append(f"| `/entry/video` | `{field}` | `{dtype}` | {units} | |")
+    for field, holds in run_layout.CAMERA_FIELDS.items():
+        lines.append(f"| `/entry/camera` | `{field}` | `f8` | Hz | {_escape(holds)} |")
     lines += [
         "",
         "The detector's settings, stored with every analysis in "
