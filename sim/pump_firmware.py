@@ -42,7 +42,14 @@ from labrig.time.clock import Clock
 from .pump_commands import WITHDRAW_COMMANDS
 from .pump_panel import PanelSettings
 from .pump_quantity_commands import DIAMETER_RANGE_MM, QuantityCommands, Ramp
-from .pump_refusals import Refused, argument_error, command_error, range_error, unknown_command
+from .pump_refusals import (
+    Refused,
+    argument_error,
+    command_error,
+    range_error,
+    unknown_command,
+    word_setting,
+)
 from .pump_syringes import SyringeChoice, manufacturer_lines
 from .pump_units import (
     clock_text,
@@ -154,7 +161,7 @@ class PumpFirmware(QuantityCommands):
             "ver": lambda arg, now: [FIRMWARE],
             "version": self._version,
             "metrics": self._metrics,
-            "poll": lambda arg, now: self._choice(arg, "poll_mode", POLL_MODES),
+            "poll": lambda arg, now: word_setting(self, "poll_mode", arg, POLL_MODES),
             "force": self._force,
             "diameter": self._diameter,
             "svolume": self._svolume,
@@ -195,7 +202,7 @@ class PumpFirmware(QuantityCommands):
         if memory_command is not None:
             words = ("on", "off", "none") if memory_command == "nvram" else ("on", "off")
             handlers[memory_command] = lambda arg, now: self._echoed(
-                self._choice(arg, "_nvram", words), f"{memory_command.upper()} {arg}"
+                word_setting(self, "_nvram", arg, words), f"{memory_command.upper()} {arg}"
             )
         self._commands = handlers
         # The manual: any command can be shortened to its first 4 letters (where that
@@ -391,16 +398,6 @@ class PumpFirmware(QuantityCommands):
             ("Limit switches", "No"),
         )
         return [f"{name:<19}{value}" for name, value in rows]
-
-    def _choice(self, arg: str, attribute: str, allowed: tuple[str, ...]) -> list[str]:
-        """A command that shows (capitalised: ``Off``) or sets one of a few words
-        (``poll``, ``nvram``, ``rsave``)."""
-        if not arg:
-            return [getattr(self, attribute).capitalize()]
-        if arg.lower() not in allowed:
-            raise argument_error(arg)
-        setattr(self, attribute, arg.lower())
-        return []
 
     def _force(self, arg: str, now: float) -> list[str]:
         if not arg:

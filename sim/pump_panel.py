@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import datetime
 
-from .pump_refusals import argument_error, range_error
+from .pump_refusals import argument_error, range_error, word_setting
 
 BAUD_RATES = (9600, 19200, 38400, 57600, 115200)
 # Quick Start variants `load qs ...` takes: infuse only, withdraw only, both (either
@@ -47,8 +47,8 @@ class PanelSettings:
         self.handlers = {
             "address": self.address_command,
             "baud": self.baud_command,
-            "echo": lambda arg: self._word("echo", arg, _ON_OFF),
-            "remote": lambda arg: self._word("remote", arg, _ON_OFF),
+            "echo": lambda arg: word_setting(self, "echo", arg, _ON_OFF),
+            "remote": lambda arg: word_setting(self, "remote", arg, _ON_OFF),
             "dim": lambda arg: self._percent("dim_pct", arg, 0, "Brightness"),
             "ascale": lambda arg: self._percent("ascale_pct", arg, 1, "Analog scale"),
             "time": self.time_command,
@@ -59,8 +59,8 @@ class PanelSettings:
             "unlock": self.unlock_command,
             "input": lambda arg: ["High"],  # idle high, as the status line's trigger flag
             "output": self.output_command,
-            "sync": lambda arg: self._word("sync", arg, ("high", "low")),
-            "valve": lambda arg: self._word("valve", arg, ("on", "off", "auto")),
+            "sync": lambda arg: word_setting(self, "sync", arg, ("high", "low")),
+            "valve": lambda arg: word_setting(self, "valve", arg, ("on", "off", "auto")),
         }
 
     def address_command(self, arg: str) -> list[str]:
@@ -79,15 +79,6 @@ class PanelSettings:
         if not arg.isdigit() or int(arg) not in BAUD_RATES:
             raise argument_error(arg)
         self.baud = int(arg)
-        return []
-
-    def _word(self, attribute: str, arg: str, allowed: tuple[str, ...]) -> list[str]:
-        """A setting that is one of a few words; shown capitalised (``Off``)."""
-        if not arg:
-            return [getattr(self, attribute).capitalize()]
-        if arg.lower() not in allowed:
-            raise argument_error(arg)
-        setattr(self, attribute, arg.lower())
         return []
 
     def _percent(self, attribute: str, arg: str, low: int, what: str) -> list[str]:

@@ -34,3 +34,14 @@ def command_error(word: str, detail: str) -> Refused:
 
 def unknown_command(word: str) -> Refused:
     return command_error(word, "Unknown command")
+
+
+def word_setting(owner: object, attribute: str, arg: str, allowed: tuple[str, ...]) -> list[str]:
+    """A setting that is one of a few words: shown capitalised (``Off``) when asked with
+    no argument, set (any case) to one of ``allowed``, an argument error otherwise."""
+    if not arg:
+        return [getattr(owner, attribute).capitalize()]
+    if arg.lower() not in allowed:
+        raise argument_error(arg)
+    setattr(owner, attribute, arg.lower())
+    return []
