@@ -18,8 +18,10 @@ to some), a disconnect, a stall, a reply line that dies mid-reply (``go_silent``
 commands still arrive and act; ``go_silent_at_stop``: as the next stop arrives), and a
 USB link that drops and re-enumerates (``re_enumerate``): the port disappears and comes
 back as another pseudo-terminal. Like udev's ``/dev/serial/by-id/...`` links, ``by_id``
-gives a stable symbolic link that always points at the current one; the plunger keeps
-doing what it did meanwhile.
+gives a stable symbolic link that points at the current one, and is gone while the port
+is (a link left pointing at a released pseudo-terminal would lead a driver that reopens
+it into whatever terminal the OS hands that number to next); the plunger keeps doing
+what it did meanwhile.
 One thread serves the port with ``select`` and a timeout, so it never blocks for long.
 
 The plunger's own events are timers on the shared clock (``Clock.call_at``), not host
@@ -188,9 +190,6 @@ class PumpEmulator:
             self._replug.cancel()
             self._replug.join()  # a plug-back under way finishes before the release
         self._shut_down()
-        if self._by_id is not None:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(self._by_id)
 
     def __enter__(self) -> PumpEmulator:
         return self.start()
@@ -201,6 +200,9 @@ class PumpEmulator:
     def _shut_down(self) -> None:
         with self._lock:
             self._serving = False
+        if self._by_id is not None:  # as udev removes it when the device goes
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(self._by_id)
         if self._thread is not None:
             self._wake()
             self._thread.join(timeout=5)

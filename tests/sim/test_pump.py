@@ -334,3 +334,29 @@ def test_an_infuse_only_model_and_firmware_memory_commands(clock):
         assert exchange(port, b"rsave off\r") == b"\n:"
         assert exchange(port, b"rsave\r") == b"\nOff\r\n:"
         assert exchange(port, b"rsave none\r").startswith(b"\nArgument error: [none]")
+
+
+def test_the_by_id_link_is_gone_while_the_pump_is_and_follows_it_back(tmp_path):
+    """As udev's: a link left at a released pseudo-terminal would lead a driver that
+    reopens it into whatever terminal the OS hands that number to next (it did: a
+    soak's driver set an operator's terminal to raw mode, Ctrl-C and all)."""
+    link = tmp_path / "usb-Harvard_Apparatus_PHD_ULTRA-if00"
+    emulator = PumpEmulator(VirtualClock(), by_id=link).start()
+    try:
+        first = emulator.tty_path
+        assert str(link.resolve()) == first
+        emulator.re_enumerate(0.2)
+        assert not link.exists() and not link.is_symlink()
+        deadline = time.monotonic() + 10.0
+        while not link.exists() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert emulator.tty_path != first
+        assert str(link.resolve()) == emulator.tty_path
+        with serial.Serial(str(link), timeout=2) as port:
+            port.write(b"ver\r")
+            assert port.read_until(b"PHD ULTRA").endswith(b"PHD ULTRA")
+        emulator.disconnect()
+        assert not link.is_symlink()
+    finally:
+        emulator.close()
+    assert not link.is_symlink()
