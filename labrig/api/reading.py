@@ -15,26 +15,18 @@ from pathlib import Path
 import h5py
 
 from labrig.analysis.runfile import open_checked, writer_flag_set
-from labrig.errors import InputError
 from labrig.recording.run_file_lock import held_by_a_process
+from labrig.recording.run_reader import open_run
 
 
 def open_readonly(path: Path) -> h5py.File:
     """``path`` opened for reading, never locked, never written."""
-    try:
-        return h5py.File(path, "r", locking=False)
-    except OSError as plain_error:
-        try:
-            return h5py.File(path, "r", libver="latest", swmr=True, locking=False)
-        except OSError:
-            raise InputError(f"{path}: not a readable HDF5 file ({plain_error})") from None
+    return open_run(path, locking=False)
 
 
 def open_run_file(path: Path) -> h5py.File:
     """A labrig run file opened read-only and checked (``/entry`` present); InputError
     naming what is wrong otherwise."""
-    if not path.exists():
-        raise InputError(f"{path}: no such file")
     return open_checked(path, open_readonly)
 
 

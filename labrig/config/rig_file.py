@@ -193,7 +193,7 @@ class RigConfig(Strict):
         0.5,
         gt=0,
         le=5,
-        description="A pressure signal with no sample (or one number) this long, or a camera "
+        description="A pressure signal with no sample this long, or a camera "
         "with no frame this long or three frame periods, is a dead device: the run faults",
     )
 

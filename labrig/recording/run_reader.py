@@ -28,22 +28,27 @@ class LogSeries:
         return len(self.time_s)
 
 
-def open_run(path: str | Path) -> h5py.File:
+def open_run(path: str | Path, *, locking: bool = True) -> h5py.File:
     """Open a run file for reading, even one whose writer was killed.
 
     A file left open by a killed SWMR writer refuses a plain open; SWMR read mode
-    reads it as it was at the writer's last flush.
+    reads it as it was at the writer's last flush. ``locking=False`` leaves HDF5's file
+    lock alone: a reader that holds it would make the runner's own reopening fail when
+    the run ends (the Python API reads live runs so).
     """
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path}: no such file")
     if not path.is_file():  # HDF5 would wait forever on a pipe's open
         raise InputError(f"{path}: not a regular file (a folder, a device or a pipe)")
+    # HDF5's default, not an explicit True: another handle of this process on the file
+    # (the writer's) must have been opened with the same locking flags
+    lock = {} if locking else {"locking": False}
     try:
-        return h5py.File(path, "r")
+        return h5py.File(path, "r", **lock)
     except OSError as plain_error:
         try:
-            return h5py.File(path, "r", libver="latest", swmr=True)
+            return h5py.File(path, "r", libver="latest", swmr=True, **lock)
         except OSError:
             raise InputError(f"{path}: not a readable HDF5 file ({plain_error})") from None
 

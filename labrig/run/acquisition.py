@@ -51,7 +51,7 @@ class Timing:
     first_readings_s: float = 10.0
     loop_exit_s: float = 5.0
     # a signal quiet this long (no pressure sample; no camera frame, or three frame
-    # periods if longer) is a dead device, as is a pressure this long at one number
+    # periods if longer) is a dead device
     signal_timeout_s: float = 0.5
     # a UVC webcam takes 0.3-1 s from the stream's start to its first frame: it is
     # watched from that frame on, and this long is allowed for it

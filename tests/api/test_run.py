@@ -181,3 +181,12 @@ def test_a_run_file_that_is_not_flagged_gives_no_warning(tiny_file):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         labrig.open_run(tiny_file)
+
+
+def test_a_pipe_named_as_a_run_is_refused_not_waited_on(tmp_path):
+    """The API opens through the commands' reader, which refuses what is no regular
+    file before HDF5 opens it (HDF5 would wait forever on a pipe)."""
+    pipe = tmp_path / "run.h5"
+    os.mkfifo(pipe)
+    with pytest.raises(InputError, match="not a regular file"):
+        labrig.open_run(pipe)
