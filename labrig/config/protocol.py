@@ -45,10 +45,20 @@ MAX_PATH_CHARS = 1000
 MAX_TEXT_CHARS = 10_000
 
 
+NO_MODEL = "none"
+
+
 class Specimen(Strict):
     segments: list[Annotated[Line, Field(max_length=MAX_PATH_CHARS)]] = Field(
         min_length=1,
-        description="Segments in the actuator: library names (B46-T20) or CSV paths",
+        description="Segments in the actuator: library names (B46-T20), measured segments "
+        "or CSV paths; with model: none, the lab's own labels (LAB-S37)",
+    )
+    model: Literal["segments", "none"] = Field(
+        "segments",
+        description="segments: the model is built from the segments' names (each must "
+        "name one); none: the specimen has no model yet, its segments are labels "
+        "(no predicted peak, no comparison)",
     )
     fittings_length_mm: float = Field(
         0.0, ge=0, description="Length added by couplings between the markers, in mm"
@@ -68,6 +78,11 @@ class Specimen(Strict):
         description="free: the actuator elongates; blocked: its ends are held at their "
         "unpressurised distance and a load cell reads the reaction force",
     )
+
+    @property
+    def has_model(self) -> bool:
+        """Whether the model is built from the segments (``model: segments``)."""
+        return self.model != NO_MODEL
 
     @model_validator(mode="after")
     def _reservoir_holds_air(self) -> Specimen:
@@ -237,6 +252,21 @@ class Protocol(Strict):
     acquisition: Acquisition = Field(Acquisition(), description="What is recorded, how often")
     steps: list[Step] = Field(min_length=1, description="What the pump does, in order")
     analysis: Analysis = Field(Analysis(), description="What the analysis after the run does")
+
+    @model_validator(mode="after")
+    def _comparison_needs_a_model(self) -> Protocol:
+        """`analysis.compare_model: true` written out contradicts `specimen.model:
+        none` (left out, the comparison is simply not made)."""
+        if (
+            self.specimen.model == NO_MODEL
+            and self.analysis.compare_model
+            and "compare_model" in self.analysis.model_fields_set
+        ):
+            raise ValueError(
+                "analysis.compare_model: true asks for a comparison with the model, but "
+                "specimen.model: none says the specimen has none; drop one of them"
+            )
+        return self
 
     @model_validator(mode="after")
     def _flows_from_what_is_connected(self) -> Protocol:
