@@ -69,6 +69,7 @@ def dry_run_report(protocol: Protocol, rig: RigConfig) -> DryRunReport:
                     f"{location}.{kind}.rate_ml_min = {rate:g}: a {syringe.diameter_mm:g} mm "
                     f"syringe on a PHD ULTRA runs at {low:.3g} to {high:.4g} mL/min"
                 )
+    _aggregate_rate(protocol, rig, report)
     if summary.max_volume_ml > syringe.volume_ml:
         report.problems.append(
             f"the specimen needs {summary.max_volume_ml:g} mL but the syringe holds "
@@ -76,6 +77,29 @@ def dry_run_report(protocol: Protocol, rig: RigConfig) -> DryRunReport:
         )
     _predict_pressure(protocol, summary.max_volume_ml, report)
     return report
+
+
+# The USB-6009 samples its analog inputs in turn, at most this many samples a second
+# over all of them.
+DAQ_AGGREGATE_RATE_HZ = 48_000.0
+
+
+def _aggregate_rate(protocol: Protocol, rig: RigConfig, report: DryRunReport) -> None:
+    """The pressure rate on every input the DAQ reads (the sensor's supply, a load
+    cell), within what the USB-6009 samples in total: else the run faults at start."""
+    inputs = ["the sensor"]
+    if rig.pressure.supply_channel is not None:
+        inputs.append("its supply (pressure.supply_channel)")
+    if protocol.specimen.length == "blocked":
+        inputs.append("the load cell (specimen.length: blocked)")
+    rate_hz = protocol.acquisition.pressure_rate_hz
+    if rate_hz * len(inputs) > DAQ_AGGREGATE_RATE_HZ:
+        report.problems.append(
+            f"acquisition.pressure_rate_hz = {rate_hz:g} on {len(inputs)} inputs "
+            f"({', '.join(inputs)}) is {rate_hz * len(inputs):g} S/s; the USB-6009 samples "
+            f"at most {DAQ_AGGREGATE_RATE_HZ:g} S/s in total: at most "
+            f"{DAQ_AGGREGATE_RATE_HZ / len(inputs):g} Hz"
+        )
 
 
 # A backstop above this many times the pressure limit protects nothing the specimen
