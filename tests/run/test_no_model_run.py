@@ -97,12 +97,33 @@ def test_a_misspelt_library_name_is_caught_both_ways(tmp_path, capsys):
     assert "warning: specimen.segments[0] 'B46-T2O' looks like 'B46-T20' misspelt" in out
 
 
+TRUTH = "pump: {port: emulator}\nsim: {specimen: {segments: [B46-T20]}}\n"
+
+
+def test_the_simulated_rig_needs_the_truth_of_a_specimen_with_no_model(tmp_path, capsys):
+    """Even a label that names a library segment: with no model, it is only a label."""
+    (tmp_path / "rigs").mkdir()
+    (tmp_path / "rigs" / "sim.yaml").write_text("pump: {port: emulator}\nsim: {}\n")
+    protocol = write(tmp_path, "B46-T20", rig="rigs/sim.yaml")
+    code, _, err = run_cli(["run", protocol, "--out", tmp_path / "r.h5"], capsys)
+    assert code == 2
+    assert err == (
+        "error: the simulated rig cannot know what the specimen is: specimen.model: none "
+        "makes its segments labels; give the rig file's sim.specimen.segments, the segments "
+        "the simulated specimen really is (library names or CSV paths)\n"
+    )
+    assert not (tmp_path / "r.h5").exists()
+
+
 @pytest.fixture(scope="module")
 def no_model_run(tmp_path_factory):
-    """A run of a specimen with no model on the simulated rig, through `labrig run`.
-    The simulated specimen is B46-T20, named by its label."""
+    """A run of a specimen with no model on the simulated rig, through `labrig run`;
+    the rig file's sim.specimen says the specimen is B46-T20 (the label says so too, as
+    long as the pressure-response interlock judges a specimen by its model)."""
     folder = tmp_path_factory.mktemp("no-model")
-    protocol = write(folder, "B46-T20")
+    (folder / "rigs").mkdir()
+    (folder / "rigs" / "truth.yaml").write_text(TRUTH)
+    protocol = write(folder, "B46-T20", rig="rigs/truth.yaml")
     out = folder / "run.h5"
     with pytest.raises(SystemExit) as exited:
         main(["run", str(protocol), "--out", str(out)])
