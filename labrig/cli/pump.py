@@ -60,7 +60,10 @@ def pump(
     }
 
 
-def _open(ctx: click.Context):
+def _open(ctx: click.Context, *, take_control: bool = False):
+    """The pump on ``--port``. ``take_control`` (a manual run): a pump found moving is
+    stopped and said so, and put in Quick Start; without it (status, version, stop)
+    it is looked at as it is."""
     from labrig.drivers.phd_ultra import PhdUltra
 
     settings = ctx.obj
@@ -75,6 +78,7 @@ def _open(ctx: click.Context):
         address=settings["address"],
         address_form=settings["address_form"],
         timeout_s=settings["timeout_s"],
+        take_control=take_control,
     )
 
 
@@ -175,7 +179,7 @@ def _run(
     diameter_mm: float | None,
     wait: bool,
 ) -> None:
-    with _open(ctx) as driver:
+    with _open(ctx, take_control=True) as driver:  # a pump found moving: said in the log
         if diameter_mm is not None:
             driver.configure_syringe(diameter_mm, driver.syringe.volume_ml)
         driver.clear_volumes()
