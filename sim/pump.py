@@ -253,6 +253,14 @@ class PumpEmulator:
         self.firmware.stall()
         self._schedule_motion()
 
+    def keypad(self, *commands: str) -> None:
+        """Commands given at the pump itself (or by another program before this one
+        connects): executed, nothing sent on the line. ``keypad("irun")`` leaves it
+        infusing, ``keypad("load prime", "run")`` in a method."""
+        for command in commands:
+            self.firmware.execute(command)
+        self._schedule_motion()
+
     # ---- faults ------------------------------------------------------------------
 
     def inject_garbage(self, n_bytes: int = 12, *, into_next_reply: bool = True) -> None:

@@ -30,10 +30,7 @@ def clock():
 
 def infusing(emulator, rate_ml_min=6.0):
     """The emulated pump infusing, as another program left it."""
-    firmware = emulator.firmware
-    firmware.execute(f"irate {rate_ml_min} ml/min")
-    firmware.execute("irun")
-    emulator._schedule_motion()
+    emulator.keypad(f"irate {rate_ml_min} ml/min", "irun")
     assert emulator.state is PumpState.INFUSING
 
 
@@ -94,8 +91,7 @@ def test_a_method_waiting_in_its_pause_is_stopped_and_quick_start_loaded(clock):
     """The 'prime' method: 0.5 mL, a 10 s pause, 0.5 mL. Found in the pause (idle by
     prompt and flags), it would move again; stopped, it does not."""
     with PumpEmulator(clock, method="prime") as emulator:
-        emulator.firmware.execute("run")
-        emulator._schedule_motion()
+        emulator.keypad("run")
         clock.sleep(7.0)  # 5 s to push 0.5 mL, then 2 s into the pause
         assert emulator.state is PumpState.IDLE and emulator.firmware.method_running
         with PhdUltra.open(emulator.port, clock=clock, timeout_s=TIMEOUT_S) as pump:
@@ -144,9 +140,7 @@ def _stalled(pump, emulator, clock):
 
 
 def _method_moving(pump, emulator, clock):
-    emulator.firmware.execute("load prime")
-    emulator.firmware.execute("run")
-    emulator._schedule_motion()
+    emulator.keypad("load prime", "run")
     clock.sleep(1.0)
 
 
