@@ -22,13 +22,19 @@ Safety rules, because a pump that does not stop is the rig's worst failure:
   line noise, the late reply of a timed-out command) are discarded before each command;
   after a timeout the driver first waits one more deadline for the late reply, except
   before a stop: the stop is written first and the waiting comes after it.
-- A pump that left a stop unanswered is taken as deaf on its reply line (``_deaf``):
-  later stops are written and not waited for, until any reply comes again.
+- A stop is confirmed by what the pump reports, not by its prompt (one character, and
+  a method waiting in a pause shows the idle one): ``status`` polls until two in a row
+  show the motor standing with the same volume counter. Every stop's reply is awaited
+  the full reply timeout, a healthy pump can take more than half a second after a
+  target alarm; a pump that left a stop unanswered (``_deaf``) is not first waited
+  for to send its late replies.
 - A lost port is closed, and a stop looks for the pump again: a USB pump that drops
   off the bus (a brown-out, a cable pulled and plugged back) comes back as another
   /dev/ttyACM*, but under the same /dev/serial/by-id/... path, which is what a rig file
-  should name. The stop reopens that path for up to ``reconnect_s`` and is sent there;
-  the pump ran its last command meanwhile.
+  should name. The stop reopens that path for up to ``reconnect_s`` and is sent there
+  once what answers proves to be the same pump (``version``, syringe, counters); the
+  pump ran its last command meanwhile. Anything else there is not sent ``stop``
+  (``PumpNotTheSame``).
 - Stalls send nothing by themselves: ``status()`` reports them and
   ``wait_until_stopped()`` polls for them.
 
@@ -36,10 +42,15 @@ What ``connect()`` assumes of a pump left by other software: it may be in
 ``poll on`` (prompts end with XON) or ``poll remote`` (no prompts), so ``poll off`` goes
 first and its reply may never come; the address form the firmware wants is unknown, so
 with ``address_form="auto"`` the forms are tried in turn and the answered one is kept;
-NVRAM writes are switched off by the first accepted form, and none accepted only warns
-(memory wear must not block a run); whether it withdraws is read from the Direction line
-of ``metrics`` (an infuse-only model refuses withdraw commands), so ``can_withdraw`` says
-which it is and nothing withdraw-related is asked of an infuse-only one.
+it may be running, or in a method's pause, or in a Quick Start variant or a method
+that refuses a direction, so its state is read (``status``, ``version``, ``mode``)
+before anything it could refuse, and a connection that takes control stops it
+(confirmed, and said in ``connect_notices``) and loads the Quick Start variant labrig
+needs; NVRAM writes are switched off by the first accepted form, and none accepted only
+warns (memory wear must not block a run); whether it withdraws is read from the
+Direction line of ``metrics`` or, without one, from whether it answers ``wvolume`` (an
+infuse-only model refuses withdraw commands), so ``can_withdraw`` says which it is and
+nothing withdraw-related is asked of an infuse-only one.
 """
 
 from __future__ import annotations
