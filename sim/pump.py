@@ -22,7 +22,14 @@ gives a stable symbolic link that points at the current one, and is gone while t
 is (a link left pointing at a released pseudo-terminal would lead a driver that reopens
 it into whatever terminal the OS hands that number to next); the plunger keeps doing
 what it did meanwhile.
-One thread serves the port with ``select`` and a timeout, so it never blocks for long.
+``re_enumerate`` can bring another pump back behind the link (``another_pump()``: two
+pumps swapped, or two identical ones udev cannot tell apart) while this one's plunger
+goes on; ``keypad`` gives commands as at the pump's own keys (a run another program
+left going, a method started).
+One thread serves the port with ``select`` and a timeout, so it never blocks for long,
+and nothing a client sends ends it: any byte is read (non-ASCII as ``?``), a line is
+cut at ``MAX_LINE_BYTES``, and each kind of trouble is logged ``LOG_LIMIT`` times, then
+counted (``troubles``).
 
 The plunger's own events are timers on the shared clock (``Clock.call_at``), not host
 ticks: the target stop at the exact time it is due, and a check of the load every
