@@ -19,7 +19,8 @@ BENCH = "protocols/rigs/bench.yaml"
 # what the check may send: queries, NVRAM writes off, and the stop the driver sends
 # after a reply that never came (a stop moves nothing)
 READ_ONLY = {"ver", "version", "poll off", "nvram off", "metrics", "diameter", "svolume",
-             "irate lim", "wrate lim", "force", "status", "ivolume", "wvolume", "stop"}  # fmt: skip
+             "irate lim", "wrate lim", "force", "status", "ivolume", "wvolume", "stop",
+             "mode"}  # fmt: skip
 
 
 def rig_check(capsys, *args: str) -> tuple[int, dict[str, str]]:
