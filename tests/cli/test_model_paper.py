@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from labrig.cli import main
-from labrig.model.paper.fit import BOUNDS, FIELDS, objective
 from labrig.model.segments.braided import R_TUBE_MM
 from labrig.model.segments.calibrated import CALIBRATION
 from labrig.model.segments.catalog import DEFAULT_LIBRARY
 from labrig.model.segments.paper_braided import PaperBraidedSegment
+from labrig.paper.fit import BOUNDS, FIELDS, objective
 
 # the nine statements of the first version keep their keys and order
 FIRST_KEYS = [
@@ -48,7 +48,7 @@ def document(library, capsys):
 
 @pytest.fixture(scope="module")
 def paper_doc():
-    from labrig.model.paper.statements import evaluate
+    from labrig.paper.checker import evaluate
 
     return {o.key: o for o in evaluate("paper")}
 
@@ -180,7 +180,7 @@ def synthetic_scan(release_11: float):
     ``release_11``: (0,1) stable and tiny, (1,1) unstable moving 80 %, (1,2) stable in
     half the pairs and unstable (2.5 %, +14 %) in the other half."""
     from labrig.model.actuator.paper_counting import PaperTransition
-    from labrig.model.paper.pair_scan import PairScan
+    from labrig.paper.pair_scan import PairScan
 
     def transition(v, alpha, beta, stable, dE, dv=0.0, dl=0.0, dp=0.0):
         return PaperTransition(v, alpha, beta, stable, dE, dv, dl, dp, 1, events=())
@@ -204,7 +204,7 @@ def synthetic_scan(release_11: float):
 
 
 def test_fig4_holds_for_the_papers_own_numbers_and_not_for_a_43_percent_release():
-    from labrig.model.paper.actuator_statements import _fig3, _fig4
+    from labrig.paper.actuator_statements import _fig3, _fig4
 
     as_described = {o.key: o for o in _fig4(synthetic_scan(0.10))}
     assert all(o.holds for o in as_described.values()), [
@@ -226,7 +226,7 @@ def test_fig4_holds_for_the_papers_own_numbers_and_not_for_a_43_percent_release(
     ],
 )
 def test_the_trend_statements_on_synthetic_peaks(peak_of, rises, independent):
-    from labrig.model.paper.segment_statements import _trend_outcomes
+    from labrig.paper.segment_statements import _trend_outcomes
 
     peaks = {
         f"x:B{braid}-T{tube}": float(peak_of(braid, tube))

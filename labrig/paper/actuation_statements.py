@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from labrig.model.paper.pair_scan import actuator_transitions
-from labrig.model.paper.statements import MOVIE_S5, PREDICTION, Library, Outcome, within
+from labrig.paper.pair_scan import actuator_transitions
+from labrig.paper.statements import MOVIE_S5, PREDICTION, Library, Outcome, within
 
 # (key, fluid, air reservoir mL, pump mL/min, the paper's text, the tolerance in s)
 CASES = (

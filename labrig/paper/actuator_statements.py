@@ -11,8 +11,8 @@ from collections import Counter
 import numpy as np
 
 from labrig.model.actuator.paper_counting import PaperTransition as Transition
-from labrig.model.paper.pair_scan import PairScan, actuator_transitions, scan_pairs
-from labrig.model.paper.statements import (
+from labrig.paper.pair_scan import PairScan, actuator_transitions, scan_pairs
+from labrig.paper.statements import (
     MOVIE_S3,
     MOVIE_S4,
     MOVIE_S5,

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from labrig.model.paper.statements import (
+from labrig.paper.statements import (
     BRAIDS_MM,
     INPUT,
     MIN_SPREAD_KPA,
