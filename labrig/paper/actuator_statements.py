@@ -1,8 +1,8 @@
 """The paper's statements about its combined actuators: Movies S3-S6 (with Fig. 2C),
 Fig. 3's pattern and Fig. 4 (n = 2), with transitions counted as the paper counts them
-(``labrig.model.actuator.paper_counting``): a peak crossing and the snap it sets off
-are one, unstable if a snap is part of it; its volume is the supplied volume before
-it, the fluid it moves dv * v."""
+(``labrig.model.actuator.paper_counting``): the events at one supplied volume are one,
+unstable if a snap is part of it; its volume is the supplied volume before it, the
+fluid it moves dv * v."""
 
 from __future__ import annotations
 
