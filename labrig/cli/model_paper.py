@@ -3,7 +3,7 @@
 ``paper`` prints every checkable statement of the paper (the constants it gives, Fig. 1C
 and D, Fig. S4's trends, Movies S3-S6, Fig. 3, Fig. 4) beside what a library gives:
 the paper's value, labrig's, the two-sided tolerance, whether it holds, its role (input,
-fitted, prediction) and, where it does not hold, what the model does instead.
+fitted, selected on, prediction) and, where it does not hold, what the model does instead.
 ``--library`` picks the library (``paper``, ``paper-r``, ``calibrated``, ``si``; the
 default library's otherwise), ``--si`` is ``--library si``. ``calibrate`` repeats the fit that
 produced the calibrated library (``labrig.paper.fit``) and prints the fitted

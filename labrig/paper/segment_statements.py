@@ -25,8 +25,19 @@ MIN_BRAID_RISE_KPA = 1.0
 # Fig. S4F: "the pressure peak ... remain[s] unaltered" with L_tube: at every L_braid its
 # range over L_tube is at most this share of the range of the per-L_braid means
 MAX_TUBE_SHARE = 0.5
-# Fig. 1D: "initially the segments elongate, but then shorten": both by at least 1 %
+# Fig. 1D: "initially the segments elongate, but then shorten": both by at least 1 %,
+# judged up to the sensor's full scale (the MPX5100's 100 kPa), where the paper measured
 MIN_LENGTH_CHANGE = 0.01
+SENSOR_FULL_SCALE_KPA = 100.0
+# Fig. S4E: "L_braid strongly affects the volume at which stiffening occurs": the volume
+# at which a segment first reaches the sensor's 100 kPa (above every peak, on the final
+# steep rise) grows with L_braid at every L_tube by at least the volume tolerance
+MIN_STIFFENING_RISE_ML = 3.0
+# Fig. S4F: "shorter tubes lower the pressure of the softening region": the lowest
+# pressure past the peak rises with L_tube at every L_braid by at least this much
+MIN_SOFTENING_RISE_KPA = 1.0
+# S31: "for the fluidic segment considered in this study theta < 40 degrees"
+MAX_THETA_DEG = 40.0
 
 
 def _name(prefix: str, braid: int, tube: int) -> str:
@@ -152,26 +163,154 @@ def _trend_outcomes(peaks: dict[str, float | None], prefix: str) -> list[Outcome
     ]
 
 
+def _below_full_scale(curve):
+    """The curve's volumes, pressures and lengths up to where it first passes the
+    sensor's full scale."""
+    over = np.flatnonzero(np.asarray(curve.p_kpa) > SENSOR_FULL_SCALE_KPA)
+    end = int(over[0]) + 1 if len(over) else len(curve.p_kpa)
+    return np.asarray(curve.v_ml)[:end], np.asarray(curve.p_kpa)[:end], curve.l_mm[:end]
+
+
 def _length_outcome(library: Library, prefix: str) -> Outcome:
     failing = []
     for braid in BRAIDS_MM:
         for tube in TUBES_MM:
-            curve = library(_name(prefix, braid, tube))
-            top = int(np.argmax(curve.l_mm))
-            grows = curve.l_mm[top] >= (1 + MIN_LENGTH_CHANGE) * curve.l_mm[0]
-            shrinks = curve.l_mm[-1] <= (1 - MIN_LENGTH_CHANGE) * curve.l_mm[top]
+            _, _, length = _below_full_scale(library(_name(prefix, braid, tube)))
+            top = int(np.argmax(length))
+            grows = length[top] >= (1 + MIN_LENGTH_CHANGE) * length[0]
+            shrinks = length[-1] <= (1 - MIN_LENGTH_CHANGE) * length[top]
             if not (grows and shrinks):
                 failing.append(f"B{braid}-T{tube}")
     holds = not failing
     return Outcome(
         "fig1d-length",
-        "every segment first lengthens, then shortens once the braids touch (Fig. 1D)",
+        "every segment first lengthens, then shortens once the braids touch (Fig. 1D), "
+        "up to the sensor's 100 kPa",
         "lengthens, then shortens",
         f"{36 - len(failing)} of 36 do",
         holds,
         PREDICTION,
         "" if holds else f"not: {', '.join(failing)}",
-        "each by at least 1 %, every segment",
+        "each by at least 1 %, every segment, judged up to 100 kPa",
+    )
+
+
+def stiffening_volume_ml(curve) -> float | None:
+    """The volume at which the segment first reaches the sensor's full scale (None if
+    its curve never does)."""
+    v, p = np.asarray(curve.v_ml), np.asarray(curve.p_kpa)
+    over = np.flatnonzero(p >= SENSOR_FULL_SCALE_KPA)
+    if not len(over):
+        return None
+    k = int(over[0])
+    if k == 0:
+        return float(v[0])
+    return float(np.interp(SENSOR_FULL_SCALE_KPA, p[k - 1 : k + 1], v[k - 1 : k + 1]))
+
+
+def softening_pressure_kpa(curve) -> float | None:
+    """The lowest pressure past the peak and below the sensor's full scale (None
+    without a peak)."""
+    peak = curve.peak
+    if peak is None:
+        return None
+    v, p, _ = _below_full_scale(curve)
+    after = p[v >= peak.v_ml]
+    return float(after.min()) if len(after) else None
+
+
+def _table(library: Library, prefix: str, of) -> np.ndarray:
+    """``of(curve)`` as an L_braid x L_tube array (NaN where it is None)."""
+    return np.array(
+        [
+            [np.nan if (x := of(library(_name(prefix, b, t)))) is None else x for t in TUBES_MM]
+            for b in BRAIDS_MM
+        ]
+    )
+
+
+def _stiffening_outcomes(library: Library, prefix: str) -> list[Outcome]:
+    grid = _table(library, prefix, stiffening_volume_ml)
+    rises, text = [], []
+    for j, tube in enumerate(TUBES_MM):
+        column = grid[:, j]
+        ok = not np.any(np.isnan(column)) and bool(np.all(np.diff(column) >= 0))
+        ok = ok and column[-1] - column[0] >= MIN_STIFFENING_RISE_ML
+        rises.append(ok)
+        text.append(f"T{tube}: {column[0]:.1f}->{column[-1]:.1f}")
+    complete = [row for row in grid if not np.any(np.isnan(row))]
+    tube_range = max((float(np.ptp(row)) for row in complete), default=float("nan"))
+    braid_range = float(np.ptp([np.mean(row) for row in complete])) if len(complete) >= 2 else 0.0
+    independent = len(complete) == len(BRAIDS_MM) and tube_range <= MAX_TUBE_SHARE * braid_range
+    return [
+        Outcome(
+            "stiffening-rise-with-braid",
+            "the volume at which stiffening occurs rises with L_braid (Fig. S4E)",
+            "rises with L_braid",
+            "100 kPa at (40->50 mm) " + ", ".join(text) + " mL",
+            all(rises),
+            PREDICTION,
+            ""
+            if all(rises)
+            else "at some L_tube it does not rise by 3 mL, or 100 kPa is never met",
+            "the volume at 100 kPa non-decreasing and >= 3 mL from 40 to 50 mm, at every L_tube",
+        ),
+        Outcome(
+            "stiffening-independent-of-tube",
+            "with L_braid fixed, the volume at which stiffening occurs does not change with "
+            "L_tube (Fig. S4F)",
+            "unaltered",
+            f"largest range over L_tube {tube_range:.1f} mL; over L_braid {braid_range:.1f} mL",
+            independent,
+            PREDICTION,
+            "" if independent else "L_tube moves the stiffening as much as L_braid does",
+            "range over L_tube <= half the range over L_braid",
+        ),
+    ]
+
+
+def _softening_outcome(library: Library, prefix: str) -> Outcome:
+    grid = _table(library, prefix, softening_pressure_kpa)
+    rises, text = [], []
+    for i, braid in enumerate(BRAIDS_MM):
+        row = grid[i]
+        ok = not np.any(np.isnan(row)) and bool(np.all(np.diff(row) >= 0))
+        ok = ok and row[-1] - row[0] >= MIN_SOFTENING_RISE_KPA
+        rises.append(ok)
+        rise = "n/a" if np.isnan(row[0]) or np.isnan(row[-1]) else f"{row[-1] - row[0]:+.1f}"
+        text.append(f"B{braid}: {rise}")
+    holds = all(rises)
+    return Outcome(
+        "softening-lower-with-shorter-tube",
+        "shorter tubes lower the pressure of the softening region (Fig. S4F)",
+        "rises with L_tube",
+        "lowest pressure past the peak, 20->30 mm: " + ", ".join(text) + " kPa",
+        holds,
+        PREDICTION,
+        "" if holds else "at some L_braid it does not rise with L_tube (or no peak)",
+        "non-decreasing and >= 1 kPa from 20 to 30 mm, at every L_braid, every segment a peak",
+    )
+
+
+def _theta_outcome(library: Library, prefix: str) -> Outcome:
+    """The braids' angle at rest, where it is largest before contact (the tube only
+    lengthens until the braids touch): cos theta = l / L_braid (S41)."""
+    angles = {}
+    for braid in BRAIDS_MM:
+        for tube in TUBES_MM:
+            length = float(library(_name(prefix, braid, tube)).l_mm[0])
+            angles[f"B{braid}-T{tube}"] = float(np.degrees(np.arccos(min(length / braid, 1.0))))
+    over = [name for name, angle in angles.items() if angle >= MAX_THETA_DEG]
+    worst = max(angles, key=angles.get)
+    return Outcome(
+        "theta-below-40",
+        "the braids' angle stays below 40 degrees (S31)",
+        "theta < 40 deg",
+        f"at rest {min(angles.values()):.1f}-{angles[worst]:.1f} deg ({worst})",
+        not over,
+        PREDICTION,
+        "" if not over else f"{len(over)} of 36 at or above 40 deg",
+        "every segment at rest",
     )
 
 
@@ -182,4 +321,6 @@ def evaluate(library: Library, prefix: str) -> list[Outcome]:
         + _peak_outcomes(peaks)
         + _trend_outcomes(peaks, prefix)
         + [_length_outcome(library, prefix)]
+        + _stiffening_outcomes(library, prefix)
+        + [_softening_outcome(library, prefix), _theta_outcome(library, prefix)]
     )

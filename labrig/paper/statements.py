@@ -4,7 +4,8 @@ Each statement has the paper's value, labrig's, a two-sided tolerance (a magnitu
 paper gives as "about x" or "up to x" holds within a factor of two of x, a volume within
 3 mL; decision record 0006 fixed them before the paper-numbers library was computed),
 its role (``input``: a constant the paper gives; ``fitted``: in the subset a library was
-fitted to; ``prediction``: the rest) and the library it was computed on
+fitted to; ``selected on``: used to choose between fits that met that subset equally;
+``prediction``: the rest) and the library it was computed on
 (``labrig.model.segments.catalog``: ``paper``, ``paper-r``, ``calibrated``, ``si``).
 
 This module holds what the statements share (their record, the paper's names and
@@ -38,7 +39,17 @@ MOVIE_S5 = ("B44-T30", "B48-T26")
 MOVIE_S6 = ("B40-T28", "B44-T30", "B50-T24")
 VOLUME_TOLERANCE_ML = 3.0
 
-INPUT, FITTED, PREDICTION = "input", "fitted", "prediction"
+INPUT, FITTED, SELECTED, PREDICTION = "input", "fitted", "selected on", "prediction"
+ROLES = (INPUT, FITTED, SELECTED, PREDICTION)
+
+# the types the paper reports for n = 2 (Fig. 4); a statement about pairs is judged on
+# transitions of these types only, so that none passes through a type it never shows
+PAPER_TYPES = frozenset({(0, 1), (1, 1), (1, 2)})
+# an unstable transition releases at least this share of the stored energy: far above
+# the solver's noise (a stable transition's dE over labrig's 1e-4 mL window is at most
+# 5.8e-5 on every library, the paper's up to 4e-5), far below the smallest release the
+# paper quotes (an unstable (1, 2)'s "up to 2.5 %")
+MIN_RELEASE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -67,7 +78,7 @@ class Outcome:
     paper: str
     labrig: str
     holds: bool
-    role: str  # "input", "fitted" or "prediction"
+    role: str  # one of ROLES
     why: str  # for a statement that does not hold: what the model does instead
     tolerance: str = ""
     library: str = ""
