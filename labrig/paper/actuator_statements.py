@@ -74,7 +74,8 @@ def _outcome(key, statement, paper, labrig, holds, why, tolerance) -> Outcome:
 def _movie_s3(transitions: list[Transition]) -> list[Outcome]:
     snaps = snaps_of(evidence(transitions))
     snap = _near(snaps, 23.0)
-    why = "" if snap else snaps_text(snaps_of(transitions))
+    every = snaps_text(snaps_of(transitions))
+    why = "" if snap else every
     text = "none" if snap is None else f"{snap.v_ml:.1f} mL"
     out = [
         _outcome(
@@ -95,7 +96,7 @@ def _movie_s3(transitions: list[Transition]) -> list[Outcome]:
             "dl > 0",
             "none" if snap is None else f"{snap.dl:+.1%}",
             dl_ok,
-            "" if dl_ok else snaps_text(snaps_of(transitions)),
+            "" if dl_ok else every,
             "dl > 0",
         )
     )
@@ -108,7 +109,7 @@ def _movie_s3(transitions: list[Transition]) -> list[Outcome]:
             "dp < 0, internal flow",
             "none" if t is None else f"dp {t.dp:+.1%}, {snap.moved_ml:.2f} mL moved",
             drop,
-            "" if drop else snaps_text(snaps_of(transitions)),
+            "" if drop else every,
             f"dp < 0 and >= {MIN_FLOW_ML:g} mL moved",
         )
     )
