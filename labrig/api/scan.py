@@ -13,6 +13,7 @@ import numpy as np
 
 from .axes import panel_axes
 from .reading import open_readonly
+from .solver_mode import prefer_plain_python
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -23,6 +24,7 @@ if TYPE_CHECKING:
 
 def open_scan(path: str | Path) -> Scan:
     """Open a scan file, complete or cut short; ``InputError`` if it is not one."""
+    prefer_plain_python()  # the scan's reader imports the model: see Run.__init__
     from labrig.model.scan.scan_file import read_scan
 
     return Scan(read_scan(Path(path)))
