@@ -20,7 +20,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-import labrig
+from labrig._version import __version__
 from labrig.analysis.compare import (
     Comparison,
     PredictedTransition,
@@ -447,4 +447,4 @@ def _read_model(model: h5py.Group, agreed: tuple[AgreedTransition, ...]) -> Comp
 
 def stamp() -> tuple[str, str]:
     """(creation time, labrig version) recorded with an analysis."""
-    return now_iso(), labrig.__version__
+    return now_iso(), __version__

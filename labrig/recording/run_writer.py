@@ -32,7 +32,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-import labrig
+from labrig._version import __version__
 from labrig.errors import InputError
 from labrig.recording.run_file_lock import RunFileLock
 from labrig.recording.run_layout import (
@@ -60,7 +60,7 @@ def _git_commit() -> str:
     try:
         out = subprocess.run(
             ["git", "rev-parse", "HEAD"],
-            cwd=Path(labrig.__file__).parent,
+            cwd=Path(__file__).parent,
             capture_output=True,
             text=True,
             timeout=5,
@@ -76,7 +76,7 @@ def versions() -> dict[str, str]:
     import scipy
 
     return {
-        "labrig": labrig.__version__,
+        "labrig": __version__,
         "git_commit": _git_commit(),
         "python": platform.python_version(),
         "numpy": np.__version__,
@@ -171,7 +171,7 @@ class RunWriter:
         f.attrs.update(
             NX_class="NXroot",
             default="entry",
-            creator=f"labrig {labrig.__version__}",
+            creator=f"labrig {__version__}",
             file_time=_now_iso(),
         )
         entry = f.create_group("entry")

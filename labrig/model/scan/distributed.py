@@ -33,9 +33,9 @@ class ClusterLost(LabrigError):
 
 
 def _labrig_version() -> str:
-    import labrig
+    from labrig._version import __version__
 
-    return labrig.__version__
+    return __version__
 
 
 def connect(address: str):

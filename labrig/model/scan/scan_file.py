@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-import labrig
+from labrig._version import __version__
 from labrig.errors import InputError
 from labrig.model.scan.scan import (
     TRANSITION_FIELDS,
@@ -91,7 +91,7 @@ class ScanFile:
         h5 = h5py.File(path, "w")
         attrs = h5.attrs
         attrs["kind"] = KIND
-        attrs["labrig_version"] = labrig.__version__
+        attrs["labrig_version"] = __version__
         attrs["n"] = n
         attrs["deflate"] = deflate
         attrs["chunk_size"] = chunk_size
