@@ -107,10 +107,10 @@ def _scan_into(
     chunks = scan.pending_chunks()
     done = {"chunks": scan.chunks_done, "actuators": total - sum(c.stop - c.start for c in chunks)}
 
-    def sink(result: ChunkResult) -> None:
-        scan.append(result)
-        done["chunks"] += 1
-        done["actuators"] += result.n_actuators
+    def sink(results: list[ChunkResult]) -> None:
+        scan.append(results)
+        done["chunks"] += len(results)
+        done["actuators"] += sum(r.n_actuators for r in results)
         if progress is not None:
             progress(ScanProgress(done["actuators"], total, done["chunks"], scan.n_chunks))
 
