@@ -14,6 +14,7 @@ is read as of the writer's last flush, and says so (``writer_open``, ``live`` an
 from __future__ import annotations
 
 import bisect
+import numbers
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
@@ -232,6 +233,10 @@ class Run:
 
     # --- raw series -----------------------------------------------------------------
     def _check(self, repetition: int, log: str) -> None:
+        if isinstance(repetition, bool) or not isinstance(repetition, numbers.Integral):
+            raise InputError(
+                f"{self.path}: repetition {repetition!r}: a whole number, 1 to {self.n_repetitions}"
+            )
         if not 1 <= repetition <= self.n_repetitions:
             raise InputError(
                 f"{self.path}: repetition {repetition}: the run has 1 to {self.n_repetitions}"
