@@ -109,10 +109,11 @@ def _scan_into(
 
     def sink(results: list[ChunkResult]) -> None:
         scan.append(results)
-        done["chunks"] += len(results)
-        done["actuators"] += sum(r.n_actuators for r in results)
-        if progress is not None:
-            progress(ScanProgress(done["actuators"], total, done["chunks"], scan.n_chunks))
+        for result in results:  # each chunk told, as if written one by one
+            done["chunks"] += 1
+            done["actuators"] += result.n_actuators
+            if progress is not None:
+                progress(ScanProgress(done["actuators"], total, done["chunks"], scan.n_chunks))
 
     try:
         if progress is not None:
