@@ -61,6 +61,8 @@ def _growing(group, name: str, dtype, width: int | None = None):
 
 
 def _append(dataset, values) -> None:
+    if not len(values):  # most chunks fail nowhere: two h5py calls saved per dataset
+        return
     start = dataset.shape[0]
     dataset.resize(start + len(values), axis=0)
     dataset[start:] = values
