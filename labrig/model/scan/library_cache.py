@@ -1,7 +1,7 @@
 """A named library's tabulated segments kept between scans, as numba keeps the compiled
 solver: tabulating the 36 braided segments (an Ogden membrane solved at every volume of
-each table) took more CPU than the actuators of a whole n = 3 scan (3.5 s against 2.6 s,
-tests/benchmarks/bench_scan_mode.py), and every scan did it again for the same tables.
+each table) took more CPU than the actuators of a whole n = 3 scan (3.5 s of CPU against 2.6 s;
+tests/benchmarks/bench_scan_wall.py), and every scan did it again for the same tables.
 
 The file holds each segment's name, source, V0 and its three tables as they were
 tabulated (float64, so the tables and the scan's results are the same bits as freshly
@@ -9,10 +9,10 @@ built: the scan file's library digest checks it on a resume). It is named by a h
 what the tables depend on: the library's segment names, every file of
 ``labrig.model.segments`` (the code and data that tabulate them) and the versions of
 Python, numpy and scipy; any change to those names another file, and the old one is
-never read again. The folder is ``$LABRIG_CACHE_DIR`` if set, else ``__pycache__``
-beside this module where that is writable (numba's choice for its own cache), else
-the user's cache folder. A file that cannot be read or written is rebuilt or skipped:
-the cache only ever saves time.
+removed when the new one is written. The folder is ``$LABRIG_CACHE_DIR`` if set, else
+``__pycache__`` beside this module where that is writable (numba's choice for its own
+cache), else the user's cache folder. A file that cannot be read or written is rebuilt
+or skipped: the cache only ever saves time.
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ from labrig.model.segments.curve import SegmentCurve
 CACHE_VARIABLE = "LABRIG_CACHE_DIR"
 SEGMENTS_PACKAGE = Path(__file__).resolve().parents[1] / "segments"
 _FORMAT = "labrig scan library 1"
+_PREFIX = "scan-library-"
 
 
 def cache_folder() -> Path:
@@ -69,11 +70,11 @@ def cached_curves(
     key = _key(label, names)
     curves = _IN_PROCESS.get(key)
     if curves is None:
-        path = cache_folder() / f"scan-library-{label}-{key[:32]}.npz"
+        path = cache_folder() / f"{_PREFIX}{label}-{key[:32]}.npz"
         curves = _read(path, key, names)
         if curves is None:
             curves = build()
-            _write(path, key, curves)
+            _write(path, label, key, curves)
         _IN_PROCESS[key] = curves
     return curves
 
@@ -101,7 +102,8 @@ def _read(path: Path, key: str, names: Sequence[str]) -> tuple[SegmentCurve, ...
         return None
 
 
-def _write(path: Path, key: str, curves: tuple[SegmentCurve, ...]) -> None:
+def _write(path: Path, label: str, key: str, curves: tuple[SegmentCurve, ...]) -> None:
+    """Store the tables, and remove the library's files of other keys (no longer read)."""
     if any(c.measured is not None for c in curves):
         return  # a measured table's import record is not kept here
     arrays = {
@@ -124,3 +126,7 @@ def _write(path: Path, key: str, curves: tuple[SegmentCurve, ...]) -> None:
         os.replace(temporary, path)
     except OSError:  # a full disk
         Path(temporary).unlink(missing_ok=True)
+        return
+    for older in path.parent.glob(f"{_PREFIX}{label}-*.npz"):  # of code since changed
+        if older != path:
+            older.unlink(missing_ok=True)

@@ -64,7 +64,7 @@ def test_other_segments_or_code_are_built_anew(cache, monkeypatch, tmp_path):
     library_cache.cached_curves("small", SMALL, _built)
     _new_process(monkeypatch)
     rebuilt = []
-    library_cache.cached_curves("small", SMALL[:-1], lambda: rebuilt.append(1) or _built()[:-1])
+    library_cache.cached_curves("fewer", SMALL[:-1], lambda: rebuilt.append(1) or _built()[:-1])
     assert rebuilt == [1]
     code = tmp_path / "segments"
     shutil.copytree(library_cache.SEGMENTS_PACKAGE, code, ignore=shutil.ignore_patterns("__py*"))
@@ -76,6 +76,9 @@ def test_other_segments_or_code_are_built_anew(cache, monkeypatch, tmp_path):
     _new_process(monkeypatch)
     library_cache.cached_curves("small", SMALL, lambda: rebuilt.append(2) or _built())
     assert rebuilt == [1, 2]
+    # the file of the code before is gone, the other library's kept
+    assert len(list(cache.glob("scan-library-small-*"))) == 1
+    assert len(list(cache.glob("scan-library-fewer-*"))) == 1
 
 
 def test_a_damaged_or_unwritable_cache_only_costs_the_build(cache, monkeypatch, tmp_path):
