@@ -22,8 +22,7 @@ from labrig.config.protocol import Protocol, parse_protocol
 from labrig.errors import InputError
 from labrig.recording.run_layout import repetition_name
 from labrig.recording.run_reader import LogSeries, decode, open_run, read_values
-
-HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+from labrig.user_files import HDF5_SIGNATURE
 
 # fields the analysis cannot do without, per log; other fields are read when present
 REQUIRED_FIELDS = {

@@ -34,6 +34,7 @@ import numpy as np
 
 import labrig
 from labrig.errors import InputError
+from labrig.recording.file_check import vouch_for
 from labrig.recording.run_file_lock import RunFileLock
 from labrig.recording.run_layout import (
     CAMERA_FIELDS,
@@ -140,26 +141,39 @@ class RunWriter:
         self._claim = RunFileLock(self.path, "run").acquire("choose another --out")
         created: h5py.File | None = None
         try:
-            self._file = created = self._create_file()
+            self._claim_new_file()
+        except BaseException:
+            self._claim.release()
+            raise
+        try:
+            self._file = created = self._open_new_file()
             self._create_layout(title, protocol_text, protocol_path, rig_config_text)
             self._file.swmr_mode = True
         except BaseException:
-            if created is not None:  # this writer's own new file, half laid out
+            if created is not None:
                 created.close()
-                self.path.unlink(missing_ok=True)
+            self.path.unlink(missing_ok=True)  # this writer's own new file, half laid out
             self._claim.release()
             raise
         self._last_flush = time.monotonic()
 
-    def _create_file(self) -> h5py.File:
-        """The new, empty file (under the lock); InputError if one is already there."""
+    def _claim_new_file(self) -> None:
+        """The new, empty file, made and locked itself (under the name's lock);
+        InputError if one is already there."""
         try:
-            return h5py.File(self.path, "x", libver="latest")
+            self._claim.create_file("choose another --out")
         except FileExistsError:
             raise InputError(
                 f"{self.path}: a file is already there; a run never writes over one "
                 "(labrig run --overwrite moves it aside first)"
             ) from None
+        except OSError as exc:
+            raise InputError(f"{self.path}: cannot create the run file ({exc.strerror})") from None
+
+    def _open_new_file(self) -> h5py.File:
+        """HDF5's handle on the file just made, still empty."""
+        try:
+            return h5py.File(self.path, "w", libver="latest")
         except OSError as exc:
             raise InputError(f"{self.path}: cannot create the run file ({exc})") from None
 
@@ -429,6 +443,7 @@ class RunWriter:
                     reps["reason"][i] = reason.encode()[:REASON_SIZE]
             self._file.flush()
             self._file.close()
+            vouch_for(self.path)  # written here: no reader needs to walk it first
             self._closed = True
             self._claim.release()
 
