@@ -63,13 +63,13 @@ def test_export_never_writes_over_a_run_file_among_its_names(done, tmp_path, cap
     code, _, err = run(["export", done, "--csv", folder], capsys)
     assert code == 2 and "holds an HDF5 file" in err and len(err.splitlines()) == 1
     assert held.read_bytes() == before
-    code, out, _ = run(["export", done, "--csv", folder, "--overwrite"], capsys)
+    code, _, _ = run(["export", done, "--csv", folder, "--overwrite"], capsys)
     assert code == 0 and held.read_text().startswith("repetition,")
 
 
 def test_overwrite_lets_a_finished_run_file_go(done, tmp_path, capsys):
     target = tiny_run(tmp_path / "RUN.h5")
-    code, out, _ = run(["runs", done, "--csv", target, "--overwrite"], capsys)
+    code, _, _ = run(["runs", done, "--csv", target, "--overwrite"], capsys)
     assert code == 0
     assert target.read_text().startswith("file,")
 
