@@ -93,8 +93,7 @@ def test_a_live_run_file_is_refused_even_with_overwrite(done, tmp_path, capsys):
             code, _, err = run(["runs", done, "--csv", target, "--overwrite"], capsys)
             assert (code, err) == (
                 2,
-                f"error: --csv {target}: a labrig run is writing this file; choose another "
-                "name\n",
+                f"error: --csv {target}: a labrig run is writing this file; choose another name\n",
             )
         assert path.read_bytes() == before
     finally:
