@@ -50,7 +50,7 @@ from labrig.config.protocol import (
     plan,
 )
 from labrig.errors import LabrigError
-from labrig.recording.run_writer import RunWriter
+from labrig.recording.run_writer import RunFileFailed, RunWriter
 from labrig.recording.video import VideoRecorder
 from labrig.rig.devices import PressureBlock, PumpState, Rig
 from labrig.run.acquisition import Acquisition, Timing
@@ -479,13 +479,17 @@ class Runner:
                     self._leave_repetition(status, reason)
                 if self.writer.writer.simulated_segments:
                     self._record_simulation(self.clock.now())
-                self.writer.close(
-                    status,
-                    reason,
-                    self.timing.writer_drain_s,
-                    lambda: self.stops.hurry,
-                    pump_stop_confirmed=stop_problem is None,
-                )
+                try:
+                    self.writer.close(
+                        status,
+                        reason,
+                        self.timing.writer_drain_s,
+                        lambda: self.stops.hurry,
+                        pump_stop_confirmed=stop_problem is None,
+                    )
+                except RunFileFailed as exc:  # a full disk, the file removed: never complete
+                    why = f"run file: {exc}"
+                    status, reason = "faulted", why if not reason or why in reason else reason
             finally:
                 self.rig.close()
         return RunResult(self.out_path, status, reason, stop_problem is None)

@@ -1,0 +1,94 @@
+"""A run whose file disappears (its folder deleted) or cannot be written (a full disk,
+a file size limit) stops the pump, says so in one line and never says "complete"; no
+h5py traceback and no crash reach the operator, and the process ends with the error
+exit status."""
+
+import re
+import resource
+import shutil
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+from support.simrig import run_sim
+
+from labrig.recording.run_writer import RunFileFailed, RunWriter
+
+INFUSE = textwrap.dedent(
+    """\
+    name: file test
+    specimen: {segments: [SI-B48-T30]}
+    rig: sim
+    limits: {max_pressure_kpa: 95, max_volume_ml: 45}
+    acquisition: {pressure_rate_hz: 1000}
+    steps:
+      - zero_pressure: {duration_s: 0.1}
+      - infuse: {rate_ml_min: 6, volume_ml: 5}
+    analysis: {average_last: 1, compare_model: false}
+    """
+)
+
+
+def test_a_writer_whose_file_is_removed_says_so(tmp_path):
+    folder = tmp_path / "runs"
+    writer = RunWriter(
+        folder / "r.h5",
+        title="t",
+        protocol_text="name: t\n",
+        protocol_path="t.yaml",
+        rig_config_text="",
+        repetitions=1,
+        with_length=False,
+        flush_interval_s=0.0,
+    )
+    shutil.rmtree(folder)
+    gone = re.escape("r.h5: the run file is gone (removed, or its folder deleted, while the run")
+    with pytest.raises(RunFileFailed, match=gone):
+        writer.append_pressure(1, np.arange(3.0), np.zeros(3), np.zeros(3, bool))
+    with pytest.raises(RunFileFailed, match=gone):
+        writer.finalise("complete")
+    assert writer.closed
+
+
+def test_a_run_whose_folder_is_deleted_is_faulted(tmp_path):
+    folder = tmp_path / "runs"
+    folder.mkdir()
+    deleted = []
+
+    def delete_once(rig):
+        def tap(repetition, log, rows):
+            if not deleted and log == "pressure":
+                deleted.append(True)
+                shutil.rmtree(folder)
+
+        return tap
+
+    outcome = run_sim(folder, INFUSE, tap=delete_once)
+    assert outcome.result.status == "faulted"
+    assert "the run file is gone" in outcome.result.reason
+    assert outcome.pump_is_stopped()
+
+
+@pytest.mark.slow  # a simulated run in a process of its own: ~5 s
+def test_a_full_disk_is_one_line_and_no_crash(tmp_path):
+    protocol = tmp_path / "p.yaml"
+    protocol.write_text(INFUSE)
+    limit = 200_000  # bytes: the run file reaches it in its first seconds
+
+    def small_files():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    done = subprocess.run(
+        [sys.executable, "-m", "labrig", "run", str(protocol), "--out", str(tmp_path / "r.h5")],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        preexec_fn=small_files,
+    )
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr and "internal error" not in done.stderr
+    text = " ".join(done.stderr.split())
+    assert "faulted: " in text and "complete:" not in text
+    assert "cannot write the run file (File too large)" in text
