@@ -303,6 +303,20 @@ def replaced_path(path: Path, stamp: str) -> Path:
     return candidate
 
 
+def check_run_name(path: Path) -> None:
+    """InputError unless ``path`` can name a run file: plain text, and not a name of
+    the run's other outputs (its video ``RUN.avi``, its lock ``RUN.h5.lock``), which
+    would then be one file."""
+    from labrig.user_files import check_shown_name
+
+    check_shown_name(path, "--out")
+    if path.suffix.lower() in (".avi", ".lock"):
+        raise InputError(
+            f"{path}: a run file's name cannot end in {path.suffix}: the run's video is "
+            "RUN.avi and its lock RUN.h5.lock beside it; give a name ending in .h5"
+        )
+
+
 def claim_out_path(path: Path, *, overwrite: bool) -> list[str]:
     """Make ``path`` free for a new run before anything moves; one line per file moved.
 
@@ -312,6 +326,7 @@ def claim_out_path(path: Path, *, overwrite: bool) -> list[str]:
     and creates the file only if it is still absent: a run started meanwhile onto the
     same path makes this one stop with one line, and nothing is lost.
     """
+    check_run_name(path)
     video = path.with_suffix(".avi")  # where the run records its video, if it does
     advice = "choose another --out"
     try:

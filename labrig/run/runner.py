@@ -50,6 +50,7 @@ from labrig.config.protocol import (
     plan,
 )
 from labrig.errors import LabrigError
+from labrig.recording.run_file_lock import check_run_name
 from labrig.recording.run_writer import RunFileFailed, RunWriter
 from labrig.recording.video import VideoRecorder
 from labrig.rig.devices import PressureBlock, PumpState, Rig
@@ -189,6 +190,7 @@ class Runner:
         return result
 
     def _open_run_file(self) -> RunWriter:
+        check_run_name(self.out_path)  # never one name for the file and its video
         return RunWriter(
             self.out_path,
             title=self.protocol.name,
