@@ -131,7 +131,7 @@ class Runner:
         self.timing = timing or Timing()
         self.plan = plan(self.protocol)
         self.monitor = InterlockMonitor(rig.pump, run_interlocks(self.protocol))
-        self.stops = StopRequests(lambda reason: self.monitor.trip(reason, "aborted"))
+        self.stops = StopRequests(self._stop_requested)
         self._t_start = 0.0
         self._step_label = "starting"
         self._repetition_started = False
@@ -140,6 +140,14 @@ class Runner:
         self.writer: BackgroundWriter | None = None
         self.acquisition: Acquisition | None = None
         self.video: VideoRecorder | None = None
+
+    def _stop_requested(self, reason: str) -> None:
+        """A signal's stop: tripped like a fault, and a paced clock (``--speed``) lets
+        the stop and the file's end run at once, not at the pace's next instant."""
+        stop_pacing = getattr(self.clock, "stop_pacing", None)
+        if stop_pacing is not None:
+            stop_pacing()
+        self.monitor.trip(reason, "aborted")
 
     @property
     def shutdown_errors(self) -> list[str]:
