@@ -297,7 +297,8 @@ def replaced_path(path: Path, stamp: str) -> Path:
     counter if that is taken."""
     candidate = path.with_name(f"{path.stem}.replaced-{stamp}{path.suffix}")
     counter = 2
-    while candidate.exists() or candidate.with_suffix(".avi").exists():
+    # lexists: a link there, even a dangling one, is a name taken (rename replaces it)
+    while os.path.lexists(candidate) or os.path.lexists(candidate.with_suffix(".avi")):
         candidate = path.with_name(f"{path.stem}.replaced-{stamp}-{counter}{path.suffix}")
         counter += 1
     return candidate

@@ -64,6 +64,12 @@ def _now_iso() -> str:
     return dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
 
 
+def _storable(name: str) -> str:
+    """A file name as HDF5 can store it: a byte of the name that is not UTF-8 (Python
+    keeps it as a lone surrogate) is written as its escape, ``\\xff``."""
+    return name.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+
+
 def _git_commit() -> str:
     """The commit labrig runs from, when it runs from a git checkout."""
     try:
@@ -215,7 +221,7 @@ class RunWriter:
         # False until the run's last stop is confirmed: a killed run confirmed none
         entry["pump_stop_confirmed"] = False
         protocol = entry.create_dataset("protocol", data=protocol_text)
-        protocol.attrs["source_file"] = protocol_path
+        protocol.attrs["source_file"] = _storable(protocol_path)
         entry["rig_config"] = rig_config_text
         version_group = entry.create_group("versions")
         version_group.attrs["NX_class"] = "NXcollection"
@@ -264,7 +270,7 @@ class RunWriter:
             video = self._create_log(entry, "video", VIDEO_FIELDS)
             video.attrs.update(
                 description="time of each frame of the run's video, in the video's order",
-                file=self.video_file,
+                file=_storable(self.video_file),
             )
 
     @staticmethod
