@@ -33,6 +33,7 @@ from labrig.analysis.compare import (
 from labrig.analysis.curves import PHASES, MeanCurve
 from labrig.analysis.transitions import AgreedTransition, DetectionSettings, MeasuredTransition
 from labrig.errors import InputError
+from labrig.recording.file_check import vouch_for
 from labrig.recording.run_layout import repetition_name
 
 LAYOUT_VERSION = 1
@@ -191,6 +192,7 @@ def write_analysis(path: Path, result: AnalysisResult) -> None:
             if name in entry:
                 del entry[name]
         _write(entry, result)
+    vouch_for(path)  # read before, written here: no reader needs to walk it again
 
 
 def _write(entry: h5py.Group, result: AnalysisResult) -> None:

@@ -8,8 +8,11 @@ anything: a reader stuck in libhdf5 would hang the test, and ``faulthandler`` en
 """
 
 import faulthandler
+import os
 import shutil
+import signal
 import sys
+import threading
 
 import h5py
 import numpy as np
@@ -49,21 +52,22 @@ def zeroed(start, length):
     return damage
 
 
-def show(path, capsys):
+def show(path, capsys, command="show"):
     faulthandler.dump_traceback_later(HANG_S, exit=True, file=sys.__stderr__)
     try:
         with pytest.raises(SystemExit) as exited:
-            main(["show", str(path)])
+            main([command, str(path)])
     finally:
         faulthandler.cancel_dump_traceback_later()
     out, err = capsys.readouterr()
     return exited.value.code, out, err
 
 
-def test_two_kb_zeroed_at_byte_4000_is_one_line(sound_run, tmp_path, capsys):
+@pytest.mark.parametrize("command", ["show", "compare", "recover"])
+def test_two_kb_zeroed_at_byte_4000_is_one_line(sound_run, tmp_path, capsys, command):
     path = damaged(sound_run, tmp_path, "zeroed.h5", zeroed(4000, 2048))
     before = path.read_bytes()
-    code, out, err = show(path, capsys)
+    code, out, err = show(path, capsys, command)
     assert (code, out) == (2, "")
     (line,) = err.splitlines()
     assert line.startswith(f"error: {path}: damaged: ")
@@ -84,6 +88,27 @@ def test_a_reader_stuck_in_libhdf5_is_cut_short(tmp_path, monkeypatch):
         f"{path}: damaged: libhdf5 was still reading one part of it after 0.5 s (a sound "
         "run file takes it milliseconds); not read"
     )
+
+
+def test_ctrl_c_while_a_file_is_walked_ends_the_walk(tmp_path, monkeypatch):
+    """Ctrl-C reaches a reader waiting for the child, and the child goes with it."""
+    started = []
+    real_popen = file_check.subprocess.Popen
+
+    def popen(*args, **kwargs):
+        child = real_popen(*args, **kwargs)
+        started.append(child)
+        return child
+
+    monkeypatch.setattr(file_check.subprocess, "Popen", popen)
+    monkeypatch.setattr(file_check, "_child_command", lambda paths: ["sleep", "600"])
+    path = tmp_path / "a.h5"
+    path.write_bytes(b"x")
+    threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT)).start()
+    with pytest.raises(KeyboardInterrupt):
+        file_check.check_files([path])
+    (child,) = started
+    assert child.returncode is not None  # killed and waited for
 
 
 def test_a_reader_that_crashes_is_one_line(tmp_path, monkeypatch):
@@ -158,8 +183,9 @@ def corrupt(data: bytearray, how) -> bytes:
     return bytes(data)
 
 
+@pytest.mark.slow  # a child process per example, and 3 s for each stuck one
 @settings(
-    max_examples=12,
+    max_examples=8,
     deadline=None,
     suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
