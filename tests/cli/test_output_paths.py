@@ -2,15 +2,12 @@
 did not make) unless told ``--overwrite``, and never one a run is writing; a name that
 would show as something else, a read-only folder or a full device is one line."""
 
-import subprocess
-import sys
-
 import h5py
 import pytest
 
 from labrig.cli import main
-from tests.recording.test_run_file_lock import LIVE_WRITER
-from tests.support.simulated_runs import PROTOCOL, tiny_run
+from tests.recording.test_run_file_lock import live_run  # noqa: F401  (a fixture)
+from tests.support.simulated_runs import tiny_run
 
 
 def run(argv, capsys):
@@ -74,30 +71,20 @@ def test_overwrite_lets_a_finished_run_file_go(done, tmp_path, capsys):
     assert target.read_text().startswith("file,")
 
 
-def test_a_live_run_file_is_refused_even_with_overwrite(done, tmp_path, capsys):
-    path = tmp_path / "live.h5"
-    protocol = tmp_path / "tiny.yaml"
-    protocol.write_text(PROTOCOL)
-    writer = subprocess.Popen(
-        [sys.executable, "-c", LIVE_WRITER, str(path), str(protocol)],
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        assert writer.stdout.readline().strip() == "ready"
-        before = path.read_bytes()
-        for link in (tmp_path / "soft.h5", tmp_path / "hard.h5"):
-            (link.symlink_to if link.name == "soft.h5" else link.hardlink_to)(path)
-        for target in (path, tmp_path / "soft.h5", tmp_path / "hard.h5"):
-            code, _, err = run(["runs", done, "--csv", target, "--overwrite"], capsys)
-            assert (code, err) == (
-                2,
-                f"error: --csv {target}: a labrig run is writing this file; choose another name\n",
-            )
-        assert path.read_bytes() == before
-    finally:
-        writer.communicate("\n", timeout=60)
+def test_a_live_run_file_is_refused_even_with_overwrite(done, live_run, capsys):  # noqa: F811
+    path, writer = live_run
+    before = path.read_bytes()
+    soft, hard = path.with_name("soft.h5"), path.with_name("hard.h5")
+    soft.symlink_to(path)
+    hard.hardlink_to(path)
+    for target in (path, soft, hard):
+        code, _, err = run(["runs", done, "--csv", target, "--overwrite"], capsys)
+        assert (code, err) == (
+            2,
+            f"error: --csv {target}: a labrig run is writing this file; choose another name\n",
+        )
+    assert path.read_bytes() == before
+    writer.communicate("\n", timeout=60)
     with h5py.File(path, "r") as f:
         assert f["entry/status"][()] == b"complete"
 

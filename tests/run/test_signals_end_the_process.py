@@ -52,10 +52,29 @@ def test_stop_pacing_ends_a_wait_for_the_wall_clock():
     assert clock.now() == 2000.0  # the same timeline, only faster
 
 
-def events_in(path) -> int:
+def signalled_when(process, ready, signum, settle_s=0.0) -> str:
+    """Send ``signum`` once ``ready()`` (a 60 s guard) and ``settle_s`` more, then the
+    process's stderr once it has ended (a 120 s guard: unfixed, it never ends)."""
+    try:
+        for _ in range(600):
+            if ready():
+                break
+            time.sleep(0.1)
+        assert ready(), "the run never got there"
+        time.sleep(settle_s)
+        process.send_signal(signum)
+        return process.communicate(timeout=120)[1]
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+
+
+def rows_in(path, dataset: str) -> int:
+    """Rows a live run file holds in ``dataset`` (0 before it has any)."""
     try:
         with h5py.File(path, "r", libver="latest", swmr=True, locking=False) as run:
-            return len(run["entry/events/time"])
+            return len(run[dataset])
     except (OSError, KeyError):
         return 0
 
@@ -80,18 +99,7 @@ def test_a_signal_at_a_slow_technicians_prompt_ends_the_process(tmp_path, signum
         stderr=subprocess.PIPE,
         text=True,
     )
-    try:
-        for _ in range(600):  # until the prompt is recorded (a 60 s guard)
-            if events_in(out):
-                break
-            time.sleep(0.1)
-        assert events_in(out), "the run never reached its prompt"
-        process.send_signal(signum)
-        _, err = process.communicate(timeout=120)
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.communicate()
+    err = signalled_when(process, lambda: rows_in(out, "entry/events/time"), signum)
     assert process.returncode == 1
     assert "aborted: r.h5" in err and reason in " ".join(err.split())
     with h5py.File(out, "r") as run:
@@ -114,17 +122,8 @@ def test_sigterm_ends_a_run_paced_far_below_real_time(tmp_path):
         stderr=subprocess.PIPE,
         text=True,
     )
-    try:
-        for _ in range(600):
-            if out.exists():
-                break
-            time.sleep(0.1)
-        time.sleep(1.0)
-        process.send_signal(signal.SIGTERM)
-        _, err = process.communicate(timeout=60)
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.communicate()
+    # the layout is written, in SWMR mode: the stop handlers follow within milliseconds
+    laid_out = "entry/repetitions/status"
+    err = signalled_when(process, lambda: rows_in(out, laid_out), signal.SIGTERM, settle_s=1.0)
     assert process.returncode == 1
     assert "stopped by SIGTERM" in err
