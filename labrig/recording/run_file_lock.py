@@ -19,7 +19,8 @@ drops however the process ends (a killed run leaves no lock that holds):
   On Linux it is an open file description lock (``F_OFD_SETLK``): it belongs to the
   open file, so HDF5 opening and closing the same file in this process cannot drop it
   (a POSIX record lock elsewhere, which can), and it never meets HDF5's own ``flock``,
-  which readers of a live file (``h5py`` with its defaults) must still get.
+  which readers of a live file (``h5py`` with its defaults) must still get. Windows
+  has the sidecar alone: its byte locks are mandatory, and it moves no open file.
 
 Readers (``show``, ``watch``, the live page) take neither: they open a live file in
 SWMR read mode.
@@ -80,11 +81,10 @@ def _flock_struct(kind: int) -> bytes:
 def _lock_file(fd: int, writable: bool) -> bool:
     """Lock the file open at ``fd`` itself, without waiting; False if another holds it.
     A file open only for reading gets a shared lock, which a writer's refuses too."""
+    if fcntl is None:  # Windows: the sidecar alone (Windows moves no open file anyway)
+        return True
     try:
-        if fcntl is None:
-            os.lseek(fd, _FILE_LOCK_OFFSET, os.SEEK_SET)
-            msvcrt.locking(fd, msvcrt.LK_NBLCK, 1)
-        elif hasattr(fcntl, "F_OFD_SETLK"):
+        if hasattr(fcntl, "F_OFD_SETLK"):
             kind = fcntl.F_WRLCK if writable else fcntl.F_RDLCK
             fcntl.fcntl(fd, fcntl.F_OFD_SETLK, _flock_struct(kind))
         else:  # a POSIX record lock: held while this process keeps every handle open
@@ -98,19 +98,15 @@ def _lock_file(fd: int, writable: bool) -> bool:
 def _file_locked_elsewhere(path: Path) -> bool:
     """Whether another open file holds the lock of the file at ``path`` (asked without
     taking it)."""
+    if fcntl is None or not hasattr(fcntl, "F_OFD_GETLK"):
+        # asking a POSIX record lock from this process would drop its own: the sidecar says
+        return False
     try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except OSError:
         return False
     try:
-        if fcntl is None:
-            if not _lock_file(fd, writable=False):
-                return True
-            os.lseek(fd, _FILE_LOCK_OFFSET, os.SEEK_SET)
-            msvcrt.locking(fd, msvcrt.LK_UNLCK, 1)
-            return False
-        command = getattr(fcntl, "F_OFD_GETLK", fcntl.F_GETLK)
-        answer = fcntl.fcntl(fd, command, _flock_struct(fcntl.F_WRLCK))
+        answer = fcntl.fcntl(fd, fcntl.F_OFD_GETLK, _flock_struct(fcntl.F_WRLCK))
         return struct.unpack("hhqqi4x", answer)[0] != fcntl.F_UNLCK
     except OSError:
         return False
@@ -119,9 +115,10 @@ def _file_locked_elsewhere(path: Path) -> bool:
 
 
 class RunFileLock:
-    """The sidecar lock of one run file, held by this process from ``acquire`` to
-    ``release`` (also a context manager). ``purpose`` ("run", "recover", ...) is written
-    into the sidecar so that a refused process can say who holds the file."""
+    """The locks of one run file, its name's (the sidecar) and the file's own, held by
+    this process from ``acquire`` (or ``create_file``) to ``release`` (also a context
+    manager). ``purpose`` ("run", "recover", ...) is written into the sidecar so that a
+    refused process can say who holds the file."""
 
     def __init__(self, run_path: str | Path, purpose: str) -> None:
         self.run_path = Path(run_path)
