@@ -31,6 +31,7 @@ volume it reports.
 from __future__ import annotations
 
 import logging
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,7 +50,7 @@ from labrig.config.protocol import (
     iter_plan,
     plan,
 )
-from labrig.errors import LabrigError
+from labrig.errors import InputError, LabrigError
 from labrig.recording.run_file_lock import check_run_name
 from labrig.recording.run_writer import RunFileFailed, RunWriter
 from labrig.recording.video import VideoRecorder
@@ -199,6 +200,12 @@ class Runner:
 
     def _open_run_file(self) -> RunWriter:
         check_run_name(self.out_path)  # never one name for the file and its video
+        video = self._video_path()
+        if video is not None and os.path.lexists(video):  # the recorder would replace it
+            raise InputError(
+                f"{video}: a run's video is already there; a run never writes over one "
+                "(labrig run --overwrite moves it aside first)"
+            )
         return RunWriter(
             self.out_path,
             title=self.protocol.name,

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from support.simrig import run_sim
 
+from labrig.errors import InputError
 from labrig.recording.run_writer import RunFileFailed, RunWriter
 
 INFUSE = textwrap.dedent(
@@ -92,3 +93,15 @@ def test_a_full_disk_is_one_line_and_no_crash(tmp_path):
     text = " ".join(done.stderr.split())
     assert "faulted: " in text and "complete:" not in text
     assert "cannot write the run file (File too large)" in text
+
+
+def test_a_run_never_writes_over_a_video_left_there(tmp_path):
+    video = tmp_path / "run.avi"
+    video.write_bytes(b"frames of another run")
+    text = INFUSE.replace(
+        "pressure_rate_hz: 1000}", "pressure_rate_hz: 1000, camera_fps: 5, video: true}"
+    )
+    with pytest.raises(InputError, match=r"run\.avi: a run's video is already there"):
+        run_sim(tmp_path, text)
+    assert video.read_bytes() == b"frames of another run"
+    assert not (tmp_path / "run.h5").exists()
