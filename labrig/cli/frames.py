@@ -8,6 +8,7 @@ from pathlib import Path
 
 import click
 
+from labrig.cli.review import RunFileArgument
 from labrig.errors import InputError
 
 
@@ -24,7 +25,7 @@ def _volumes(text: str | None) -> list[float] | None:
 
 
 @click.command()
-@click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("file", type=RunFileArgument())
 @click.option("--at-transitions", is_flag=True, help="Before and after each measured transition.")
 @click.option("--at-volumes", metavar="V,V,...", help="Where the inflation reaches these mL.")
 @click.option("--repetition", type=int, help="Repetition for --at-volumes (default the last).")

@@ -15,7 +15,25 @@ import click
 
 from labrig.errors import InputError
 
-FILE = click.Path(dir_okay=False, path_type=Path)
+
+class RunFileArgument(click.Path):
+    """A run file named on the command line, walked by a watched child process
+    (``labrig.recording.file_check``) as soon as it is read, before the command loads
+    its analysis (seconds of imports): a damaged file is answered at once."""
+
+    def __init__(self) -> None:
+        super().__init__(dir_okay=False, path_type=Path)
+
+    def convert(self, value, param, ctx):
+        path = super().convert(value, param, ctx)
+        if path.is_file():  # a missing file, a pipe: the command's own reading says so
+            from labrig.recording.file_check import check_file
+
+            check_file(path)
+        return path
+
+
+FILE = RunFileArgument()
 
 
 def _console():

@@ -30,6 +30,7 @@ from pathlib import Path
 
 from labrig.errors import InputError
 from labrig.recording.run_layout import MAX_DATASET_VALUES
+from labrig.user_files import HDF5_SIGNATURE
 
 # a protocol file is capped at 1 MB (labrig.user_files): so is any text a run stores
 MAX_TEXT_BYTES = 1_000_000
@@ -71,6 +72,59 @@ def check_file(path: str | Path) -> None:
         raise InputError(error)
 
 
+def superblock_facts(path: Path) -> tuple[int, int, int] | None:
+    """(superblock version, consistency flags, end-of-file address) of an HDF5 file with
+    a version 2 or 3 superblock, or None when the header is not one of those.
+
+    Read directly from the header because HDF5 refuses to open exactly the files whose
+    diagnosis needs these numbers (a truncated file, one still flagged open).
+    """
+    with open(path, "rb") as handle:
+        header = handle.read(48)
+    if len(header) < 12 or header[:8] != HDF5_SIGNATURE or header[8] not in (2, 3):
+        return None
+    offsets = header[9]
+    eof_at = 12 + 2 * offsets  # after base address and superblock-extension address
+    if len(header) < eof_at + offsets:
+        return None
+    eof = int.from_bytes(header[eof_at : eof_at + offsets], "little")
+    return header[8], header[11], eof
+
+
+def truncation(path: Path) -> str:
+    """Why the file is cut short ("" if its header's end-of-file address is there): read
+    from the header, before libhdf5 (which loops on some such files) is let near it."""
+    try:
+        facts = superblock_facts(path)
+        size = os.stat(path).st_size
+    except OSError:
+        return ""
+    if facts is None or facts[2] <= size:
+        return ""
+    return (
+        f"{path}: truncated: {size} of the {facts[2]} bytes its header announces are "
+        "present; the end of the file is missing (copy it again from where it was "
+        "recorded)"
+    )
+
+
+def unopenable(path: Path, error: str) -> str:
+    """Why libhdf5 could not open the file, more clearly than its ``error`` where the
+    header tells: no HDF5 signature at the start, or cut short."""
+    try:
+        size = os.stat(path).st_size
+        with open(path, "rb") as handle:
+            signature = handle.read(8)
+    except OSError:
+        return error
+    if signature != HDF5_SIGNATURE:
+        return (
+            f"{path}: not an HDF5 file (no HDF5 signature at the start; {size} bytes); "
+            "a labrig run file is written by `labrig run`"
+        )
+    return truncation(path) or error
+
+
 def check_files(paths: list[Path]) -> dict[Path, str]:
     """Each file's verdict ("" or its one-line error), the unknown ones walked by one
     child in turn (a fresh child after one that got stuck or died)."""
@@ -82,6 +136,8 @@ def check_files(paths: list[Path]) -> dict[Path, str]:
             known = _verdicts.get(key) if key is not None else None
         if known is not None:
             verdicts[path] = known
+        elif cut := truncation(path):
+            verdicts[path] = cut
         else:
             todo.append((path, key))
     while todo:
@@ -182,7 +238,7 @@ def _walk(path: Path, beat) -> str:
         try:
             run = h5py.File(path, "r", libver="latest", swmr=True, locking=False)
         except OSError:
-            return f"{path}: not a readable HDF5 file ({plain_error})"
+            return unopenable(path, f"{path}: not a readable HDF5 file ({plain_error})")
     where = ""
     try:
         with run:
