@@ -10,8 +10,8 @@ what holds the actuator's ends (the blocked-force test):
   (``Coupling.through``: a bore and a length, the fluid's viscosity and density);
 - the fluid is compressible: water with its bulk modulus, air as a polytropic gas
   (index 1 isothermal, 1.4 adiabatic), so every volume is a compliance V / (n P_abs);
-  the manifold holds the lines' dead volume, an optional rigid air reservoir, and the
-  syringe's air while the pump is connected;
+  the manifold holds the lines' dead volume, an optional rigid air reservoir, the
+  syringe's air while the pump is connected, and air trapped in a water line;
 - the latex wall is viscoelastic: the membrane's pressure is p(v) plus a damping
   eta_wall(v) dv/dt (a Kelvin-Voigt wall whose viscosity follows from the latex's loss
   tangent, thinning as the wall stretches): with air the flow resistance is 55 times
@@ -46,6 +46,7 @@ from scipy.integrate import solve_ivp
 from labrig.model.blocked import axial_stiffness_n_per_mm
 from labrig.model.segments.curve import SegmentCurve
 from labrig.sim.plant import ScalarCurve
+from labrig.sim.specimen import SpecimenBehaviour
 
 ATMOSPHERE_KPA = 101.325
 # kPa s/mL per Pa s/m^3 (and kPa s^2/mL per Pa s^2/m^3): 1e-3 kPa/Pa times 1e-6 m^3/mL
@@ -145,6 +146,9 @@ class Plumbing:
     air_reservoir_ml: float = 0.0
     line_compliance_ml_per_kpa: float = 0.002
     syringe_ml: float = 50.0
+    # air trapped in a water line (mL at atmospheric pressure): a gas compliance on the
+    # manifold whatever the working fluid
+    trapped_air_ml: float = 0.0
 
 
 class DynamicPlant:
@@ -165,6 +169,7 @@ class DynamicPlant:
         history_s: float = 600.0,
         sample_s: float = 1e-3,
         method: str = "LSODA",
+        behaviour: SpecimenBehaviour | None = None,
     ) -> None:
         if not segments:
             raise ValueError("a plant needs at least one segment")
@@ -181,6 +186,7 @@ class DynamicPlant:
         self.history_s = float(history_s)
         self.sample_s = float(sample_s)
         self.method = method
+        self.behaviour = behaviour
         self._lock = threading.RLock()
         self._curves = [ScalarCurve(curve) for curve in self.segments]
         self._v0 = [float(curve.V0_ml) for curve in self.segments]
@@ -297,6 +303,11 @@ class DynamicPlant:
             dy[n + i] = (p_m - p_i - drop) / inertance
         compliance = self.plumbing.line_compliance_ml_per_kpa
         compliance += self.fluid.compliance_ml_per_kpa(manifold_ml, p_m)
+        if self.plumbing.trapped_air_ml > 0:
+            # isothermal: the bubble holds V0 P_atm / P_abs at gauge pressure p_m
+            absolute_kpa = max(ATMOSPHERE_KPA + p_m, 1.0)
+            bubble_ml = self.plumbing.trapped_air_ml * ATMOSPHERE_KPA / absolute_kpa
+            compliance += AIR.compliance_ml_per_kpa(bubble_ml, p_m)
         dy[2 * n] = (supply - float(np.sum(q))) / compliance
         return dy
 
@@ -342,8 +353,12 @@ class DynamicPlant:
             )
         n_samples = max(1, int(np.ceil((end_s - start) / self.sample_s)))
         times = np.linspace(start, end_s, n_samples + 1)[1:]
+        outputs = self._outputs_of(solution.sol(times))
+        if self.behaviour is not None and self._connected == "pump":
+            for row, t in zip(outputs, times.tolist(), strict=True):
+                row[0] = self.behaviour.pressure_kpa(t, self.volume_ml_at(t), row[0])
         self._history_t.extend(times.tolist())
-        self._history.extend(self._outputs_of(solution.sol(times)))
+        self._history.extend(outputs)
         self._t, self._y = end_s, solution.y[:, -1].copy()
         if self._t - self._history_t[0] > 1.5 * self.history_s:
             cut = bisect.bisect_left(self._history_t, self._t - self.history_s)

@@ -7,7 +7,8 @@ Q/n + (mean_j p_j - p_i)/R, so the total volume always equals the pump's and, at
 snap-through, fluid flows from the higher- to the lower-pressure segments over a finite
 time — the overdamped energy descent the model uses to decide where a snap ends. In the
 slow limit (Q R << the pressure differences that matter) the plant follows the model's
-quasi-static path. The sensor sits on the manifold and reads mean p + R Q / n.
+quasi-static path. The sensor sits on the manifold and reads mean p + R Q / n (changed
+by the specimen's ``behaviour``, ``labrig.sim.specimen``, when it has one).
 
 The default R = 0.1 kPa s/mL is calibrated on the paper's water figure (a snap takes
 about 1 s, Movie S7): for B48-T30 + B50-T20 at 20 mL/min the (2, 1) snap moves 9.8 mL
@@ -36,6 +37,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from labrig.model.segments.curve import SegmentCurve
+from labrig.sim.specimen import SpecimenBehaviour
 
 
 class ScalarCurve:
@@ -104,6 +106,7 @@ class Plant:
         history_s: float = 600.0,
         seed: int = 0,
         resistance_spread: float = 1e-3,
+        behaviour: SpecimenBehaviour | None = None,
     ) -> None:
         if not segments:
             raise ValueError("a plant needs at least one segment")
@@ -116,6 +119,7 @@ class Plant:
         self.max_step_s = float(max_step_s)
         self.max_step_volume_ml = float(max_step_volume_ml)
         self.history_s = float(history_s)
+        self.behaviour = behaviour
         self._lock = threading.RLock()
         self._curves = [ScalarCurve(curve) for curve in self.segments]
         n = len(self.segments)
@@ -169,7 +173,10 @@ class Plant:
         return (flow_ml_s + weighted) / self._total_conductance
 
     def _record(self, inlet: float) -> None:
-        """Append the state at ``_t`` (volumes ``_w``, sensor pressure ``inlet``)."""
+        """Append the state at ``_t`` (volumes ``_w``, sensor pressure ``inlet`` as the
+        curves give it, changed by the specimen's behaviour if it has one)."""
+        if self.behaviour is not None:
+            inlet = self.behaviour.pressure_kpa(self._t, self._supplied_ml, inlet)
         self._history_t.append(self._t)
         self._history_p.append(inlet)
         self._history_l.append(self._length(self._w))

@@ -9,16 +9,20 @@ names.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import yaml
 from pydantic import Field, model_validator
 
-from labrig.config.protocol import LoadedProtocol
+from labrig.config.protocol import MAX_PATH_CHARS, LoadedProtocol
 from labrig.config.yaml_schema import IndexOrLine, Line, Strict, parse_yaml_model
 from labrig.errors import InputError
 from labrig.user_files import MAX_CONFIG_BYTES, read_text_file
 
+# The pull-up that makes a cut sensor wire read out of band (docs/reference/interlocks.md
+# derives it: 4.7 kOhm against the USB-6009's 144 kOhm input holds an open input at
+# 4.89 V, above the MPX5100's 4.813 V most).
+DEFAULT_PULL_UP_KOHM = 4.7
 # A 50 mL Hamilton 1000-series gastight syringe (the paper's), inner diameter in mm.
 DEFAULT_SYRINGE_DIAMETER_MM = 27.6
 DEFAULT_SYRINGE_VOLUME_ML = 50.0
@@ -75,6 +79,15 @@ class PressureConfig(Strict):
         None, description="Channel measuring the sensor supply (the MPX5100 is ratiometric)"
     )
     supply_v: float = Field(5.0, gt=0, description="Assumed supply when none is measured")
+    pull_up_kohm: float | None = Field(
+        DEFAULT_PULL_UP_KOHM,
+        gt=0,
+        le=100,
+        description="The resistor from the sensor's output to its 5 V supply at the DAQ's "
+        "input, so a cut output wire reads above the sensor's band and faults the run as a "
+        "wire fault; null for a rig wired without it (a cut wire then reads about 27 kPa, in "
+        "range, and only the zeroing sees it)",
+    )
 
 
 class LoadCellConfig(Strict):
@@ -145,6 +158,53 @@ class CameraConfig(Strict):
 SIM_REPLY_TIMEOUT_S = 10.0
 
 
+class SimSpecimen(Strict):
+    """The simulated specimen's truth: what it is made of and how it behaves, which need
+    not be what the protocol's specimen (its model) says. Every behaviour is off by
+    default."""
+
+    segments: list[Annotated[Line, Field(max_length=MAX_PATH_CHARS)]] | None = Field(
+        None,
+        min_length=1,
+        description="Its segments as a protocol's specimen.segments names them (library "
+        "names of any library, measured segments, CSV paths); default: the protocol's",
+    )
+    stiffness_factor: float = Field(
+        1.0, ge=0.1, le=10, description="Pressure scaled at equal volume (2: twice as stiff)"
+    )
+    hysteresis_kpa: float = Field(
+        0.0,
+        ge=0,
+        le=50,
+        description="Deflation reads this much below inflation (at most half the pressure), "
+        "reached over the first 0.5 mL withdrawn",
+    )
+    first_cycle_factor: float = Field(
+        1.0,
+        ge=1,
+        le=3,
+        description="A fresh latex tube is this much stiffer on its first inflation (the "
+        "Mullins effect): at volumes below the most it has held it is softer again",
+    )
+    air_ml: float = Field(
+        0.0, ge=0, le=100, description="Air trapped in a water line (mL at atmosphere)"
+    )
+    leak_fraction: float = Field(
+        0.0,
+        ge=0,
+        le=0.9,
+        description="The share of the pump's infused flow lost at the specimen (a weeping "
+        "fitting): it never comes back",
+    )
+    burst_at_ml: float | None = Field(
+        None,
+        gt=0,
+        le=1000,
+        description="The specimen opens to the air once the pump has supplied this volume: "
+        "the pressure falls to 0 and stays there",
+    )
+
+
 class SimConfig(Strict):
     speed: float | None = Field(
         None,
@@ -175,6 +235,11 @@ class SimConfig(Strict):
     coupling_length_mm: float = Field(20.0, gt=0, description="Length of each coupling")
     dead_volume_ml: float = Field(2.0, gt=0, description="Fluid in the lines and the tee")
     answer_s: float = Field(2.0, ge=0, description="How long the technician takes a prompt")
+    specimen: SimSpecimen | None = Field(
+        None,
+        description="The specimen's truth and behaviour; default: exactly the protocol's "
+        "segments, which then are their own model",
+    )
 
 
 class RigConfig(Strict):

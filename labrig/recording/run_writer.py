@@ -32,7 +32,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 
 import h5py
@@ -134,6 +134,7 @@ class RunWriter:
         video_file: str | None = None,
         flush_interval_s: float = 0.5,
         tap: Callable[[int, str, dict[str, np.ndarray]], None] | None = None,
+        pump_identity: Mapping[str, str] | None = None,
     ) -> None:
         self.path = Path(path)
         # sees every append (repetition, log, columns) as written: the live view's feed
@@ -151,6 +152,8 @@ class RunWriter:
         self.with_events = with_events
         self.simulated_segments = simulated_segments
         self.video_file = video_file
+        # who the pump is, as connect read it (``/entry/pump_identity``); empty: none
+        self.pump_identity = dict(pump_identity or {})
         self.flush_interval_s = flush_interval_s
         self._lock = threading.Lock()
         self._closed = False
@@ -227,6 +230,15 @@ class RunWriter:
         version_group.attrs["NX_class"] = "NXcollection"
         for name, value in versions().items():
             version_group[name] = value
+        if self.pump_identity:
+            pump = entry.create_group("pump_identity")
+            pump.attrs.update(
+                NX_class="NXcollection",
+                description="the pump as its connection found it ('version' reply, and "
+                "what it was doing then)",
+            )
+            for name, text in self.pump_identity.items():
+                pump[name] = text
         zero = entry.create_group("zero")
         zero.attrs["NX_class"] = "NXcollection"
         zero.create_dataset("offset_kpa", data=np.nan).attrs["units"] = "kPa"

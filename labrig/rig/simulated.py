@@ -1,6 +1,11 @@
 """The simulated rig: the real drivers connected to the emulators — the PHD Ultra
 emulator on a pseudo-terminal, SimDaqTask behind the nidaqmx Task factory, SimCamera
-behind the capture — all fed by one plant on one simulated clock."""
+behind the capture — all fed by one plant on one simulated clock.
+
+The plant is the specimen's truth: the rig file's ``sim.specimen`` (its segments and
+its real-world behaviour, ``labrig.sim.specimen``), which need not be the protocol's
+specimen, the model the run is compared with; by default it is the protocol's segments,
+exactly."""
 
 from __future__ import annotations
 
@@ -11,7 +16,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from labrig.config.protocol import Protocol
-from labrig.config.rig_file import CameraConfig, LoadCellConfig, RigConfig, rig_config_text
+from labrig.config.rig_file import (
+    CameraConfig,
+    LoadCellConfig,
+    RigConfig,
+    SimConfig,
+    SimSpecimen,
+    rig_config_text,
+)
+from labrig.errors import InputError
 from labrig.rig.connect import needs_technician, pressure_driver, set_up_pump
 from labrig.rig.devices import Rig
 
@@ -25,7 +38,9 @@ SIM_CAMERA_SIZE = (640, 360)
 SIM_RECONNECT_S = 2.0
 
 
-def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
+def build_simulated_rig(protocol: Protocol, config: RigConfig, before_connect=None) -> Rig:
+    """The simulated rig; ``before_connect(emulator)`` leaves the emulated pump in a
+    state of its own before the driver connects (running, in a method: tests, soak)."""
     from labrig.drivers.camera import CameraLength, FrameSource
     from labrig.drivers.ni_daq import NiDaqPressure
     from labrig.drivers.phd_ultra import PhdUltra
@@ -34,10 +49,14 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
     from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
     from labrig.sim.plant import Plant
     from labrig.sim.pump import PumpEmulator
+    from labrig.sim.specimen import LeakyVolume, SpecimenBehaviour, scaled_curve
     from labrig.time.virtual import VirtualClock
 
     sim = config.sim
-    segments = [load_segment(spec) for spec in protocol.specimen.segments]
+    truth = specimen_truth(protocol, sim)
+    segments = [scaled_curve(load_segment(spec), truth.stiffness_factor) for spec in truth.segments]
+    # the truth as run goes into the run file with the rest of the rig's configuration
+    config = config.model_copy(update={"sim": sim.model_copy(update={"specimen": truth})})
     clock = VirtualClock(speed=sim.speed)
     syringe = config.pump.syringe
     plant_box: list[Plant] = []
@@ -53,22 +72,36 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
         load_pressure_kpa=lambda t: float(plant_box[0].pressure_kpa_at(t)),
         seed=sim.seed,
     )
-    if needs_dynamic_plant(protocol):
-        plant = _dynamic_plant(segments, emulator.net_volume_ml, clock, protocol, config)
+    volume_ml_at = emulator.net_volume_ml
+    if truth.leak_fraction > 0:
+        volume_ml_at = LeakyVolume(volume_ml_at, truth.leak_fraction)
+    behaviour = None
+    if truth.hysteresis_kpa or truth.first_cycle_factor != 1 or truth.burst_at_ml is not None:
+        behaviour = SpecimenBehaviour(
+            emulator.net_volume_ml,
+            hysteresis_kpa=truth.hysteresis_kpa,
+            first_cycle_factor=truth.first_cycle_factor,
+            burst_at_ml=truth.burst_at_ml,
+        )
+    if needs_dynamic_plant(protocol) or truth.air_ml > 0:
+        plant = _dynamic_plant(segments, volume_ml_at, clock, protocol, config, behaviour)
     else:
         plant = Plant(
             segments,
-            emulator.net_volume_ml,
+            volume_ml_at,
             t0_s=clock.now(),
             resistance_kpa_s_per_ml=sim.resistance_kpa_s_per_ml,
             fittings_length_mm=protocol.specimen.fittings_length_mm,
             seed=sim.seed,
+            behaviour=behaviour,
         )
     plant_box.append(plant)
     with ExitStack() as stack:
         stack.callback(link_dir.rmdir)
         emulator.start()
         stack.callback(emulator.close)
+        if before_connect is not None:
+            before_connect(emulator)
         pump = PhdUltra.open(
             emulator.port,
             address=config.pump.address,
@@ -162,7 +195,30 @@ def needs_dynamic_plant(protocol: Protocol) -> bool:
     return needs_technician(protocol) or specimen.fluid != "water" or specimen.length != "free"
 
 
-def _dynamic_plant(segments, volume_ml_at, clock, protocol: Protocol, config: RigConfig):
+def specimen_truth(protocol: Protocol, sim: SimConfig) -> SimSpecimen:
+    """The simulated specimen: the rig file's ``sim.specimen`` with its segments given
+    (the protocol's by default). InputError, in one line, for a protocol whose segments
+    no library holds and a rig file that does not say what the specimen really is."""
+    from labrig.model.segments.catalog import load_segment
+
+    truth = sim.specimen or SimSpecimen()
+    if truth.segments is not None:
+        return truth
+    for spec in protocol.specimen.segments:
+        try:
+            load_segment(spec)
+        except InputError:
+            raise InputError(
+                f"the simulated rig cannot know what segment {spec!r} is (no library holds "
+                "it): give the rig file's sim.specimen.segments, the segments the simulated "
+                "specimen really is (library names or CSV paths)"
+            ) from None
+    return truth.model_copy(update={"segments": list(protocol.specimen.segments)})
+
+
+def _dynamic_plant(
+    segments, volume_ml_at, clock, protocol: Protocol, config: RigConfig, behaviour=None
+):
     from labrig.sim.dynamic_plant import FLUIDS, DynamicPlant, Plumbing
 
     sim, specimen = config.sim, protocol.specimen
@@ -173,6 +229,7 @@ def _dynamic_plant(segments, volume_ml_at, clock, protocol: Protocol, config: Ri
         dead_volume_ml=sim.dead_volume_ml,
         air_reservoir_ml=specimen.air_reservoir_ml,
         syringe_ml=config.pump.syringe.volume_ml,
+        trapped_air_ml=sim.specimen.air_ml if sim.specimen else 0.0,
     )
     return DynamicPlant(
         segments,
@@ -181,6 +238,7 @@ def _dynamic_plant(segments, volume_ml_at, clock, protocol: Protocol, config: Ri
         t0_s=clock.now(),
         fittings_length_mm=specimen.fittings_length_mm,
         blocked=specimen.length == "blocked",
+        behaviour=behaviour,
     )
 
 

@@ -220,6 +220,7 @@ class Runner:
             simulated_segments=self._simulated_segments(),
             tap=self.data_tap,
             video_file=self._video_path().name if self._video_path() else None,
+            pump_identity=getattr(self.rig.pump, "run_record", None),
         )
 
     def _video_path(self) -> Path | None:
