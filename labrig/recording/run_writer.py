@@ -21,7 +21,6 @@ does not exist, and holds the lock until the file is closed, SWMR or not.
 
 from __future__ import annotations
 
-import atexit
 import contextlib
 import datetime as dt
 import logging
@@ -29,7 +28,6 @@ import os
 import platform
 import re
 import subprocess
-import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Mapping
@@ -56,6 +54,7 @@ from labrig.recording.run_layout import (
     VIDEO_FIELDS,
     repetition_name,
 )
+from labrig.recording.unwritable import abandon, quiet_h5py_frees
 
 log = logging.getLogger(__name__)
 
@@ -515,7 +514,7 @@ class RunWriter:
         except (OSError, RuntimeError) as exc:
             if isinstance(exc, RunFileFailed):
                 raise
-            _quiet_h5py_frees()
+            quiet_h5py_frees()
             found = re.search(r"errno = (\d+)", str(exc))
             errno = getattr(exc, "errno", None) or (int(found.group(1)) if found else None)
             why = os.strerror(errno) if errno else "HDF5 could not write it"
@@ -541,48 +540,8 @@ class RunWriter:
             raise RunFileFailed(message)
 
     def _abandon(self) -> None:
-        """Let go of a file HDF5 cannot write without closing it. Every close of such a
-        file fails, and the one HDF5 tries at exit then crashes the process (h5py's
-        error handler is gone by then): so its handles are kept for the life of the
-        process, and the OS closes the file when it ends. On disk, the file is as of
-        its last flush that succeeded, consistent (SWMR)."""
-        _keep_for_the_process(self._file.id, *(d.id for d in self._datasets.values()))
+        """Let go of a file HDF5 cannot write, without closing it
+        (``labrig.recording.unwritable``); on disk it is as of its last good flush,
+        consistent (SWMR)."""
+        abandon(self._file.id, *(d.id for d in self._datasets.values()))
         self._datasets.clear()
-        atexit.register(_end_before_hdf5_cleans_up)
-
-
-def _end_before_hdf5_cleans_up() -> None:
-    """End the process before HDF5's own clean-up at exit, which tries the unwritable
-    file's close once more and crashes (SIGSEGV) on its failure: the output flushed,
-    with the error exit status (a run file was lost in part)."""
-    logging.shutdown()
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(Exception):
-            stream.flush()
-    os._exit(1)
-
-
-def _keep_for_the_process(*handles) -> None:
-    """Never free ``handles`` (h5py identifiers of a file HDF5 cannot write)."""
-    import ctypes
-
-    for handle in handles:
-        ctypes.pythonapi.Py_IncRef(ctypes.py_object(handle))
-
-
-def _quiet_h5py_frees() -> None:
-    """Say nothing of h5py objects freed once a file could not be written: each
-    would print a traceback of the same failure (logged instead)."""
-    if getattr(sys.unraisablehook, "labrig_quiet_h5py", False):
-        return
-    previous = sys.unraisablehook
-
-    def hook(unraisable) -> None:
-        where = unraisable.object
-        if isinstance(where, str) and where.startswith("h5py."):
-            log.debug("freeing an object of an unwritable HDF5 file: %s", unraisable.exc_value)
-            return
-        previous(unraisable)
-
-    hook.labrig_quiet_h5py = True
-    sys.unraisablehook = hook

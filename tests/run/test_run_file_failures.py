@@ -16,6 +16,7 @@ from support.simrig import run_sim
 
 from labrig.errors import InputError
 from labrig.recording.run_writer import RunFileFailed, RunWriter
+from tests.support.simulated_runs import tiny_run
 
 INFUSE = textwrap.dedent(
     """\
@@ -105,3 +106,26 @@ def test_a_run_never_writes_over_a_video_left_there(tmp_path):
         run_sim(tmp_path, text)
     assert video.read_bytes() == b"frames of another run"
     assert not (tmp_path / "run.h5").exists()
+
+
+def test_an_analysis_with_no_room_is_not_stored_and_the_file_unchanged(tmp_path):
+    path = tiny_run(tmp_path / "r.h5")
+    before = path.read_bytes()
+    limit = len(before) + 1000  # bytes: the file may grow by less than an analysis
+
+    def small_files():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    done = subprocess.run(
+        [sys.executable, "-m", "labrig", "compare", str(path), "--store", "--json"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        preexec_fn=small_files,
+    )
+    assert (done.returncode, done.stderr) == (
+        2,
+        f"error: {path}: the analysis not stored: the process may not write files over "
+        f"{limit} bytes (ulimit -f; the file is unchanged)\n",
+    )
+    assert path.read_bytes() == before
