@@ -8,47 +8,32 @@ import resource
 import shutil
 import subprocess
 import sys
-import textwrap
 
 import numpy as np
 import pytest
 from support.simrig import run_sim
 
 from labrig.errors import InputError
-from labrig.recording.run_writer import RunFileFailed, RunWriter
+from labrig.recording.run_writer import RunFileFailed
+from tests.cli.test_run_out import TINY
+from tests.recording.test_run_file_lock import make_writer
 from tests.support.simulated_runs import tiny_run
 
-INFUSE = textwrap.dedent(
-    """\
-    name: file test
-    specimen: {segments: [SI-B48-T30]}
-    rig: sim
-    limits: {max_pressure_kpa: 95, max_volume_ml: 45}
-    acquisition: {pressure_rate_hz: 1000}
-    steps:
-      - zero_pressure: {duration_s: 0.1}
-      - infuse: {rate_ml_min: 6, volume_ml: 5}
-    analysis: {average_last: 1, compare_model: false}
-    """
+# 50 s of 1 kHz pressure: a file that outgrows a small limit in its first seconds
+INFUSE = TINY.replace("pressure_rate_hz: 100}", "pressure_rate_hz: 1000}").replace(
+    "rate_ml_min: 60, volume_ml: 1", "rate_ml_min: 6, volume_ml: 5"
 )
 
 
 def test_a_writer_whose_file_is_removed_says_so(tmp_path):
     folder = tmp_path / "runs"
-    writer = RunWriter(
-        folder / "r.h5",
-        title="t",
-        protocol_text="name: t\n",
-        protocol_path="t.yaml",
-        rig_config_text="",
-        repetitions=1,
-        with_length=False,
-        flush_interval_s=0.0,
-    )
+    folder.mkdir()
+    writer = make_writer(folder / "r.h5")
     shutil.rmtree(folder)
+    writer.append_pressure(1, np.arange(3.0), np.zeros(3), np.zeros(3, bool))
     gone = re.escape("r.h5: the run file is gone (removed, or its folder deleted, while the run")
     with pytest.raises(RunFileFailed, match=gone):
-        writer.append_pressure(1, np.arange(3.0), np.zeros(3), np.zeros(3, bool))
+        writer.flush()
     with pytest.raises(RunFileFailed, match=gone):
         writer.finalise("complete")
     assert writer.closed
