@@ -50,9 +50,8 @@ from labrig.user_files import MAX_TABLE_BYTES, read_text_file
 
 HEADER = ("volume_ml", "pressure_kpa", "length_mm")
 MIN_ROWS = 10
-# a measured curve has a few thousand rows; a longer table is averaged down to this
-# (at_most_rows), and from LARGE_TABLE_ROWS it is parsed by pandas' C parser
-MAX_TABLE_ROWS = 20_000
+# a measured curve has a few thousand rows; from this many on (a raw log, up to the
+# 50 MB cap: about 2 million rows) the table is parsed by pandas' C parser
 LARGE_TABLE_ROWS = 100_000
 MAX_FIRST_VOLUME_ML = 0.5  # the first row must be (close to) the unpressurised state
 # no segment's curve reaches a million mL, kPa or mm; numbers beyond (1e308) overflow
@@ -98,22 +97,7 @@ def read_csv_table(path: Path) -> np.ndarray:
     if values is None:
         values = _numbers_row_by_row(data, where)
     _check_volumes_and_lengths(values, [n for n, _ in data], where)
-    return at_most_rows(values, MAX_TABLE_ROWS)
-
-
-def at_most_rows(values: np.ndarray, limit: int) -> np.ndarray:
-    """The table with at most ``limit`` rows: above, each run of k consecutive rows
-    (k the fewest that fit) is replaced by its mean. Volumes stay in order, and a
-    curve keeps its shape to within k rows; 2 million rows (a 48 MB file) took the
-    path solver 26 s, and a curve needs a few thousand."""
-    k = -(-len(values) // limit)
-    if k <= 1:
-        return values
-    whole = len(values) // k * k
-    means = values[:whole].reshape(-1, k, values.shape[1]).mean(axis=1)
-    if whole == len(values):
-        return means
-    return np.vstack([means, values[whole:].mean(axis=0)])
+    return values
 
 
 def _numbers_at_once(data: list[tuple[int, str]]) -> np.ndarray | None:

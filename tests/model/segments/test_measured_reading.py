@@ -1,13 +1,12 @@
 """Reading a measured-curve CSV: no cell of the file is ever shown in an error, and a
-table of millions of rows is read by a fast parser and averaged down to at most
-MAX_TABLE_ROWS rows (the same numbers either parser)."""
+table of millions of rows is read by a fast parser (the same numbers as numpy's)."""
 
 import numpy as np
 import pytest
 
 from labrig.errors import InputError
 from labrig.model.segments import measured
-from labrig.model.segments.measured import MAX_TABLE_ROWS, at_most_rows, read_csv_table
+from labrig.model.segments.measured import read_csv_table
 
 HEADER = "volume_ml,pressure_kpa,length_mm"
 
@@ -29,15 +28,7 @@ def test_a_bad_cell_is_named_by_its_place_never_shown(tmp_path, cell, expected):
     assert str(error.value) == f"{path}: line 5, column pressure_kpa: {expected}"
 
 
-def test_at_most_rows_averages_runs_of_rows():
-    values = np.arange(21.0 * 3).reshape(21, 3)
-    got = at_most_rows(values, 5)  # k = 5: four runs of five, then the one left
-    rows = [values[i : i + 5].mean(axis=0) for i in range(0, 20, 5)] + [values[20]]
-    np.testing.assert_array_equal(got, np.array(rows))
-    assert at_most_rows(values, 21) is values
-
-
-def test_a_table_of_many_rows_is_parsed_alike_and_bounded(tmp_path):
+def test_a_table_of_many_rows_is_parsed_alike_by_the_fast_parser(tmp_path):
     rng = np.random.default_rng(1)
     n = measured.LARGE_TABLE_ROWS + 7
     v = np.sort(rng.uniform(0, 30, n))
@@ -50,6 +41,4 @@ def test_a_table_of_many_rows_is_parsed_alike_and_bounded(tmp_path):
     lines = path.read_text().splitlines()[1:]
     by_pandas = measured._parsed_by_pandas(lines)
     np.testing.assert_array_equal(by_pandas, table)  # exact: the file holds every digit
-    read = read_csv_table(path)
-    assert len(read) <= MAX_TABLE_ROWS
-    np.testing.assert_array_equal(read, at_most_rows(table, MAX_TABLE_ROWS))
+    np.testing.assert_array_equal(read_csv_table(path), table)
