@@ -40,8 +40,8 @@ STALL_S = 3.0
 STARTUP_S = 60.0
 # what the child may map: h5py and numpy take ~120 MB, a slice 8 MB, a text 1 MB
 CHILD_MEMORY_BYTES = 1 << 31
-# values read per slice of a large dataset
-SLICE_VALUES = 1 << 20
+# bytes read per slice of a large dataset
+SLICE_BYTES = 8 << 20
 
 _verdicts: dict[tuple[int, int, int, int], str] = {}  # file identity -> "" or the error
 _verdicts_lock = threading.Lock()
@@ -297,8 +297,8 @@ def _read_dataset(dataset, beat) -> str:
     if dataset.ndim == 0:
         dataset[()]
         return ""
-    per_row = max(1, dataset.size // max(1, dataset.shape[0]))
-    step = max(1, SLICE_VALUES // per_row)
+    row_bytes = max(1, dataset.size // max(1, dataset.shape[0])) * dataset.dtype.itemsize
+    step = max(1, SLICE_BYTES // row_bytes)
     rows = dataset.shape[0] if dataset.size <= MAX_DATASET_VALUES else step
     for start in range(0, rows, step):
         dataset[start : start + step]
