@@ -21,11 +21,10 @@ since (same inode, size and modification time), is not walked again.
 from __future__ import annotations
 
 import os
-import select
+import queue
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 
 from labrig.errors import InputError
@@ -164,33 +163,39 @@ def _walk_in_child(paths: list[Path]) -> list[str]:
         stderr=subprocess.DEVNULL,
         env=env,
     )
+    # the child's lines, read by a thread: a wait on a queue has a timeout and lets
+    # Ctrl-C through on every platform (select takes no pipe on Windows)
+    lines: queue.Queue[bytes | None] = queue.Queue()
+
+    def read_lines() -> None:
+        for line in child.stdout:
+            lines.put(line)
+        lines.put(None)
+
+    reader = threading.Thread(target=read_lines, name="file check", daemon=True)
+    reader.start()
     verdicts: list[str] = []
     try:
-        pending = b""
         limit_s = STARTUP_S
-        deadline = time.monotonic() + limit_s
         while len(verdicts) < len(paths):
-            left_s = deadline - time.monotonic()
-            ready = select.select([child.stdout], [], [], max(0.0, left_s))[0] if left_s > 0 else []
-            if not ready:
+            try:
+                line = lines.get(timeout=limit_s)
+            except queue.Empty:
                 verdicts.append(_stuck(paths[len(verdicts)], limit_s))
                 break
-            data = os.read(child.stdout.fileno(), 65536)
-            if not data:  # the child died on this file
+            if line is None:  # the child died on this file
                 verdicts.append(_died(paths[len(verdicts)], child.wait()))
                 break
-            pending += data
-            *lines, pending = pending.split(b"\n")
-            for line in lines:
-                if line.startswith(b"="):
-                    verdicts.append(line[1:].decode("utf-8", "replace"))
+            if line.startswith(b"="):
+                verdicts.append(line[1:].rstrip(b"\n").decode("utf-8", "replace"))
             limit_s = STALL_S
-            deadline = time.monotonic() + limit_s
     finally:
         if child.poll() is None:
             child.kill()
         child.wait()
-        child.stdout.close()
+        reader.join(timeout=5.0)  # at the end of the pipe: the child is gone
+        if not reader.is_alive():
+            child.stdout.close()
     return verdicts
 
 
@@ -214,9 +219,12 @@ def _died(path: Path, returncode: int) -> str:
 def _serve(paths: list[str]) -> None:
     """Walk each file, printing a line per object read ('.') and its verdict
     ('=' and "" or the error)."""
-    import resource
-
-    resource.setrlimit(resource.RLIMIT_AS, (CHILD_MEMORY_BYTES, CHILD_MEMORY_BYTES))
+    try:
+        import resource
+    except ImportError:  # Windows: no cap on the child's memory
+        pass
+    else:
+        resource.setrlimit(resource.RLIMIT_AS, (CHILD_MEMORY_BYTES, CHILD_MEMORY_BYTES))
     import h5py  # noqa: F401  (loaded before the first line: startup is not a stall)
 
     out = sys.stdout.buffer
