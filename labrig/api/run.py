@@ -26,7 +26,7 @@ import numpy as np
 
 from labrig.errors import InputError
 from labrig.recording.run_layout import LOG_DESCRIPTION, LOG_FIELDS, repetition_name
-from labrig.recording.run_reader import decode
+from labrig.recording.run_reader import decode, read_rows
 
 from .axes import panel_axes
 from .reading import open_readonly, open_run_file, writer_state
@@ -259,7 +259,7 @@ class Run:
             times = _Rows(group["time"], n)
             first = 0 if start_s is None else bisect.bisect_left(times, start_s)
             last = n if stop_s is None else bisect.bisect_left(times, stop_s)
-            return {name: group[name][first:last] for name in group}
+            return {name: read_rows(group[name], first, last, self.path) for name in group}
 
     def raw(
         self,

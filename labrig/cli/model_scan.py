@@ -133,6 +133,9 @@ def scan(
     )
 
     from labrig.model.scan.plan import choose_solver_mode
+    from labrig.user_files import check_output_path
+
+    check_output_path(out, "--out", overwrite=None, own_kind="labrig model scan")  # no run file
 
     # before the solver is imported, which fixes its mode; a cluster's workers compile
     # on their own, the scan's process solves nothing
