@@ -31,7 +31,7 @@ def print_summary(data, plot_png: Path | None = None) -> None:
     console.print(
         f"{data.path}: n = {data.n}, {summary.actuators_done:,} of "
         f"{summary.actuators_total:,} actuators ({state}), {summary.transitions:,} "
-        f"transitions (a peak crossing and the snap it sets off count as one; "
+        f"transitions (the events at one supplied volume count as one; "
         f"{summary.events:,} path events), "
         f"{summary.actuators_with_snap:,} actuators snap, {summary.failed} failed"
     )

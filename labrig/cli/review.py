@@ -195,8 +195,7 @@ def export(file: Path, directory: Path, overwrite: bool) -> None:
     is_flag=True,
     help='Print the comparison as one JSON object: {"rmse": {...}, "transitions": [...], '
     '"paper_transitions": [...], "unpredicted": [...]} (the model\'s events, and its '
-    "transitions as the paper counts them: a peak crossing and the snap it sets off are "
-    "one).",
+    "transitions as the paper counts them: the events at one supplied volume are one).",
 )
 def compare_command(
     file: Path, segments: tuple[str, ...], library: Path | None, store: bool, as_json: bool
