@@ -205,8 +205,8 @@ def matches_table(result: AnalysisResult) -> RenderableType | None:
         return f"{title}: none predicted, none measured"
     columns = ("phase", "type", "v", "v meas", "dv", "dp", "dp meas", "dl", "dl meas")
     table = _table(
-        f"{title} (as the paper counts them: a peak crossing and the snap it sets off are "
-        "one; v mL, dp kPa, dl mm)",
+        f"{title} (as the paper counts them: the events at one supplied volume are one; "
+        "v mL, dp kPa, dl mm)",
         columns,
         right=columns[2:],
     )

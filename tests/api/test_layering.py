@@ -109,3 +109,24 @@ def test_the_circle_check_sees_a_circle():
     """A circle through three modules is found (else the check above is blind)."""
     graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
     assert sorted(_circles(graph)) == ["a", "b", "c"]
+
+
+@pytest.mark.parametrize("layer", ("recording", "model", "analysis", "api"))
+def test_a_library_layer_reads_the_version_from_its_module(layer):
+    """The layers below the package's face take ``__version__`` from ``labrig._version``,
+    never from ``labrig`` itself (whose ``__init__`` is the notebook's namespace)."""
+    offenders = {
+        f"{path.relative_to(PACKAGE.parent)}: {name}"
+        for path in sorted((PACKAGE / layer).rglob("*.py"))
+        for name in _imported_modules(path.read_text(encoding="utf-8"), _package_of(path))
+        if name in ("labrig", "labrig.__version__")
+    }
+    assert not offenders, sorted(offenders)
+
+
+def test_the_version_is_one_figure():
+    from importlib.metadata import version
+
+    from labrig import _version
+
+    assert labrig.__version__ == _version.__version__ == version("labrig")

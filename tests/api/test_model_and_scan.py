@@ -115,3 +115,37 @@ def test_a_scan_is_its_files_rows_with_names(gent_scan):
     assert len(axes) == 3 and axes[0].get_xlabel() == "energy change ΔÊ"
     with pytest.raises(InputError, match="no such file"):
         labrig.open_scan(gent_scan.parent / "missing.h5")
+
+
+def test_an_actuator_from_a_list_and_a_clear_end_volume():
+    assert labrig.actuator(["B48-T30", "B50-T20"]).names == ["B48-T30", "B50-T20"]
+    assert labrig.actuator(("B48-T30", "B50-T20")).names == ["B48-T30", "B50-T20"]
+    with pytest.raises(InputError, match="at least two segments, got 1"):
+        labrig.actuator(["B48-T30"])
+    pair = labrig.actuator("B48-T30", "B50-T20")
+    for wrong in (-1, 0, float("nan"), float("inf"), "3"):
+        with pytest.raises(InputError, match=r"v_end_ml=.*: the end volume of inflation, mL, > 0"):
+            pair.path(v_end_ml=wrong)
+
+
+def test_a_scan_row_becomes_its_actuator_and_a_subset_is_drawn(gent_scan):
+    scan = labrig.open_scan(gent_scan)
+    paper, events = scan.paper_transitions, scan.transitions
+    row = paper.iloc[len(paper) // 2]
+    built = scan.actuator(row)
+    assert built.names == [row["segment1"], row["segment2"]]
+    assert scan.actuator(int(row["actuator"])).names == built.names
+    # solved again, whole: the same events the scan stored for that actuator
+    stored = events[events["actuator"] == row["actuator"]]
+    solved = built.path().transitions
+    np.testing.assert_allclose(solved["v_ml"], stored["v_ml"], atol=1e-6)
+    np.testing.assert_allclose(solved["dE"], stored["dE"], rtol=1e-5)
+    for wrong, message in ((3, "ranks are 0 to 2"), (-1, "ranks are 0 to 2"), ("x", "a row")):
+        with pytest.raises(InputError, match=message):
+            scan.actuator(wrong)
+    subset = paper[paper["direction"] > 0].head(2)
+    axes = scan.plot(transitions=subset)
+    drawn = sum(len(c.get_offsets()) for c in axes[0].collections)
+    assert drawn == len(subset) == 2
+    with pytest.raises(InputError, match="no column dE"):
+        scan.plot(transitions=subset.drop(columns="dE"))
