@@ -3,11 +3,12 @@ each checked for what a technician counts on.
 
 Every run infuses and withdraws on the simulated rig (virtual time: a run of 22 s of
 rig time takes a fraction of that on the host) while one of ``FAULTS`` strikes at a
-time drawn from the seed: a sensor wire cut, a frozen sensor, a DAQ that stalls or is
-unplugged, a pump whose reply line dies mid-reply or as its stop arrives, a pump that
-drops off USB and re-enumerates, a camera whose frames stop or whose clock jumps, and
-the endings a person or the system gives: Ctrl-C while the run is paced (``--speed``)
-or holding, SIGTERM, SIGHUP. Every run's camera is slow to start (its first frame
+time drawn from the seed: a sensor wire cut (before the run or during it), a frozen
+sensor, a specimen that bursts, a DAQ that stalls or is unplugged, a pump whose reply
+line dies mid-reply or as its stop arrives, a pump that drops off USB and
+re-enumerates, a camera whose frames stop or whose clock jumps, and the endings a person
+or the system gives: Ctrl-C while the run is paced (``--speed``) or holding, SIGTERM,
+SIGHUP. Every run's camera is slow to start (its first frame
 0.3-1 s after the stream starts, as a UVC webcam's), and every run's disk turns slow
 as the fault strikes (each write to the run file then takes ``SLOW_WRITE_S``). A run
 is safe when
@@ -99,6 +100,7 @@ class Fault:
     speed: float | None = None
     window_s: tuple[float, float] | None = None
     stop_s: float = MAX_STOP_S
+    before_recording: bool = False  # strikes before the run records anything
 
 
 # a signal's run is paced: the handler runs in host time, and an unpaced rig would
@@ -111,10 +113,9 @@ SIGNAL_WINDOW_S = (2.5, 6.0)
 SLOW_WRITE_S = 0.5
 # every run's camera delivers its first frame this long after the stream starts
 CAMERA_FIRST_FRAME_S = (0.3, 1.0)
-# A dead sensor that still reads in range is seen only by the pressure's response to
-# the volume infused: it strikes where the soak specimen's infusion is judged with a
-# millilitre of it still ahead (about 1-3 mL infused at 60 mL/min), and the pump may
-# run on for that millilitre (1 s) and the stop (at most 1.3 s, measured over the window)
+# A frozen sensor still reads in range: it strikes while the soak specimen is infused
+# (about 1-3 mL at 60 mL/min) and is seen once its one number has lasted 0.3 s after a
+# dithering second; the pump may run on for that and the stop
 IN_RANGE_DEATH_WINDOW_S = (2.5, 3.5)
 IN_RANGE_DEATH_STOP_S = 1.5
 
@@ -137,6 +138,23 @@ def _stop_dies(rig: Rig, rng: random.Random) -> None:
     _daq(rig).fail("supply-cut")
 
 
+def _cut_before_the_zeroing(rig: Rig, rng: random.Random) -> None:
+    """The wire cut 0.1-0.2 s into the zeroing's own acquisition, before the run's."""
+    rig.clock.wait_for(lambda: rig.simulation.daq_tasks, 60.0)
+    rig.clock.sleep(rng.uniform(0.1, 0.2))
+    _daq(rig).fail("vout-floating")
+
+
+def _burst_now(rig: Rig, rng: random.Random) -> None:
+    """The specimen opens to the air at the volume the pump has supplied now."""
+    from labrig.sim.specimen import SpecimenBehaviour
+
+    emulator = rig.simulation.emulator
+    rig.simulation.plant.behaviour = SpecimenBehaviour(
+        emulator.net_volume_ml, burst_at_ml=emulator.net_volume_ml(rig.clock.now())
+    )
+
+
 FAULTS: dict[str, Fault] = {
     "sensor-vout-cut": Fault(
         lambda rig, rng: _daq(rig).fail("vout-cut"), "outside the sensor's range"
@@ -144,7 +162,7 @@ FAULTS: dict[str, Fault] = {
     "sensor-supply-cut": Fault(lambda rig, rng: _daq(rig).fail("supply-cut"), "not a number"),
     "sensor-frozen": Fault(
         lambda rig, rng: _daq(rig).fail("frozen"),
-        "did not respond to the volume infused",
+        "pressure reading frozen",
         window_s=IN_RANGE_DEATH_WINDOW_S,
         stop_s=IN_RANGE_DEATH_STOP_S,
     ),
@@ -158,14 +176,20 @@ FAULTS: dict[str, Fault] = {
     "camera-stops": Fault(
         lambda rig, rng: rig.simulation.camera.stop_frames(), "camera: no sample"
     ),
-    # the sensor's output wire cut: the open input floats at 27 kPa; only the pressure's
-    # response to the volume infused can tell (where the model expects it to move)
+    # the sensor's output wire cut during the run: the pull-up holds the open input
+    # above the sensor's band
     "floating-wire": Fault(
-        lambda rig, rng: _daq(rig).fail("vout-floating"),
-        "did not respond to the volume infused",
-        window_s=IN_RANGE_DEATH_WINDOW_S,
-        stop_s=IN_RANGE_DEATH_STOP_S,
+        lambda rig, rng: _daq(rig).fail("vout-floating"), "pressure sensor wire open"
     ),
+    # cut before the run: the zeroing reads above the band, nothing moves
+    "wire-cut-before": Fault(
+        _cut_before_the_zeroing,
+        "its output wire is open",
+        window_s=(0, 0),
+        before_recording=True,
+    ),
+    # the specimen bursts (or a fitting comes off) while the pump infuses
+    "specimen-burst": Fault(_burst_now, "the specimen lost pressure", window_s=(2.5, 9.0)),
     "camera-clock-jump": Fault(
         lambda rig, rng: rig.simulation.camera.jump_clock(rng.choice((-1, 1)) * rng.uniform(2, 30)),
         "the camera's clock jumped",
@@ -347,7 +371,9 @@ def _one_run(loaded, path: Path, index: int, kind: str, fault_s: float, seed: in
     stopped_after_s = _stopped_after_s(rig, fault_at_s, end_s)
     if stopped_after_s > fault.stop_s and result.stop_confirmed:
         problems.append(f"the plunger moved until {stopped_after_s:.2f} s after the fault")
-    finalised, samples_kept, frames_kept = _check_file(path, result, fault_at_s, problems)
+    # a fault before the recording starts leaves nothing to keep
+    kept_from_s = -np.inf if fault.before_recording else fault_at_s
+    finalised, samples_kept, frames_kept = _check_file(path, result, kept_from_s, problems)
     path.unlink(missing_ok=True)
     return RunVerdict(
         run=index,
@@ -377,7 +403,8 @@ def _stopped_after_s(rig: Rig, fault_at_s: float, end_s: float) -> float:
 
 def _check_file(path: Path, result, fault_at_s: float, problems: list[str]):
     """Finalised with the run's status and reason; every pressure sample from the first
-    to the fault there, evenly spaced; the frames up to the camera's allowance before."""
+    to the fault there, evenly spaced; the frames up to the camera's allowance before
+    (nothing before a fault at -inf)."""
     try:
         with open_run(path) as run:
             entry = run["entry"]
@@ -393,7 +420,7 @@ def _check_file(path: Path, result, fault_at_s: float, problems: list[str]):
         problems.append(f"the file says {status!r} ({reason!r}), the run {result.status!r}")
     period_s = 1.0 / PRESSURE_RATE_HZ
     before = pressure[pressure < fault_at_s]
-    samples_kept = (
+    samples_kept = fault_at_s == -np.inf or (
         len(before) > 0
         and np.all(np.abs(np.diff(before) - period_s) < 0.01 * period_s)
         and before[-1] >= fault_at_s - 1.5 * period_s
@@ -405,7 +432,7 @@ def _check_file(path: Path, result, fault_at_s: float, problems: list[str]):
         )
     frame_s = 1.0 / CAMERA_FPS
     seen = frames[frames < fault_at_s]
-    frames_kept = (
+    frames_kept = fault_at_s == -np.inf or (
         len(seen) > 0
         and np.all(np.abs(np.diff(seen) - frame_s) < 0.01 * frame_s)
         and seen[-1] >= fault_at_s - 0.5 - frame_s
