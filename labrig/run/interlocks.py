@@ -196,8 +196,14 @@ class SpecimenPressure(Interlock):
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._bin = (-1, 0.0, 0)  # the 0.1 s bin being filled: index, sum, count
-        self._bins: deque[tuple[float, float]] = deque()  # (start time, mean) of full bins
-        self._moves: list[tuple[float, float]] = []  # (time, volume) of this infusion
+        self._bins: deque[tuple[float, float]] = deque()  # (start time, mean), not judged
+        # this infusion: its polled (time, volume) from the oldest a bin still needs,
+        # its start, its peak mean, and its trailing low stretch (start time, volume
+        # there, means in it) or None
+        self._moves: deque[tuple[float, float]] = deque()
+        self._t0_s = 0.0
+        self._peak_kpa = 0.0
+        self._low: tuple[float, float, int] | None = None
         # while the pump withdraws: since when, and the volume its latest status counts
         self._withdrawing: tuple[float, float] | None = None
         self._last_kpa = 0.0  # the latest finite sample
@@ -211,7 +217,7 @@ class SpecimenPressure(Interlock):
             if len(t):
                 self._add_to_bins(t, p)
             # suction may run past the sensor's low range end: every finite sample
-            return self._suction(block.t_s[finite], block.pressure_kpa[finite]) or self._judge()
+            return self._suction(block.t_s[finite], block.pressure_kpa[finite]) or self._burst()
 
     def check_pump(self, status: PumpStatus, volume_ml: float) -> str | None:
         with self._lock:
@@ -219,13 +225,15 @@ class SpecimenPressure(Interlock):
             if status.state is not PumpState.INFUSING or (moves and volume_ml < moves[-1][1]):
                 moves.clear()
             if status.state is PumpState.INFUSING:
+                if not moves:  # a new infusion
+                    self._t0_s, self._peak_kpa, self._low = status.t_s, 0.0, None
                 moves.append((status.t_s, volume_ml))
             if status.state is PumpState.WITHDRAWING:
                 since_s = self._withdrawing[0] if self._withdrawing else status.t_s
                 self._withdrawing = (since_s, volume_ml)
             else:
                 self._withdrawing = None
-            return self._judge()
+            return self._burst()
 
     def _add_to_bins(self, t: np.ndarray, p: np.ndarray) -> None:
         k = np.floor(t / SPECIMEN_BIN_S).astype(np.int64)
@@ -239,19 +247,6 @@ class SpecimenPressure(Interlock):
             total += float(np.sum(p[first:last]))
             count += last - first
         self._bin = (index, total, count)
-
-    def _judge(self) -> str | None:
-        moves, withdrawing = self._moves, self._withdrawing
-        if moves:
-            since_s = moves[0][0]
-        elif withdrawing is not None:
-            since_s = withdrawing[0]
-        else:
-            since_s = self._bin[0] * SPECIMEN_BIN_S
-        # bins from before this infusion or withdrawal are no longer needed
-        while self._bins and self._bins[0][0] < since_s - SPECIMEN_BIN_S:
-            self._bins.popleft()
-        return self._burst() if moves else None
 
     def _suction(self, t: np.ndarray, p: np.ndarray) -> str | None:
         """Samples below atmosphere while withdrawing with volume still counted."""
@@ -279,37 +274,45 @@ class SpecimenPressure(Interlock):
         return None
 
     def _burst(self) -> str | None:
+        """Judge each full bin this infusion's polls cover, in order, once."""
         moves, bins = self._moves, self._bins
-        t0_s, t_last_s = moves[0][0], moves[-1][0]
-        # full bins inside this infusion's polled span
-        judged = [(t, p) for t, p in bins if t >= t0_s and t + SPECIMEN_BIN_S <= t_last_s]
-        if not judged:
+        if not moves:
+            bins.clear()  # nothing infused: nothing to judge
             return None
-        peak_kpa = max(p for _, p in judged)
-        if peak_kpa < BURST_ARMED_KPA:
-            return None
-        floor_kpa = BURST_FLOOR_FRACTION * peak_kpa
-        n_low = 0
-        for _, p in reversed(judged):
-            if p >= floor_kpa:
-                break
-            n_low += 1
-        if n_low < BURST_MIN_BINS:
-            return None
-        low_from_s = judged[-n_low][0]
-        low_to_s = judged[-1][0] + SPECIMEN_BIN_S
-        times = [t for t, _ in moves]
-        volumes = [v for _, v in moves]
-        v_from, v_to = np.interp([low_from_s, low_to_s], times, volumes)
-        if v_to - v_from < BURST_WINDOW_ML:
-            return None
-        return (
-            f"the specimen lost pressure: it fell from {peak_kpa:.1f} kPa to "
-            f"{judged[-1][1]:.1f} kPa at {v_from:.2f} mL and stayed below "
-            f"{floor_kpa:.1f} kPa over {v_to - v_from:.2f} mL infused (t = {low_from_s:.2f} "
-            f"to {low_to_s:.2f} s): a burst or a fitting that came off; check the specimen "
-            "and its connections"
-        )
+        while bins and bins[0][0] + SPECIMEN_BIN_S <= moves[-1][0]:
+            t_s, mean_kpa = bins.popleft()
+            if t_s < self._t0_s:
+                continue
+            floor_kpa = BURST_FLOOR_FRACTION * self._peak_kpa
+            if self._peak_kpa < BURST_ARMED_KPA or mean_kpa >= floor_kpa:
+                self._peak_kpa = max(self._peak_kpa, mean_kpa)
+                self._low = None
+                continue
+            if self._low is None:
+                self._low = (t_s, self._volume_at(t_s), 0)
+            low_s, low_ml, n_low = self._low
+            self._low = (low_s, low_ml, n_low + 1)
+            end_s = t_s + SPECIMEN_BIN_S
+            infused_ml = self._volume_at(end_s) - low_ml
+            if n_low + 1 >= BURST_MIN_BINS and infused_ml >= BURST_WINDOW_ML:
+                return (
+                    f"the specimen lost pressure: it fell from {self._peak_kpa:.1f} kPa to "
+                    f"{mean_kpa:.1f} kPa at {low_ml:.2f} mL and stayed below "
+                    f"{floor_kpa:.1f} kPa over {infused_ml:.2f} mL infused (t = {low_s:.2f} "
+                    f"to {end_s:.2f} s): a burst or a fitting that came off; check the "
+                    "specimen and its connections"
+                )
+        # polls before the oldest bin still to judge (or the one being filled) are no
+        # longer needed
+        oldest_s = bins[0][0] if bins else self._bin[0] * SPECIMEN_BIN_S
+        while len(moves) > 1 and moves[1][0] <= oldest_s:
+            moves.popleft()
+        return None
+
+    def _volume_at(self, t_s: float) -> float:
+        """The infused volume at ``t_s``, between this infusion's polls."""
+        times = [t for t, _ in self._moves]
+        return float(np.interp(t_s, times, [v for _, v in self._moves]))
 
 
 @dataclass(frozen=True)

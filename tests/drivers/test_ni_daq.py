@@ -516,6 +516,30 @@ def test_a_cut_output_wire_floats_where_the_usb_6009_input_network_holds_it():
     )
 
 
+def test_with_the_pull_up_a_cut_output_wire_reads_above_the_band_and_is_flagged():
+    """A 4.7 kOhm pull-up from the input to the sensor's 5 V: the open pin settles where
+    the currents into it balance (Kirchhoff), 4.89 V, above the MPX5100's 4.813 V most;
+    every sample is flagged, even after a zero taken at -2.5 kPa (the band is judged
+    before the zero is taken off). The connected sensor is unaffected."""
+    rig = Rig(ramp_after(0.0, 10.0), sim={"pull_up_kohm": 4.7, "noise_kpa": 0.0})
+    rig.daq.offset_kpa = -2.5
+    rig.daq.start(1000.0)
+    rig.clock.sleep(0.5)
+    rig.tasks[-1].fail("vout-floating")
+    rig.clock.sleep(1.0)
+    block = rig.daq.read()
+    after = block.t_s >= 0.5
+    # KCL at the pin: (5 - V)/4.7k into it, (V - V_th)/R_th out into the input network
+    r_th = 127e3 + 1 / (1 / 39.2e3 + 1 / 30.9e3)
+    v_th = 2.5 * 39.2 / (39.2 + 30.9)
+    open_v = (5.0 / 4.7e3 + v_th / r_th) / (1 / 4.7e3 + 1 / r_th)
+    assert open_v > 4.813
+    raw_kpa = (open_v / 5.0 - 0.04) / 0.009
+    assert np.mean(block.pressure_kpa[after]) == pytest.approx(raw_kpa + 2.5, abs=0.05)
+    assert block.out_of_range[after].all()
+    assert not block.out_of_range[~after].any()
+
+
 # What a USB-6009 shows: its count is of the samples that reached the host, a transfer
 # of 12-37 ms after they were taken.
 USB_LATENCY_S = (0.012, 0.037)
