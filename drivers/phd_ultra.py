@@ -22,13 +22,19 @@ Safety rules, because a pump that does not stop is the rig's worst failure:
   line noise, the late reply of a timed-out command) are discarded before each command;
   after a timeout the driver first waits one more deadline for the late reply, except
   before a stop: the stop is written first and the waiting comes after it.
-- A pump that left a stop unanswered is taken as deaf on its reply line (``_deaf``):
-  later stops are written and not waited for, until any reply comes again.
+- A stop is confirmed by what the pump reports, not by its prompt (one character, and
+  a method waiting in a pause shows the idle one): ``status`` polls until two in a row
+  show the motor standing with the same volume counter. Every stop's reply is awaited
+  the full reply timeout, a healthy pump can take more than half a second after a
+  target alarm; a pump that left a stop unanswered (``_deaf``) is not first waited
+  for to send its late replies.
 - A lost port is closed, and a stop looks for the pump again: a USB pump that drops
   off the bus (a brown-out, a cable pulled and plugged back) comes back as another
   /dev/ttyACM*, but under the same /dev/serial/by-id/... path, which is what a rig file
-  should name. The stop reopens that path for up to ``reconnect_s`` and is sent there;
-  the pump ran its last command meanwhile.
+  should name. The stop reopens that path for up to ``reconnect_s`` and is sent there
+  once what answers proves to be the same pump (``version``, syringe, counters); the
+  pump ran its last command meanwhile. Anything else there is not sent ``stop``
+  (``PumpNotTheSame``).
 - Stalls send nothing by themselves: ``status()`` reports them and
   ``wait_until_stopped()`` polls for them.
 
@@ -36,10 +42,15 @@ What ``connect()`` assumes of a pump left by other software: it may be in
 ``poll on`` (prompts end with XON) or ``poll remote`` (no prompts), so ``poll off`` goes
 first and its reply may never come; the address form the firmware wants is unknown, so
 with ``address_form="auto"`` the forms are tried in turn and the answered one is kept;
-NVRAM writes are switched off by the first accepted form, and none accepted only warns
-(memory wear must not block a run); whether it withdraws is read from the Direction line
-of ``metrics`` (an infuse-only model refuses withdraw commands), so ``can_withdraw`` says
-which it is and nothing withdraw-related is asked of an infuse-only one.
+it may be running, or in a method's pause, or in a Quick Start variant or a method
+that refuses a direction, so its state is read (``status``, ``version``, ``mode``)
+before anything it could refuse, and a connection that takes control stops it
+(confirmed, and said in ``connect_notices``) and loads the Quick Start variant labrig
+needs; NVRAM writes are switched off by the first accepted form, and none accepted only
+warns (memory wear must not block a run); whether it withdraws is read from the
+Direction line of ``metrics`` or, without one, from whether it answers ``wvolume`` (an
+infuse-only model refuses withdraw commands), so ``can_withdraw`` says which it is and
+nothing withdraw-related is asked of an infuse-only one.
 """
 
 from __future__ import annotations
@@ -63,6 +74,8 @@ from .phd_ultra_errors import (
     PumpError,
     PumpInterrupted,
     PumpLimitError,
+    PumpModeError,
+    PumpNotTheSame,
     PumpPortError,
     PumpProtocolError,
     PumpStalled,
@@ -72,6 +85,8 @@ from .phd_ultra_errors import (
 from .phd_ultra_protocol import (
     ADDRESS_FORMS,
     AUTO_ADDRESS_FORM,
+    QUICK_START_VARIANTS,
+    PumpIdentity,
     Reading,
     Reply,
     StatusLine,
@@ -85,6 +100,8 @@ from .phd_ultra_protocol import (
     parse_can_withdraw,
     parse_diameter_mm,
     parse_force_pct,
+    parse_identity,
+    parse_mode,
     parse_rate_limits,
     parse_rate_ml_min,
     parse_reply,
@@ -116,10 +133,10 @@ NVRAM_OFF_COMMANDS = ("nvram off", "nvram none", "rsave off")
 # answered exchange takes milliseconds, one waiting out its timeout takes seconds; a stop
 # must reach the pump within 0.3 s of being asked for.
 STOP_WAIT_S = 0.1
-# How long a stop to a pump that left an earlier stop unanswered waits for its reply:
-# long enough for an answering pump (milliseconds), short enough not to hold up a
-# shutdown once per stop.
-DEAF_CONFIRM_S = 0.2
+# How many ``status`` polls a stop may take to show the motor standing with its volume
+# counter unchanged in two polls in a row (a prompt alone is one character, and a
+# paused method shows the idle one): two suffice on a pump that stopped.
+CONFIRM_POLLS = 4
 # How long a stop looks for a pump whose port was lost (host seconds), and how often it
 # tries to reopen the port meanwhile: a USB pump re-enumerates within a few seconds.
 RECONNECT_S = 10.0
@@ -128,6 +145,8 @@ _RUNNING = (PumpState.INFUSING, PumpState.WITHDRAWING)
 # The volume counters, and the one each motion moves.
 _COUNTERS = ("ivolume", "wvolume")
 _MOVING_COUNTER = {PumpState.INFUSING: "ivolume", PumpState.WITHDRAWING: "wvolume"}
+# the counters' last printed digit (`1.2345 ml`): what a reading may be off by
+COUNTER_DISPLAY_ML = 1e-4
 
 
 @dataclass(frozen=True)
@@ -188,6 +207,10 @@ class PhdUltra:
         self.can_withdraw = True
         self.nvram_off_command: str | None = None
         self.connect_warnings: list[str] = []
+        # what connect found the pump doing and changed (a run it stopped, the Quick
+        # Start variant it loaded), one line each, for the operator and the run file
+        self.connect_notices: list[str] = []
+        self.identity: PumpIdentity | None = None
         self._transport = transport
         # opens the port again after it was lost (None: a transport given, not opened)
         self._reopen = None
@@ -228,9 +251,11 @@ class PhdUltra:
         exclusive: bool = True,
         clock: Clock | None = None,
         timeout_s: float = DEFAULT_TIMEOUT_S,
+        take_control: bool = True,
     ) -> PhdUltra:
         """Open ``port`` (a device path or a pyserial URL) at 8N1, no flow control, and
-        connect. ``exclusive`` locks the port so a second program gets a clear error."""
+        connect (``take_control``: see ``connect``). ``exclusive`` locks the port so a
+        second program gets a clear error."""
 
         def open_port():
             return serial.serial_for_url(
@@ -263,27 +288,111 @@ class PhdUltra:
         )
         pump._reopen = open_port
         try:
-            pump.connect()
+            pump.connect(take_control=take_control)
         except BaseException:
             transport.close()
             raise
         return pump
 
-    def connect(self) -> None:
-        """Switch poll mode off and identify the pump (finding the address form), switch
-        off NVRAM writes, learn whether it withdraws, read the syringe settings."""
+    def connect(self, *, take_control: bool = True) -> None:
+        """Switch poll mode off and identify the pump (finding the address form), read
+        what it is doing before sending anything it could refuse, switch off NVRAM
+        writes, learn whether it withdraws, read the syringe settings.
+
+        ``take_control`` (a run, a manual run): whatever the pump was doing is stopped
+        and the stop confirmed (a run another program or a killed labrig left going, a
+        method waiting in a pause, an alarm), and it is put in the Quick Start variant
+        labrig drives (``load qs iw``, ``load qs i`` on an infuse-only pump), or refused
+        in one line that says how to change it on the panel. Without it (``pump
+        status``, ``version``) the pump is looked at and left as it is."""
         self.connect_warnings = []
+        self.connect_notices = []
         self._find_address_form()
+        line, prompt_state = self.read_status_line()
+        self.identity = parse_identity(self.firmware, self.version_details())
+        mode = self._read_mode()
+        if take_control:
+            self._stop_at_connect(line, _state(line, prompt_state), mode)
         self._switch_off_nvram()
         self.can_withdraw = self._probe_withdraw()
+        if take_control:
+            self._load_quick_start(mode)
         self.syringe = self.read_syringe()
+        for notice in self.connect_notices:
+            log.warning("%s", notice)
         log.info(
             "connected to %s at address %d (%s form) on %s%s",
-            self.firmware,
+            self.identity.describe(),
             self.address,
             self.address_form,
             self.port_name,
             "" if self.can_withdraw else ", infuse only",
+        )
+
+    def _read_mode(self) -> str | None:
+        """The ``mode`` reply (``Quick Start Infuse/Withdraw``, or a method's name);
+        None from firmware that does not know the command."""
+        try:
+            return self._query("mode").text
+        except PumpCommandError as exc:
+            log.info("the pump refused 'mode' (%s): its mode is not known", exc.pump_text)
+            return None
+
+    def _stop_at_connect(self, line: StatusLine, state: PumpState, mode: str | None) -> None:
+        """A confirmed stop, whatever the state: a pump standing still may be in a
+        method's pause, about to move again. What it was doing is told in one line."""
+        self.stop()
+        method = mode is not None and parse_mode(mode) is None
+        if state in _RUNNING:
+            direction = "infused" if state is PumpState.INFUSING else "withdrawn"
+            doing = (
+                f"the pump was {state.value} at {line.rate_ml_min:.4g} mL/min "
+                f"({line.volume_ml:.4f} mL {direction} on its counter)"
+            )
+        elif method:
+            doing = f"the pump was in a method ({mode!r}), standing (a pause or a wait)"
+        elif state is not PumpState.IDLE:
+            doing = f"the pump was {state.value} (its alarm on)"
+        else:
+            return
+        self.connect_notices.append(
+            f"{doing} when labrig connected to it on {self.port_name}: labrig stopped it "
+            "(stop confirmed by its status)"
+        )
+
+    def _load_quick_start(self, mode: str | None) -> None:
+        """The Quick Start variant labrig needs: both directions on a pump that
+        withdraws, infuse on one that does not. A variant that has them already is
+        kept; another variant or a method is replaced with ``load qs ...``, read back."""
+        needed = "iw" if self.can_withdraw else "i"
+        variant = None if mode is None else parse_mode(mode)
+        if variant is not None and set(needed) <= set(variant):
+            return
+        command = f"load qs {needed}"
+        try:
+            self._command(command)
+        except PumpCommandError as exc:
+            if mode is None:  # no 'mode', no 'load qs': firmware without Quick Start commands
+                warning = (
+                    f"the pump answers neither 'mode' nor {command!r} ({exc.pump_text}): its "
+                    "mode is not checked; set Quick Start on its panel if a run is refused"
+                )
+                log.warning(warning)
+                self.connect_warnings.append(warning)
+                return
+            raise self._mode_error(mode, needed, f"refused {command!r}: {exc.pump_text}") from exc
+        now = self._read_mode()
+        if now is not None and parse_mode(now) != needed:
+            raise self._mode_error(mode, needed, f"reports {now!r} after {command!r}")
+        was = "its mode was not known" if mode is None else f"it was in {mode!r}"
+        self.connect_notices.append(f"labrig loaded Quick Start on the pump ({command!r}): {was}")
+
+    def _mode_error(self, mode: str | None, needed: str, what: str) -> PumpModeError:
+        name = next(k for k, v in QUICK_START_VARIANTS.items() if v == needed).title()
+        return PumpModeError(
+            f"the pump on {self.port_name} is in {mode!r} and {what}: on its panel, stop "
+            f"any method (unlock it if locked) and choose Quick Start, then {name}, and "
+            "start again"
         )
 
     def _find_address_form(self) -> None:
@@ -328,22 +437,33 @@ class PhdUltra:
 
     def _probe_withdraw(self) -> bool:
         """The Direction line of ``metrics`` (``Infuse/withdraw`` or ``Infuse only``), as
-        flowchem reads it. A pump that does not say is taken as withdrawing, with a
-        warning: an infuse-only one then refuses the first withdraw command (``wrate
-        lim``, asked before any withdraw rate is set) before anything moves."""
+        flowchem reads it. A pump that does not say is asked for its withdrawn volume,
+        the one withdraw command that moves nothing: refused, it cannot withdraw;
+        answered, it is taken as withdrawing. Either way with a warning."""
         try:
             can_withdraw = parse_can_withdraw(self._query("metrics").lines)
             said = "no Direction line in its 'metrics'"
         except PumpCommandError as exc:
             can_withdraw, said = None, f"it refused 'metrics' ({exc.pump_text})"
-        if can_withdraw is None:
+        if can_withdraw is not None:
+            return can_withdraw
+        try:
+            self._query("wvolume")
+        except PumpCommandError as exc:
             warning = (
-                f"the pump does not say whether it withdraws ({said}): withdraw commands "
-                "will be sent, and an infuse-only pump refuses them before anything moves"
+                f"the pump does not say whether it withdraws ({said}) and refused 'wvolume' "
+                f"({exc.pump_text}): it cannot withdraw, and no withdraw command is sent to it"
             )
-            log.warning(warning)
-            self.connect_warnings.append(warning)
-            return True
+            can_withdraw = False
+        else:
+            warning = (
+                f"the pump does not say whether it withdraws ({said}); it answers 'wvolume', "
+                "so it is taken as withdrawing (an infuse-only pump refuses withdraw "
+                "commands before anything moves)"
+            )
+            can_withdraw = True
+        log.warning(warning)
+        self.connect_warnings.append(warning)
         return can_withdraw
 
     def close(self) -> None:
@@ -366,6 +486,23 @@ class PhdUltra:
     def version_details(self) -> tuple[str, ...]:
         """The long version: firmware, pump address, serial number (one per line)."""
         return self._query("version").lines
+
+    @property
+    def run_record(self) -> dict[str, str]:
+        """What a run file keeps of the pump: who it is (as connect read it) and what
+        connect found it doing, one line each (empty when nothing)."""
+        identity = self.identity
+        if identity is None:
+            return {}
+        return {
+            "model": identity.model,
+            "firmware": identity.firmware,
+            "serial_number": identity.serial_number or "",
+            "address": str(self.address),
+            "version": "\n".join(identity.version_lines),
+            "port": self.port_name,
+            "at_connect": "\n".join(self.connect_notices + self.connect_warnings),
+        }
 
     def _switch_off_nvram(self) -> None:
         """The first of ``NVRAM_OFF_COMMANDS`` the pump accepts. None accepted is a
@@ -464,7 +601,7 @@ class PhdUltra:
             raise PumpUnknownCommand(
                 "wrate/wrun",
                 f"cannot {doing}: the pump on {self.port_name} is infuse-only "
-                "(it refused 'wvolume' at connect); nothing was sent",
+                "(as found at connect); nothing was sent",
             )
 
     def _set_rate(self, command: str, name: str, rate_ml_min: float, limits) -> None:
@@ -500,7 +637,10 @@ class PhdUltra:
 
     def clear_volumes(self) -> None:
         """Zero the infused and withdrawn counters and clear the target."""
-        self._command("cvolume")
+        with self._status_lock:
+            self._command("cvolume")
+            # what the pump counts from now: a pump found again must count at least it
+            self._counters_ml = dict.fromkeys(_COUNTERS, 0.0)
         self._command("ctvolume")
 
     def volumes_ml(self) -> tuple[float, float]:
@@ -550,7 +690,7 @@ class PhdUltra:
             try:
                 if self._lost is not None:
                     self._reconnect_locked()
-                state = self._stop_locked().state
+                state = self._stop_locked()
             finally:
                 self._io_lock.release()
         if state in _RUNNING:
@@ -582,10 +722,65 @@ class PhdUltra:
         log.warning("the pump's port %s came back after it was lost (%s)", self.port_name, lost)
         self._transport = transport
         self._lost = None
-        self._not_found = False
         self._resync_due = self._deaf = False  # a new port: nothing in flight on it
+        try:
+            self._check_same_pump_locked()
+        except PumpNotTheSame as exc:
+            with contextlib.suppress(serial.SerialException, OSError):
+                transport.close()
+            self._lost, self._not_found = exc, True  # later stops look again, once
+            raise
+        self._not_found = False
         # not under the status lock: a poll holding it waits for this stop
         self._stale_counters.update(_COUNTERS)
+
+    def _check_same_pump_locked(self) -> None:
+        """Before a stop goes to a pump found again (io lock held): it must prove to be
+        the pump connected to. The same model and firmware, serial number and address
+        (``version``), the same syringe settings, and volume counters no lower than the
+        last ones read (a pump only counts up until cleared). Raises PumpNotTheSame,
+        with what differs, for another pump or a device that does not answer as one."""
+        differences = []
+        try:
+            replies = {
+                command: self._transfer(command, expect_payload=True)
+                for command in ("ver", "version", "diameter", "svolume", *self._counters())
+            }
+            for command, reply in replies.items():
+                check_refusal(reply, command)
+            identity = parse_identity(replies["ver"].text, replies["version"].lines)
+            syringe = self._syringe_from(replies["diameter"].text, replies["svolume"].text)
+            counted = {c: parse_volume_ml(replies[c].text) for c in self._counters()}
+        except PumpError as exc:
+            differences.append(f"it does not answer as a PHD ULTRA ({exc})")
+        else:
+            expected = self.identity
+            if expected is not None and identity != expected:
+                differences.append(f"{identity.describe()}, not {expected.describe()}")
+            if self.syringe is not None and not (
+                math.isclose(syringe.diameter_mm, self.syringe.diameter_mm, rel_tol=1e-4)
+                and math.isclose(syringe.volume_ml, self.syringe.volume_ml, rel_tol=1e-4)
+            ):
+                differences.append(
+                    f"syringe {syringe.diameter_mm:g} mm {syringe.volume_ml:g} mL, not "
+                    f"{self.syringe.diameter_mm:g} mm {self.syringe.volume_ml:g} mL"
+                )
+            for counter, volume_ml in counted.items():
+                if volume_ml < self._counters_ml[counter] - COUNTER_DISPLAY_ML:
+                    differences.append(
+                        f"'{counter}' {volume_ml:.4f} mL, below the "
+                        f"{self._counters_ml[counter]:.4f} mL counted before"
+                    )
+        if differences:
+            raise PumpNotTheSame(
+                f"the port {self.port_name} came back, but what answers there is not the "
+                f"pump of this run ({'; '.join(differences)}): it was not sent 'stop'",
+                "this run's pump may still be running: press Stop on it",
+            )
+
+    def _counters(self) -> tuple[str, ...]:
+        """The volume counters this pump has: no withdrawn one on an infuse-only pump."""
+        return _COUNTERS if self.can_withdraw else _COUNTERS[:1]
 
     def _write_stop_beside(self) -> None:
         """Write a stop while another thread holds the port: that exchange abandons its
@@ -595,37 +790,64 @@ class PhdUltra:
             self._resync_due = True
         self._write(self._frame("stop"))
 
-    def _stop_locked(self) -> Reply:
-        """The stop, io lock held. With the line out of step (a reply timed out, a stop
-        written beside an exchange) the stop is written first, then the late replies
-        are let through and discarded, then a second stop is sent and its reply read:
-        the pump is stopped before anything waits."""
+    def _stop_locked(self) -> PumpState:
+        """The stop, io lock held; returns the state the pump confirms. With the line
+        out of step (a reply timed out, a stop written beside an exchange) the stop is
+        written first, then the late replies are let through and discarded, then a
+        second stop is sent and its reply read: the pump is stopped before anything
+        waits. Every stop's reply is awaited the full reply timeout: a healthy pump
+        can take more than half a second after a target alarm."""
         if self._deaf:
             # no waiting for late replies first: from a deaf pump any that come are
             # replies to stops, as good as this one's
             self._resync_due = False
             try:
-                reply = self._transfer(
-                    "stop", expect_payload=False, timeout_s=min(self.timeout_s, DEAF_CONFIRM_S)
-                )
+                reply = self._transfer("stop", expect_payload=False)
             except PumpTimeout:
                 raise PumpTimeout(
                     f"the pump at address {self.address} on {self.port_name} has not "
-                    "answered since an earlier stop; this stop was sent but not confirmed"
+                    f"answered since an earlier stop; this stop was sent but not "
+                    f"confirmed within {self.timeout_s:g} s"
                 ) from None
-            check_refusal(reply, "stop")
-            return reply
-        if self._resync_due:
-            self._write(self._frame("stop"))
-            self._discard_for(self.timeout_s)
-            self._resync_due = False
-        try:
-            reply = self._transfer("stop", expect_payload=False)
-        except PumpTimeout:
-            self._deaf = True
-            raise
+        else:
+            if self._resync_due:
+                self._write(self._frame("stop"))
+                self._discard_for(self.timeout_s)
+                self._resync_due = False
+            try:
+                reply = self._transfer("stop", expect_payload=False)
+            except PumpTimeout:
+                self._deaf = True
+                raise
         check_refusal(reply, "stop")
-        return reply
+        return self._confirm_stopped_locked()
+
+    def _confirm_stopped_locked(self) -> PumpState:
+        """What the pump reports after a stop (io lock held): ``status`` polls until two
+        in a row show the motor standing and the same volume counter (a prompt is one
+        character; a method in a pause shows the idle one). A pump still moving is sent
+        one more stop; one still moving after it is returned as such for the caller to
+        raise."""
+        previous = None
+        stops = 1
+        for _ in range(CONFIRM_POLLS):
+            reply = self._transfer("status", expect_payload=True)
+            check_refusal(reply, "status")
+            line = parse_status_line(reply.lines[-1])
+            state = _state(line, reply.state)
+            if state in _RUNNING:
+                if stops > 1:
+                    return state
+                check_refusal(self._transfer("stop", expect_payload=False), "stop")
+                stops, previous = stops + 1, None
+                continue
+            if previous == (line.direction, line.volume_ml):
+                return state
+            previous = (line.direction, line.volume_ml)
+        raise PumpError(
+            f"the pump on {self.port_name} stands after 'stop', but its volume counter "
+            f"changed in each of {CONFIRM_POLLS} status polls: the stop is not confirmed"
+        )
 
     @contextlib.contextmanager
     def _stop_first(self):
@@ -670,7 +892,7 @@ class PhdUltra:
                 self._stale_counters.update(_COUNTERS)
             self._last_state = state
             moving = _MOVING_COUNTER.get(state)
-            for counter in _COUNTERS if self.can_withdraw else _COUNTERS[:1]:
+            for counter in self._counters():
                 if counter != moving and counter not in self._stale_counters:
                     continue
                 t0_s = self.clock.now()
@@ -764,11 +986,14 @@ class PhdUltra:
 
     def _stop_after_fault(self) -> str:
         try:
-            state = self._stop_locked().state
+            state = self._stop_locked()
         except PumpDisconnected:
             raise
         except PumpTimeout:
-            return "the stop sent afterwards got no reply either: the pump may still be running"
+            return (
+                "the stop sent afterwards was not confirmed (no reply in time): the pump may "
+                "still be running"
+            )
         except PumpError as exc:
             return f"the stop sent afterwards failed too ({exc}): the pump may still be running"
         if state in _RUNNING:

@@ -29,6 +29,17 @@ class PumpDisconnected(PumpError, LinkLost):
     found_again = "the pump was found again and stopped"
 
 
+class PumpNotTheSame(PumpDisconnected):
+    """The port of a lost pump came back, but the pump (or device) answering there is
+    not the one this driver connected to: another pump behind the same by-id link, two
+    identical pumps swapped. It is not sent ``stop``; the lost pump may still run."""
+
+
+class PumpModeError(PumpError):
+    """The pump is in a mode labrig cannot run in (a user method, a Quick Start
+    variant that refuses a direction) and would not be switched to the one it needs."""
+
+
 class PumpTimeout(PumpError):
     """The pump did not finish its reply in time."""
 

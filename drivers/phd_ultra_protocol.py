@@ -389,3 +389,71 @@ def format_volume(volume_ml: float, *, smallest: str = "nl") -> str:
     cut = [name for name, _ in units].index(smallest) + 1
     value, unit = _scaled(volume_ml, units[:cut])
     return f"{value:.4f} {unit}"
+
+
+@dataclass(frozen=True)
+class PumpIdentity:
+    """Who the pump is: the ``ver`` reply (model and firmware, ``PHD ULTRA 3.0.5``)
+    and the ``version`` reply's lines (``Firmware: v3.0.5``, ``Pump address: 0``,
+    ``Serial number: D401460``), with the serial number and address read from them
+    (None where a line is missing)."""
+
+    ver: str
+    version_lines: tuple[str, ...]
+    serial_number: str | None
+    address: int | None
+
+    @property
+    def model(self) -> str:
+        """``PHD ULTRA`` of ``PHD ULTRA 3.0.5`` (the whole reply if it has no version)."""
+        model, _, version = self.ver.rpartition(" ")
+        return model if model and any(c.isdigit() for c in version) else self.ver
+
+    @property
+    def firmware(self) -> str:
+        """The firmware version: the ``version`` reply's ``Firmware:`` line, else the
+        last word of ``ver``."""
+        said = _field(self.version_lines, "firmware")
+        return (said or self.ver.rpartition(" ")[2]).removeprefix("v")
+
+    def describe(self) -> str:
+        serial = self.serial_number or "no serial number"
+        address = "?" if self.address is None else self.address
+        return f"{self.model} {self.firmware}, serial {serial}, address {address}"
+
+
+def _field(lines: tuple[str, ...], name: str) -> str | None:
+    """The value of the ``Name: value`` line whose name starts with ``name``."""
+    for line in lines:
+        key, sep, value = line.partition(":")
+        if sep and key.strip().lower().startswith(name):
+            return value.strip()
+    return None
+
+
+def parse_identity(ver: str, version_lines: tuple[str, ...]) -> PumpIdentity:
+    address = _field(version_lines, "pump address")
+    return PumpIdentity(
+        ver=ver,
+        version_lines=tuple(version_lines),
+        serial_number=_field(version_lines, "serial") or None,
+        address=int(address) if address and address.isdigit() else None,
+    )
+
+
+# The Quick Start variants as `mode` names them, and as `load qs ...` takes them.
+QUICK_START_VARIANTS = {
+    "infuse": "i",
+    "withdraw": "w",
+    "infuse/withdraw": "iw",
+    "withdraw/infuse": "wi",
+}
+
+
+def parse_mode(text: str) -> str | None:
+    """The Quick Start variant of a ``mode`` reply (``Quick Start Infuse/Withdraw`` ->
+    ``'iw'``), or None for anything else (a user method: ``Method prime``)."""
+    words = text.strip().lower()
+    if not words.startswith("quick start"):
+        return None
+    return QUICK_START_VARIANTS.get(words.removeprefix("quick start").strip())

@@ -19,7 +19,7 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING
 
-__version__ = "0.1.0"
+from labrig._version import __version__
 
 # public name -> the module that defines it
 _API = {
@@ -35,6 +35,7 @@ _API = {
     "ActuatorPath": "labrig.api.model",
     "open_scan": "labrig.api.scan",
     "Scan": "labrig.api.scan",
+    "InputError": "labrig.errors",
 }
 __all__ = ["__version__", *_API]
 
@@ -51,6 +52,7 @@ if TYPE_CHECKING:  # for type checkers and editors; at run time __getattr__ impo
     from labrig.api.run import open_run as open_run
     from labrig.api.scan import Scan as Scan
     from labrig.api.scan import open_scan as open_scan
+    from labrig.errors import InputError as InputError
 
 
 def __getattr__(name: str):

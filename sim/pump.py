@@ -22,7 +22,14 @@ gives a stable symbolic link that points at the current one, and is gone while t
 is (a link left pointing at a released pseudo-terminal would lead a driver that reopens
 it into whatever terminal the OS hands that number to next); the plunger keeps doing
 what it did meanwhile.
-One thread serves the port with ``select`` and a timeout, so it never blocks for long.
+``re_enumerate`` can bring another pump back behind the link (``another_pump()``: two
+pumps swapped, or two identical ones udev cannot tell apart) while this one's plunger
+goes on; ``keypad`` gives commands as at the pump's own keys (a run another program
+left going, a method started).
+One thread serves the port with ``select`` and a timeout, so it never blocks for long,
+and nothing a client sends ends it: any byte is read (non-ASCII as ``?``), a line is
+cut at ``MAX_LINE_BYTES``, and each kind of trouble is logged ``LOG_LIMIT`` times, then
+counted (``troubles``).
 
 The plunger's own events are timers on the shared clock (``Clock.call_at``), not host
 ticks: the target stop at the exact time it is due, and a check of the load every
@@ -38,6 +45,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import logging
+import math
 import os
 import random
 import re
@@ -56,6 +64,14 @@ log = logging.getLogger(__name__)
 
 LOAD_CHECK_S = 0.1  # clock seconds between load (stall) checks while the plunger moves
 IDLE_WAIT_S = 0.1  # real seconds the server waits at most (commands wake it at once)
+# The longest command line kept: the pump's own input buffer is small, and a client
+# that sends bytes with no line end must not grow the emulator's memory. Longer lines
+# are cut here (the rest dropped up to the line end) and answered as what was kept.
+MAX_LINE_BYTES = 256
+# Log records of one kind of trouble (a full output buffer, a line cut short, a
+# command the emulator could not answer) before the rest are only counted: a flood of
+# bad input must not flood the log.
+LOG_LIMIT = 5
 _GARBAGE = bytes(range(0x80, 0x100)) + b"#%&~^|"
 _LINE_END = re.compile(rb"[\r\n]")
 _PROMPTS = {
@@ -91,8 +107,11 @@ class PumpEmulator:
         memory_command: str | None = "nvram",
         echo_settings: bool = False,
         by_id: str | os.PathLike | None = None,
+        **firmware_options,
     ) -> None:
-        """The syringe, load and force options are the firmware's (``PumpFirmware``).
+        """The syringe, load and force options are the firmware's (``PumpFirmware``),
+        as are ``firmware_options`` (its serial number, its ``metrics``, the mode it
+        was left in).
         Replies are written ``reply_chunk_bytes`` at a time, ``chunk_gap_s`` apart, to
         exercise the driver on partial lines; ``seed`` makes injected garbage repeatable.
         ``by_id``: the path of a symbolic link kept pointing at the current port (the
@@ -116,7 +135,10 @@ class PumpEmulator:
             infuse_only=infuse_only,
             memory_command=memory_command,
             echo_settings=echo_settings,
+            **firmware_options,
         )
+        # the pump that answers on the port: another one after ``re_enumerate`` may
+        self.answering = self.firmware
         self.reply_style = reply_style
         self.target_prompt = target_prompt
         self.status_prompt_first = status_prompt_first
@@ -145,6 +167,8 @@ class PumpEmulator:
         self._serving = False
         self._inbuf = bytearray()
         self._after_cr = False
+        self._cutting = False  # dropping the rest of a line longer than MAX_LINE_BYTES
+        self.troubles: collections.Counter[str] = collections.Counter()  # by kind
         self._motion_timer = None
         self._motion_due: float | None = None  # when the motion timer is set to fire
         self._timer_lock = threading.Lock()  # the motion timer's own: taken with no other
@@ -236,6 +260,14 @@ class PumpEmulator:
         self.firmware.stall()
         self._schedule_motion()
 
+    def keypad(self, *commands: str) -> None:
+        """Commands given at the pump itself (or by another program before this one
+        connects): executed, nothing sent on the line. ``keypad("irun")`` leaves it
+        infusing, ``keypad("load prime", "run")`` in a method."""
+        for command in commands:
+            self.firmware.execute(command)
+        self._schedule_motion()
+
     # ---- faults ------------------------------------------------------------------
 
     def inject_garbage(self, n_bytes: int = 12, *, into_next_reply: bool = True) -> None:
@@ -276,17 +308,21 @@ class PumpEmulator:
         """Pull the cable: the port disappears. The plunger keeps doing what it did."""
         self._shut_down()
 
-    def re_enumerate(self, after_s: float) -> None:
+    def re_enumerate(self, after_s: float, another: PumpFirmware | None = None) -> None:
         """The USB link drops now and the pump comes back ``after_s`` real seconds later
         as another pseudo-terminal (the by-id link follows it), as after a brown-out or
         a cable pulled and plugged back. The plunger keeps doing what it did; whatever
-        was in flight on the line is lost."""
+        was in flight on the line is lost. With ``another`` (``another_pump()``), that
+        pump answers behind the link instead (two pumps swapped, or two identical ones
+        that udev cannot tell apart), while this one's plunger goes on."""
         # the new port is opened while the old one is still open, so it cannot take
         # the old one's number: a driver holding the dead port must find the new path
         pty = os.openpty()
         self._shut_down()
         with self._lock:
             self._outgoing.clear()
+            if another is not None:
+                self.answering = another
         self._replug = threading.Timer(after_s, self._plug_back, (pty,))
         self._replug.daemon = True
         self._replug.start()
@@ -299,6 +335,18 @@ class PumpEmulator:
                 os.close(fd)
             return
         self.start(pty)
+
+    def another_pump(self, serial_number: str = "EMU00002", **options) -> PumpFirmware:
+        """A second pump of the same model on the same clock, at the same address and
+        with the same syringe unless ``options`` say otherwise (``re_enumerate``)."""
+        firmware = self.firmware
+        settings = {
+            "address": firmware.address,
+            "diameter_mm": firmware._diameter_mm,
+            "syringe_ml": firmware._syringe_ml,
+            **options,
+        }
+        return PumpFirmware(self.clock, serial_number=serial_number, **settings)
 
     def _garbage(self, n_bytes: int) -> bytes:
         return bytes(self._rng.choice(_GARBAGE) for _ in range(n_bytes))
@@ -336,22 +384,59 @@ class PumpEmulator:
     def _receive(self, data: bytes) -> None:
         """Split the input into command lines at CR, LF or CR LF (found by ``re`` in C:
         a status poll is three commands, and a byte-by-byte scan in Python cost more
-        than executing them)."""
+        than executing them). Any byte is taken: one that is not printable ASCII is
+        read as ``?`` (the pump answers it as an unknown command or argument), a line
+        is cut at ``MAX_LINE_BYTES``."""
         self._inbuf += data
         while (found := _LINE_END.search(self._inbuf)) is not None:
             end = found.start()
             line, separator = bytes(self._inbuf[:end]), self._inbuf[end]
             del self._inbuf[: end + 1]
+            if self._cutting:
+                self._cutting = False  # the end of a line already answered
+                continue
             if separator == ord("\n") and self._after_cr and not line:
                 self._after_cr = False  # the LF of a CR LF pair
                 continue
             self._after_cr = separator == ord("\r")
-            self._execute(line.decode("ascii", errors="replace"))
+            self._answer(line)
+        if len(self._inbuf) > MAX_LINE_BYTES:
+            if not self._cutting:
+                self._trouble("line", "a command line longer than %d bytes cut", MAX_LINE_BYTES)
+                self._answer(bytes(self._inbuf[:MAX_LINE_BYTES]))
+            self._cutting = True
+            self._inbuf.clear()
+
+    def _answer(self, line: bytes) -> None:
+        """Execute one line, whatever it holds: nothing a client sends may end the
+        serving thread (the port would be gone while the process serves on)."""
+        text = line.decode("ascii", errors="replace")
+        text = "".join(c if c.isprintable() and c.isascii() else "?" for c in text)
+        try:
+            self._execute(text)
+        except Exception:  # a bug answering one line: logged (boundedly), the port lives
+            self._trouble("error", "could not answer %r", text, exc_info=True)
+
+    def _trouble(self, kind: str, message: str, *args, exc_info: bool = False) -> None:
+        """Log one kind of trouble at most ``LOG_LIMIT`` times, then count it only."""
+        self.troubles[kind] += 1
+        count = self.troubles[kind]
+        if count <= LOG_LIMIT:
+            log.warning(message, *args, exc_info=exc_info)
+        if count == LOG_LIMIT:
+            log.warning("further troubles of this kind (%s) are counted, not logged", kind)
+
+    @property
+    def serving(self) -> bool:
+        """The port is served (False once closed, unplugged, or its thread ended)."""
+        thread = self._thread
+        return thread is not None and thread.is_alive()
 
     def _execute(self, line: str) -> None:
         self.received.append(line)
-        poll_mode = self.firmware.poll_mode
-        answer = self.firmware.execute(line)
+        firmware = self.answering
+        poll_mode = firmware.poll_mode
+        answer = firmware.execute(line)
         if answer is None:
             return  # for another pump on the chain
         self._schedule_motion()  # before the reply: the driver moves time on after it
@@ -377,7 +462,7 @@ class PumpEmulator:
             self._queue(data, self._delay_s if slow else 0.0)
 
     def _frame(self, answer, poll_mode: str) -> bytes:
-        prompt = self._prompt(answer.state)
+        prompt = self._prompt(answer.state, self.answering.address)
         prefix = prompt if self.reply_style == "prefixed" else ""
         body = "".join(f"\n{prefix}{text}\r" for text in answer.lines)
         if poll_mode == "remote":
@@ -391,9 +476,11 @@ class PumpEmulator:
         check, whichever comes first (none while it stands still)."""
         with self._timer_lock:
             now = self.clock.now()
-            due = None
+            due = self.firmware.next_event_s  # a target, a method's pause ending
             if self.firmware.running:
-                due = min(self.firmware.target_stop_s, now + LOAD_CHECK_S)
+                due = min(due, now + LOAD_CHECK_S)
+            if math.isinf(due):
+                due = None
             if due is not None and due == self._motion_due and due > now:
                 return  # set for that instant already (each command of a poll asks again)
             if self._motion_timer is not None:
@@ -407,20 +494,21 @@ class PumpEmulator:
         self.firmware.tick(self.clock.now())
         self._schedule_motion()
 
-    def _prompt(self, state: PumpState) -> str:
+    def _prompt(self, state: PumpState, address: int) -> str:
         prompt = self.target_prompt if state is PumpState.TARGET_REACHED else _PROMPTS[state]
-        if self.firmware.address or self.reply_style == "prefixed":
-            prompt = f"{self.firmware.address:02d}{prompt}"
+        if address or self.reply_style == "prefixed":
+            prompt = f"{address:02d}{prompt}"
         return prompt
 
     def _announce_target(self) -> None:
         """The real pump sends its target prompt unsolicited (with poll mode off)."""
-        if self.firmware.poll_mode != "off":
+        if self.firmware.poll_mode != "off" or self.answering is not self.firmware:
             return
+        prompt = self._prompt(PumpState.TARGET_REACHED, self.firmware.address)
         with self._lock:
             if self._silent:
                 return
-            self._queue(f"\n{self._prompt(PumpState.TARGET_REACHED)}".encode("ascii"))
+            self._queue(f"\n{prompt}".encode("ascii"))
 
     def _queue(self, data: bytes, delay_s: float = 0.0) -> None:
         """Schedule bytes for sending, in order (a serial line never reorders)."""
@@ -440,7 +528,7 @@ class PumpEmulator:
             try:
                 os.write(self._master, data)
             except BlockingIOError:
-                log.warning("pty buffer full: nobody reads the pump, dropped %r", data)
+                self._trouble("full", "pty buffer full: nobody reads the pump, dropped %r", data)
 
 
 def _point_link(link: str, target: str) -> None:

@@ -28,6 +28,7 @@ so), and the memory command the firmware knows (``nvram``, ``rsave`` or neither)
 
 from __future__ import annotations
 
+import collections
 import logging
 import math
 import re
@@ -40,6 +41,7 @@ from labrig.rig.devices import PumpState
 from labrig.time.clock import Clock
 
 from .pump_commands import WITHDRAW_COMMANDS
+from .pump_methods import METHODS
 from .pump_panel import PanelSettings
 from .pump_quantity_commands import DIAMETER_RANGE_MM, QuantityCommands, Ramp
 from .pump_refusals import (
@@ -112,9 +114,18 @@ class PumpFirmware(QuantityCommands):
         infuse_only: bool = False,
         memory_command: str | None = "nvram",
         echo_settings: bool = False,
+        serial_number: str = SERIAL_NUMBER,
+        metrics_direction: bool = True,
+        quick_start: str = "iw",
+        method: str | None = None,
+        locked: bool = False,
     ) -> None:
         """``stall_pressure_kpa`` fixes the stall limit; by default it follows from the
         force setting and the plunger area (``max_force_n`` at 100 %).
+        ``serial_number``: what ``version`` says (another pump: another number);
+        ``metrics_direction``: False for firmware whose ``metrics`` has no Direction
+        line; ``quick_start``, ``method``, ``locked``: the mode it was left in (a Quick
+        Start variant, a user method of ``sim.pump_methods``, the method lock).
         ``on_target_reached`` is called (under the lock) when a run reaches its target.
         ``poll_mode`` is the mode the pump was left in; ``strict_address_form`` (one of
         ``ADDRESS_FORMS``, or ``REAL_ADDRESSING``) is the only address form answered,
@@ -133,6 +144,10 @@ class PumpFirmware(QuantityCommands):
                 f"strict_address_form must be one of {ADDRESS_FORMS}, {REAL_ADDRESSING!r} or None"
             )
         self.poll_mode = poll_mode
+        self.serial_number = serial_number
+        self.metrics_direction = metrics_direction
+        # every command line addressed to this pump, as read (what tests look for)
+        self.executed: collections.deque[str] = collections.deque(maxlen=10_000)
         self.strict_address_form = strict_address_form
         self.infuse_only = infuse_only
         self.echo_settings = echo_settings
@@ -144,7 +159,10 @@ class PumpFirmware(QuantityCommands):
         self._lock = threading.RLock()
         self._drive = SyringeDrive(clock.now())
         self._generation = 0  # bumped by every change of motion, for the load check
-        self._panel = PanelSettings(address)
+        self._panel = PanelSettings(address, quick_start=quick_start, method=method, locked=locked)
+        # the running method's step (None: no method running) and its pause's end
+        self._method_step: int | None = None
+        self._pause_end_s: float | None = None
         self._diameter_mm = diameter_mm
         self._syringe_ml = syringe_ml
         self._syringe_choice: SyringeChoice | None = None
@@ -189,7 +207,7 @@ class PumpFirmware(QuantityCommands):
             "cttime": lambda arg, now: self._drive.set_target_time(None, now) or [],
             "irun": lambda arg, now: self._run(INFUSE, now),
             "wrun": lambda arg, now: self._run(WITHDRAW, now),
-            "run": lambda arg, now: self._run(self._drive.direction, now),
+            "run": self._run_command,
             "rrun": lambda arg, now: self._run(
                 WITHDRAW if self._drive.direction == INFUSE else INFUSE, now
             ),
@@ -199,6 +217,7 @@ class PumpFirmware(QuantityCommands):
         }
         for name, handler in self._panel.handlers.items():
             handlers[name] = lambda arg, now, handler=handler: handler(arg)
+        handlers["load"] = self._load_command
         if memory_command is not None:
             words = ("on", "off", "none") if memory_command == "nvram" else ("on", "off")
             handlers[memory_command] = lambda arg, now: self._echoed(
@@ -241,10 +260,18 @@ class PumpFirmware(QuantityCommands):
             return self._drive.running
 
     @property
-    def target_stop_s(self) -> float:
-        """When the current motion reaches its target volume or time (inf: it does not)."""
+    def next_event_s(self) -> float:
+        """When the plunger's next event of its own is due: the current motion reaching
+        its target volume or time, or a method's pause ending (inf: none)."""
         with self._lock:
-            return self._drive.end_s()
+            pause_end_s = math.inf if self._pause_end_s is None else self._pause_end_s
+            return min(self._drive.end_s(), pause_end_s)
+
+    @property
+    def method_running(self) -> bool:
+        """A user method is running (moving, or standing in one of its pauses)."""
+        with self._lock:
+            return self._method_step is not None
 
     @property
     def stall_pressure_kpa(self) -> float:
@@ -287,6 +314,7 @@ class PumpFirmware(QuantityCommands):
             match = _COMMAND.match(line.strip())
             if not self._addressed_to_me(match):
                 return None
+            self.executed.append(line)
             word = match["word"].lower()
             name = self._aliases.get(word, word)
             lines = self._dispatch(name, match["arg"].strip(), now)
@@ -330,12 +358,49 @@ class PumpFirmware(QuantityCommands):
         return PumpState.IDLE
 
     def _advance(self, now: float) -> None:
-        if self._drive.settle(now):
-            self._generation += 1
-            self._on_target_reached()
+        """Apply what happened by ``now``: a target stop, and in a method each step
+        that ended since (the next one starts when the last ended, not when noticed)."""
+        while True:
+            end_s = self._drive.end_s()
+            if self._drive.settle(now):
+                self._generation += 1
+                if self._method_step is None:
+                    self._on_target_reached()
+                    return
+                self._method_next(end_s)
+            elif self._pause_end_s is not None and self._pause_end_s <= now:
+                end_s, self._pause_end_s = self._pause_end_s, None
+                self._method_next(end_s)
+            else:
+                return
+
+    def _method_next(self, t_s: float) -> None:
+        """Start the running method's next step at ``t_s``, or end the method."""
+        steps = METHODS[self._panel.method]
+        index = self._method_step + 1
+        if index >= len(steps):
+            self._method_step = None
+            if self._drive.target_reached:
+                self._on_target_reached()
+            return
+        self._start_step(index, t_s)
+
+    def _start_step(self, index: int, t_s: float) -> None:
+        step = METHODS[self._panel.method][index]
+        self._method_step = index
+        self._generation += 1
+        if step.direction is None:
+            self._drive.target_reached = False  # standing, the idle prompt
+            self._pause_end_s = t_s + step.pause_s
+            return
+        counted_ml = self._drive.counted_ml(step.direction, t_s)
+        self._drive.set_target(counted_ml + step.volume_ml, t_s)
+        self._drive.start(step.direction, step.rate_ml_min, t_s)
 
     def _halt(self, t_s: float, *, stalled: bool = False) -> None:
+        """Stop the plunger (a stop, a stall): a running method ends with it."""
         self._drive.halt(max(t_s, self._drive.t0_s), stalled=stalled)
+        self._method_step = self._pause_end_s = None
         self._generation += 1
 
     def _step_ramp(self, now: float) -> None:
@@ -380,7 +445,7 @@ class PumpFirmware(QuantityCommands):
         return [
             f"Firmware:      v{FIRMWARE.rsplit(' ', 1)[-1]}",
             f"Pump address:  {self.address}",
-            f"Serial number: {SERIAL_NUMBER}",
+            f"Serial number: {self.serial_number}",
         ]
 
     def _metrics(self, arg: str, now: float) -> list[str]:
@@ -397,7 +462,8 @@ class PumpFirmware(QuantityCommands):
             ("Programmable", "Yes"),
             ("Limit switches", "No"),
         )
-        return [f"{name:<19}{value}" for name, value in rows]
+        shown = [row for row in rows if self.metrics_direction or row[0] != "Direction"]
+        return [f"{name:<19}{value}" for name, value in shown]
 
     def _force(self, arg: str, now: float) -> list[str]:
         if not arg:
@@ -416,11 +482,23 @@ class PumpFirmware(QuantityCommands):
 
     # ---- running -------------------------------------------------------------------
 
+    def _run_command(self, arg: str, now: float) -> list[str]:
+        """``run``, the panel's Run key: the loaded method from its first step, or
+        Quick Start in the last direction."""
+        if self._panel.method is None:
+            return self._run(self._drive.direction, now)
+        if self._method_step is None:
+            self._start_step(0, now)
+        return []
+
+    def _load_command(self, arg: str, now: float) -> list[str]:
+        if self._drive.running or self._method_step is not None:
+            raise command_error("load", "Not allowed while running")
+        return self._panel.load_command(arg)
+
     def _run(self, direction: str, now: float) -> list[str]:
-        if not self._panel.allows(direction):
-            raise command_error(
-                f"{direction}run", f"Not allowed in Quick Start {self._panel.quick_start}"
-            )
+        if refusal := self._panel.refusal(direction):
+            raise command_error(f"{direction}run", refusal)
         ramp = self._ramps[direction]
         self._ramp_start_s = now
         rate = ramp.start_ml_min if ramp else self._rates[direction][0]

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import datetime
 
-from .pump_refusals import argument_error, range_error, word_setting
+from .pump_methods import METHODS
+from .pump_refusals import argument_error, command_error, range_error, word_setting
 
 BAUD_RATES = (9600, 19200, 38400, 57600, 115200)
 # Quick Start variants `load qs ...` takes: infuse only, withdraw only, both (either
@@ -29,9 +30,22 @@ _ON_OFF = ("on", "off")
 
 class PanelSettings:
     """What a technician sets on the keypad or from a terminal, besides the syringe and
-    the run. ``quick_start`` is the loaded Quick Start variant (``iw`` at power-up)."""
+    the run. ``quick_start`` is the loaded Quick Start variant (``iw`` at power-up
+    unless given), ``method`` the loaded user method (``sim.pump_methods``; None in
+    Quick Start); ``locked``: the method lock is on, and ``load`` is refused."""
 
-    def __init__(self, address: int) -> None:
+    def __init__(
+        self,
+        address: int,
+        *,
+        quick_start: str = "iw",
+        method: str | None = None,
+        locked: bool = False,
+    ) -> None:
+        if quick_start not in QUICK_START_MODES:
+            raise ValueError(f"quick_start must be one of {tuple(QUICK_START_MODES)}")
+        if method is not None and method not in METHODS:
+            raise ValueError(f"method must be one of {tuple(METHODS)} or None")
         self.address = address
         self.baud = 115200
         self.echo = "off"
@@ -39,8 +53,9 @@ class PanelSettings:
         self.dim_pct = 100
         self.ascale_pct = 100
         self.clock_offset = datetime.timedelta()
-        self.quick_start = "iw"
-        self.locked = False
+        self.quick_start = quick_start
+        self.method = method
+        self.locked = locked
         self.outputs = {"1": "low", "2": "low"}
         self.sync = "low"
         self.valve = "off"
@@ -52,7 +67,7 @@ class PanelSettings:
             "dim": lambda arg: self._percent("dim_pct", arg, 0, "Brightness"),
             "ascale": lambda arg: self._percent("ascale_pct", arg, 1, "Analog scale"),
             "time": self.time_command,
-            "cat": lambda arg: ["Quick Start"],
+            "cat": lambda arg: ["Quick Start", *METHODS],
             "load": self.load_command,
             "mode": self.mode_command,
             "lock": self.lock_command,
@@ -104,17 +119,24 @@ class PanelSettings:
         return []
 
     def load_command(self, arg: str) -> list[str]:
-        """``load qs {i|w|iw|wi}``: a Quick Start variant. The emulator stores no
-        methods, so any other name is an argument error."""
+        """``load qs {i|w|iw|wi}``: a Quick Start variant; ``load NAME``: one of the
+        methods of ``sim.pump_methods``. Refused while the method lock is on."""
         words = arg.lower().split()
+        if self.locked and words:
+            raise command_error("load", "Method locked")
+        if len(words) == 1 and words[0] in METHODS:
+            self.method = words[0]
+            return []
         if len(words) != 2 or words[0] != "qs" or words[1] not in QUICK_START_MODES:
             raise argument_error(arg or "load")
-        self.quick_start = words[1]
+        self.quick_start, self.method = words[1], None
         return []
 
     def mode_command(self, arg: str) -> list[str]:
         if arg:
             raise argument_error(arg)
+        if self.method is not None:
+            return [f"Method {self.method}"]
         return [f"Quick Start {QUICK_START_MODES[self.quick_start]}"]
 
     def lock_command(self, arg: str) -> list[str]:
@@ -141,6 +163,11 @@ class PanelSettings:
         self.outputs[words[0]] = level
         return []
 
-    def allows(self, direction: str) -> bool:
-        """Whether the loaded Quick Start variant runs in ``direction`` ('i' or 'w')."""
-        return direction in self.quick_start
+    def refusal(self, direction: str) -> str | None:
+        """Why a run in ``direction`` ('i' or 'w') started by ``irun``/``wrun`` is not
+        allowed (a method loaded, a Quick Start variant without it); None if it is."""
+        if self.method is not None:
+            return f"Not allowed in method {self.method}"
+        if direction not in self.quick_start:
+            return f"Not allowed in Quick Start {self.quick_start}"
+        return None

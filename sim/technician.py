@@ -2,7 +2,9 @@
 
 Answering a prompt takes ``answer_s`` of the rig's clock (time stands still for nobody
 else: the acquisition goes on meanwhile), then the plant's inlet is switched as the
-prompt says. A reservoir push moves the volume evenly over its duration.
+prompt says. A reservoir push moves the volume evenly over its duration. A run that
+stops meanwhile (``withdraw``) ends the wait at once: a slow technician, paced to the
+wall clock, would otherwise hold the process for as long as the answer takes.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ class SimTechnician:
         self.withdrawn = False
 
     def prompt(self, message: str, connect: str | None) -> None:
-        self.clock.sleep(self.answer_s)
+        self._take(self.answer_s)
         if connect is not None and not self.withdrawn:
             self.plant.connect(connect, self.clock.now())
 
@@ -28,4 +30,11 @@ class SimTechnician:
 
     def reservoir(self, volume_ml: float, duration_s: float) -> None:
         self.plant.push_reservoir(volume_ml, duration_s, self.clock.now())
-        self.clock.sleep(duration_s)
+        self._take(duration_s)
+
+    def _take(self, seconds: float) -> None:
+        """``seconds`` of the rig's clock, or until the run stops."""
+        if seconds > 0:
+            self.clock.wait_for(lambda: self.withdrawn, seconds)
+        else:  # as a sleep of 0: the others due now go first
+            self.clock.sleep(seconds)

@@ -14,8 +14,9 @@ direction, nearest volume within ``match_ml``). Predicted stable transitions (a 
 crossing its peak smoothly) are listed but not paired: nothing jumps there. The pairing
 is made twice: for the path's events (``matches``: every peak crossing and every snap,
 what the run file's analysis stores) and for the transitions as the paper counts them
-(``paper_matches``: a peak crossing and the snap it sets off are one,
-``labrig.model.actuator.paper_counting``), which the report and the plots show. A measured
+(``paper_matches``: the events at one supplied volume are one,
+``labrig.model.actuator.paper_counting``), which the report, its ``unpredicted`` list
+and the plots' diamonds use. A measured
 transition that no predicted snap explains may still be on the model's curve: a steep
 stable stretch (a bulge's drop, taken while the other segments absorb the volume, or
 the braids' wall) changes the pressure within a millilitre, which the detector sees as a
@@ -65,8 +66,8 @@ class PredictedTransition:
 
 def paper_counted(predicted: Sequence[PredictedTransition]) -> tuple[PredictedTransition, ...]:
     """The path's events ``predicted`` counted as the paper counts transitions
-    (``paper_transitions``); the jumps in kPa and mm are summed like the normalised
-    ones."""
+    (``paper_transitions``); the jumps in kPa and mm of events at one volume add (the
+    relative ones compound)."""
     return tuple(
         PredictedTransition(
             **{name: getattr(t, name) for name in EVENT_FIELDS},

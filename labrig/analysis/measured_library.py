@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from labrig._version import __version__
 from labrig.errors import InputError
 from labrig.model.segments.catalog import find_measured, is_measured_name, resolve_library_dir
 from labrig.user_files import MAX_CONFIG_BYTES, read_text_file
@@ -131,7 +132,6 @@ def add_from_run(
     as measured segment ``name`` (see the module docstring)."""
     from dataclasses import replace as with_changes
 
-    import labrig
     from labrig.analysis.analyse import analyse, settings_for
     from labrig.analysis.curves import INFLATE
     from labrig.analysis.results import now_iso
@@ -173,7 +173,7 @@ def add_from_run(
     provenance = {
         "name": name,
         "created": now_iso(),
-        "labrig": labrig.__version__,
+        "labrig": __version__,
         "run": {
             "path": str(Path(run_path).resolve()),
             "sha256": sha256_of(Path(run_path)),

@@ -3,7 +3,8 @@
 Pressure on top, length below, sharing the volume axis. Inflation is what the paper
 shows: each repetition faint, the mean of the averaged repetitions bold with its spread
 (± one standard deviation) as a band; the deflation mean is drawn thin in a second
-colour. The model's prediction is dashed, its snap-throughs marked with open diamonds;
+colour. The model's prediction is dashed, its snap-throughs (its unstable transitions as the
+paper counts them, ``compare.paper_counted``) marked with open diamonds;
 the measured transitions are marked on the mean curve with their dp and dl, except those
 the model's own path makes (a steep stable stretch, ``compare.follows_model``): those get
 a small grey mark and no label, so that the snaps stand out.
@@ -15,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from labrig.analysis.compare import paper_counted
 from labrig.analysis.curves import DEFLATE, INFLATE
 from labrig.analysis.results import AnalysisResult
 
@@ -159,7 +161,7 @@ def _panel(ax, result: AnalysisResult, quantity: str, grid: np.ndarray) -> None:
                     linewidth=1.1,
                     label=name,
                 )
-        snaps = [t for t in prediction.transitions if not t.stable]
+        snaps = [t for t in paper_counted(prediction.transitions) if not t.stable]
         for k, t in enumerate(snaps):
             curve = comparison.model_p_kpa if quantity == "p" else comparison.model_l_mm
             ax.plot(

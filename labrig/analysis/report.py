@@ -236,16 +236,15 @@ def comparison_json(result: AnalysisResult) -> dict:
     phase and quantity, and each predicted transition with the measured one paired to
     it (null where none was): under ``transitions`` the path's events (every peak
     crossing and every snap), under ``paper_transitions`` the transitions as the paper
-    counts them (a peak crossing and the snap it sets off are one); measured
-    transitions the model does not predict (its events) are listed under
-    ``unpredicted``."""
+    counts them (the events at one supplied volume are one); measured transitions
+    that none of those predicts are listed under ``unpredicted``."""
     comparison = result.comparison
     rmse = {}
     for phase, name in PHASES.items():
         rmse[f"{name}_pressure_kpa"] = _finite(comparison.rmse_p_kpa[phase])
         rmse[f"{name}_length_mm"] = _finite(comparison.rmse_l_mm[phase])
-    transitions, unpredicted = _matched(comparison.matches, result)
-    paper, _ = _matched(comparison.paper_matches, result)
+    transitions, _ = _matched(comparison.matches, result)
+    paper, unpredicted = _matched(comparison.paper_matches, result)
     return {
         "rmse": rmse,
         "transitions": transitions,

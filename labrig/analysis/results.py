@@ -20,7 +20,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-import labrig
+from labrig._version import __version__
 from labrig.analysis.compare import (
     Comparison,
     PredictedTransition,
@@ -33,7 +33,9 @@ from labrig.analysis.compare import (
 from labrig.analysis.curves import PHASES, MeanCurve
 from labrig.analysis.transitions import AgreedTransition, DetectionSettings, MeasuredTransition
 from labrig.errors import InputError
+from labrig.recording.file_check import vouch_for
 from labrig.recording.run_layout import repetition_name
+from labrig.recording.unwritable import abandon, room_to_write
 
 LAYOUT_VERSION = 1
 UNITS = {"_ml": "mL", "_kpa": "kPa", "_mm": "mm", "_s": "s", "_ml_s": "mL/s"}
@@ -173,9 +175,15 @@ def _settings(group: h5py.Group, settings: AnalysisSettings) -> None:
         _dataset(detection, f.name, getattr(settings.detection, f.name))
 
 
+# what an analysis may take in the file, asked of the disk before it is written: it is
+# a few hundred kB, and a write cut short in HDF5's metadata spoils the whole file
+ANALYSIS_ROOM_BYTES = 8_000_000
+
+
 def write_analysis(path: Path, result: AnalysisResult) -> None:
     """Store ``result`` in the run file at ``path``, replacing any earlier analysis and
     default plot. The file must be closed by its writer (``labrig recover`` otherwise)."""
+    room_to_write(path, ANALYSIS_ROOM_BYTES, "the analysis")
     try:
         run = h5py.File(path, "r+")
     except OSError as exc:
@@ -183,14 +191,23 @@ def write_analysis(path: Path, result: AnalysisResult) -> None:
             f"{path}: cannot be opened for writing the analysis ({exc}); if a killed run "
             f"left it flagged open, `labrig recover {path}` clears that"
         ) from None
-    with run:
+    try:
         if "entry" not in run:
+            run.close()
             raise InputError(f"{path}: not a labrig run file: missing /entry")
         entry = run["entry"]
         for name in ("analysis", "data"):
             if name in entry:
                 del entry[name]
         _write(entry, result)
+        run.close()
+    except (OSError, RuntimeError) as exc:  # the disk filled meanwhile
+        abandon(run.id)
+        raise InputError(
+            f"{path}: the analysis could not be stored (the file could not be written: "
+            f"{type(exc).__name__})"
+        ) from None
+    vouch_for(path)  # read before, written here: no reader needs to walk it again
 
 
 def _write(entry: h5py.Group, result: AnalysisResult) -> None:
@@ -447,4 +464,4 @@ def _read_model(model: h5py.Group, agreed: tuple[AgreedTransition, ...]) -> Comp
 
 def stamp() -> tuple[str, str]:
     """(creation time, labrig version) recorded with an analysis."""
-    return now_iso(), labrig.__version__
+    return now_iso(), __version__

@@ -20,10 +20,9 @@ import numpy as np
 
 from labrig.config.protocol import Protocol, parse_protocol
 from labrig.errors import InputError
+from labrig.recording.file_check import superblock_facts, truncation, unopenable
 from labrig.recording.run_layout import repetition_name
 from labrig.recording.run_reader import LogSeries, decode, open_run, read_values
-
-HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
 # fields the analysis cannot do without, per log; other fields are read when present
 REQUIRED_FIELDS = {
@@ -70,43 +69,9 @@ class RunRecord:
     writer_flag_set: bool
 
 
-def superblock_facts(path: Path) -> tuple[int, int, int] | None:
-    """(superblock version, consistency flags, end-of-file address) of an HDF5 file with
-    a version 2 or 3 superblock, or None when the header is not one of those.
-
-    Read directly from the header because HDF5 refuses to open exactly the files whose
-    diagnosis needs these numbers (a truncated file, one still flagged open).
-    """
-    with open(path, "rb") as handle:
-        header = handle.read(48)
-    if len(header) < 12 or header[:8] != HDF5_SIGNATURE or header[8] not in (2, 3):
-        return None
-    offsets = header[9]
-    eof_at = 12 + 2 * offsets  # after base address and superblock-extension address
-    if len(header) < eof_at + offsets:
-        return None
-    eof = int.from_bytes(header[eof_at : eof_at + offsets], "little")
-    return header[8], header[11], eof
-
-
 def _diagnose_unopenable(path: Path, error: InputError) -> InputError:
     """A clearer message than HDF5's for the files it refuses to open."""
-    size = path.stat().st_size
-    with open(path, "rb") as handle:
-        signature = handle.read(8)
-    if signature != HDF5_SIGNATURE:
-        return InputError(
-            f"{path}: not an HDF5 file (no HDF5 signature at the start; {size} bytes); "
-            "a labrig run file is written by `labrig run`"
-        )
-    facts = superblock_facts(path)
-    if facts is not None and facts[2] > size:
-        return InputError(
-            f"{path}: truncated: {size} of the {facts[2]} bytes its header announces are "
-            "present; the end of the file is missing (copy it again from where it was "
-            "recorded)"
-        )
-    return error
+    return InputError(unopenable(path, str(error)))
 
 
 def _read(group: h5py.Group, name: str, where: str):
@@ -182,10 +147,9 @@ def _text(entry: h5py.Group, name: str, where: str) -> str:
 def open_checked(path: Path, opener: Callable[[Path], h5py.File] = open_run) -> h5py.File:
     """The run file opened by ``opener``, checked to be a labrig run file; InputError
     (one line) saying why not: not HDF5, truncated, no ``/entry``."""
-    facts = superblock_facts(path) if path.is_file() else None
-    if facts is not None and facts[2] > path.stat().st_size:
+    if path.is_file() and truncation(path):
         # SWMR read mode would open it, and fail somewhere in the middle of the data
-        raise _diagnose_unopenable(path, InputError(f"{path}: truncated"))
+        raise InputError(truncation(path))
     try:
         run = opener(path)
     except InputError as exc:

@@ -50,6 +50,8 @@ def run_files(runs: str | Path | Iterable[str | Path]) -> list[Path]:
             found += sorted(Path(p) for p in glob.glob(str(item)))
         elif path.is_file():
             found.append(path)
+        elif path.exists():
+            raise InputError(f"{item}: not a regular file or a folder (a device or a pipe)")
         else:
             raise InputError(f"{item}: no such file or folder")
     if not found:

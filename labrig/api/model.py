@@ -9,9 +9,13 @@ dl, dp normalised as in the paper), and a field a command gains appears here too
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+from labrig.errors import InputError
 
 from .axes import panel_axes
 from .solver_mode import prefer_plain_python
@@ -104,11 +108,12 @@ class Segment:
         return f"<labrig.Segment {self.name}: {self.model.source}>"
 
 
-def actuator(*segments: str | Path | Segment) -> Actuator:
+def actuator(*segments: str | Path | Segment | Sequence[str | Path | Segment]) -> Actuator:
     """An actuator of two or more segments sharing one pressure (names, CSV paths or
-    ``Segment`` objects)."""
-    from labrig.errors import InputError
-
+    ``Segment`` objects), given one by one or as one list:
+    ``actuator("B48-T30", "B50-T20")`` or ``actuator(["B48-T30", "B50-T20"])``."""
+    if len(segments) == 1 and isinstance(segments[0], list | tuple):
+        segments = tuple(segments[0])
     if len(segments) < 2:
         raise InputError(f"an actuator needs at least two segments, got {len(segments)}")
     chosen = [s if isinstance(s, Segment) else segment(s) for s in segments]
@@ -130,6 +135,10 @@ class Actuator:
         """The quasi-static path under volume-controlled inflation to ``v_end_ml`` (mL;
         default: where no further transition is possible) and, with ``deflate``, back
         to zero, as ``labrig model path`` computes it."""
+        if v_end_ml is not None and not (
+            isinstance(v_end_ml, numbers.Real) and math.isfinite(v_end_ml) and v_end_ml > 0
+        ):
+            raise InputError(f"v_end_ml={v_end_ml!r}: the end volume of inflation, mL, > 0")
         prefer_plain_python()
         from labrig.model.path_document import solve_path
 

@@ -14,6 +14,7 @@ is read as of the writer's last flush, and says so (``writer_open``, ``live`` an
 from __future__ import annotations
 
 import bisect
+import numbers
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
@@ -23,10 +24,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from labrig.analysis.curves import PHASES
 from labrig.errors import InputError
 from labrig.recording.run_layout import LOG_DESCRIPTION, LOG_FIELDS, repetition_name
-from labrig.recording.run_reader import decode
+from labrig.recording.run_reader import decode, read_rows
 
 from .axes import panel_axes
 from .reading import open_readonly, open_run_file, writer_state
@@ -41,7 +41,6 @@ if TYPE_CHECKING:
     from labrig.config.protocol import Protocol
 
 LOGS = ("pressure", "pump", "length", "force")
-PHASE_NAMES = tuple(PHASES.values())  # ("inflate", "deflate")
 
 
 class RunOpenWarning(UserWarning):
@@ -97,6 +96,10 @@ class Run:
     """
 
     def __init__(self, path: Path) -> None:
+        # what a run's calls solve is one actuator (its comparison, its plot, a step
+        # run's prediction): the model's loops as plain Python, chosen here, before any
+        # of them imports the analysis, whose comparison imports the model
+        prefer_plain_python()
         self.path = path
         with open_run_file(path) as h5:
             try:
@@ -230,6 +233,10 @@ class Run:
 
     # --- raw series -----------------------------------------------------------------
     def _check(self, repetition: int, log: str) -> None:
+        if isinstance(repetition, bool) or not isinstance(repetition, numbers.Integral):
+            raise InputError(
+                f"{self.path}: repetition {repetition!r}: a whole number, 1 to {self.n_repetitions}"
+            )
         if not 1 <= repetition <= self.n_repetitions:
             raise InputError(
                 f"{self.path}: repetition {repetition}: the run has 1 to {self.n_repetitions}"
@@ -252,7 +259,7 @@ class Run:
             times = _Rows(group["time"], n)
             first = 0 if start_s is None else bisect.bisect_left(times, start_s)
             last = n if stop_s is None else bisect.bisect_left(times, stop_s)
-            return {name: group[name][first:last] for name in group}
+            return {name: read_rows(group[name], first, last, self.path) for name in group}
 
     def raw(
         self,
@@ -333,7 +340,6 @@ class Run:
                 stored = read_analysis(self.path, h5)
             if stored is not None:
                 return stored
-        prefer_plain_python()
         record = load_run(self.path, open_readonly)
         return analyse(self.path, record=record)
 
@@ -351,6 +357,8 @@ class Run:
         ``/entry/analysis`` (``pressure_kpa`` per repetition, ``mean_pressure_kpa``,
         ``std_pressure_kpa``, ``model_pressure_kpa``, and the same for length)."""
         import xarray as xr
+
+        from labrig.analysis.curves import PHASES
 
         result = self.analysis
         grid = result.grid_ml
@@ -394,7 +402,7 @@ class Run:
             variables,
             coords={
                 "volume_ml": ("volume_ml", grid, {"units": "mL", "long_name": "supplied volume"}),
-                "phase": ("phase", list(PHASE_NAMES)),
+                "phase": ("phase", list(PHASES.values())),
                 "repetition": ("repetition", [r.index for r in reps]),
                 "used_in_mean": ("repetition", [r.used_in_mean for r in reps]),
             },
@@ -407,6 +415,7 @@ class Run:
         ``mean_*``, ``std_*``, ``model_*``."""
         import pandas as pd
 
+        from labrig.analysis.curves import PHASES
         from labrig.analysis.export import curve_columns
 
         phases = {name: key for key, name in PHASES.items()}

@@ -11,8 +11,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from labrig.errors import InputError
+
 from .axes import panel_axes
 from .reading import open_readonly
+from .solver_mode import prefer_plain_python
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -20,9 +23,12 @@ if TYPE_CHECKING:
     import pandas as pd
     from matplotlib.axes import Axes
 
+    from .model import Actuator
+
 
 def open_scan(path: str | Path) -> Scan:
     """Open a scan file, complete or cut short; ``InputError`` if it is not one."""
+    prefer_plain_python()  # the scan's reader imports the model: see Run.__init__
     from labrig.model.scan.scan_file import read_scan
 
     return Scan(read_scan(Path(path)))
@@ -105,12 +111,59 @@ class Scan:
         names = np.asarray(self.names, dtype=object)
         return {f"segment{i + 1}": names[indices[:, i]] for i in range(self.n)}
 
-    def plot(self, ax: Axes | Sequence[Axes] | None = None) -> Axes | list[Axes]:
+    def plot(
+        self, ax: Axes | Sequence[Axes] | None = None, transitions: pd.DataFrame | None = None
+    ) -> Axes | list[Axes]:
         """Draw what ``labrig model scan --plot`` draws (the paper's Fig. 4 A-C: dv, dl,
         dp against dE of the paper's transitions, coloured by (alpha, beta)) on ``ax``:
-        one Axes (dv), three, or None (a new figure)."""
+        one Axes (dv), three, or None (a new figure). ``transitions``: some rows of
+        ``paper_transitions`` to draw instead of all of them, e.g.
+        ``scan.plot(transitions=scan.paper_transitions.query("dE < -0.1"))``."""
         from labrig.model.scan.scan_summary import draw_fig4, paper_columns
 
+        if transitions is None:
+            columns = paper_columns(self.data)
+        else:
+            missing = [name for name in FIG4_COLUMNS if name not in transitions]
+            if missing:
+                raise InputError(
+                    f"transitions: no column {', '.join(missing)}; pass rows of "
+                    "scan.paper_transitions (or of scan.transitions)"
+                )
+            columns = {name: transitions[name].to_numpy() for name in FIG4_COLUMNS}
         axes, shown = panel_axes(ax, 3)
-        draw_fig4(axes, paper_columns(self.data))
+        draw_fig4(axes, columns)
         return shown
+
+    def actuator(self, row) -> Actuator:
+        """The actuator of one row of ``transitions``, ``paper_transitions`` or
+        ``table()`` (the row, e.g. ``scan.paper_transitions.loc[7]``, or its
+        ``actuator`` rank), as ``labrig.actuator`` builds it from the scanned segments'
+        names: ``scan.actuator(row).path()`` solves it again, with its whole path."""
+        from labrig.model.scan.plan import named_library
+        from labrig.model.scan.scan import combination_at
+
+        from .model import actuator
+
+        rank = row.get("actuator") if hasattr(row, "get") else row
+        if isinstance(rank, np.generic):
+            rank = rank.item()
+        if isinstance(rank, bool) or not isinstance(rank, int):
+            raise InputError(
+                f"row {rank!r}: a row of the scan's tables (with its 'actuator' column) "
+                "or an actuator's rank"
+            )
+        if not 0 <= rank < self.n_combinations:
+            raise InputError(
+                f"actuator {rank}: the scan's ranks are 0 to {self.n_combinations - 1}"
+            )
+        with open_readonly(self.path) as h5:
+            label = str(h5.attrs["library"])
+        names = [self.names[i] for i in combination_at(rank, len(self.names), self.n)]
+        if named_library(label) is None:  # a folder of measured curves: their CSV files
+            return actuator(*(Path(label) / f"{name}.csv" for name in names))
+        return actuator(*names)
+
+
+# what Fig. 4 draws of each transition
+FIG4_COLUMNS = ("direction", "alpha", "beta", "stable", "dE", "dv", "dl", "dp")

@@ -7,6 +7,12 @@ to load numba's compiled code, or 20-40 s to compile it on a fresh install
 so it is chosen here, before that import, unless the user chose (``LABRIG_JIT``) or the
 model is already loaded. The variable is set only for that import, so commands the
 notebook starts (a scan, which compiles) keep their own choice.
+
+So the mode follows what the API's calls cost, not what a notebook happened to import
+first: every entry that reaches the model calls ``prefer_plain_python`` before it
+imports anything of the model or the analysis (``open_run``, ``open_scan``, ``segment``,
+``Actuator.path``), and no module of ``labrig.api`` imports either at its top (the
+analysis's package imports its comparison with the model, and with it the solver).
 """
 
 from __future__ import annotations

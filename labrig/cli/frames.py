@@ -8,6 +8,7 @@ from pathlib import Path
 
 import click
 
+from labrig.cli.review import RunFileArgument
 from labrig.errors import InputError
 
 
@@ -24,7 +25,7 @@ def _volumes(text: str | None) -> list[float] | None:
 
 
 @click.command()
-@click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("file", type=RunFileArgument())
 @click.option("--at-transitions", is_flag=True, help="Before and after each measured transition.")
 @click.option("--at-volumes", metavar="V,V,...", help="Where the inflation reaches these mL.")
 @click.option("--repetition", type=int, help="Repetition for --at-volumes (default the last).")
@@ -35,15 +36,26 @@ def _volumes(text: str | None) -> list[float] | None:
     required=True,
     help="The strip image (PNG).",
 )
+@click.option(
+    "--overwrite",
+    is_flag=True,
+    help="Replace an HDF5 file (a run file) at the output path; without it one is refused.",
+)
 def frames(
-    file: Path, at_transitions: bool, at_volumes: str | None, repetition: int | None, out: Path
+    file: Path,
+    at_transitions: bool,
+    at_volumes: str | None,
+    repetition: int | None,
+    out: Path,
+    overwrite: bool,
 ) -> None:
     """Frames of the run's video as a strip: the paper's snapshot figures."""
     if at_transitions == (at_volumes is not None):
         raise InputError("labrig frames: give exactly one of --at-transitions and --at-volumes")
     volumes = _volumes(at_volumes)
-    if not out.parent.is_dir():
-        raise InputError(f"-o {out}: the folder {out.parent} does not exist")
+    from labrig.user_files import check_output_path
+
+    check_output_path(out, "-o", overwrite=overwrite)
     from labrig.analysis import frame_strip
     from labrig.analysis.runfile import load_run
 

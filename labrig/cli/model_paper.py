@@ -3,10 +3,10 @@
 ``paper`` prints every checkable statement of the paper (the constants it gives, Fig. 1C
 and D, Fig. S4's trends, Movies S3-S6, Fig. 3, Fig. 4) beside what a library gives:
 the paper's value, labrig's, the two-sided tolerance, whether it holds, its role (input,
-fitted, prediction) and, where it does not hold, what the model does instead.
+fitted, selected on, prediction) and, where it does not hold, what the model does instead.
 ``--library`` picks the library (``paper``, ``paper-r``, ``calibrated``, ``si``; the
 default library's otherwise), ``--si`` is ``--library si``. ``calibrate`` repeats the fit that
-produced the calibrated library (``labrig.model.paper.fit``) and prints the fitted
+produced the calibrated library (``labrig.paper.fit``) and prints the fitted
 constants and the objective; it changes nothing on disk.
 """
 
@@ -67,8 +67,9 @@ def _fitted(library: str) -> dict | None:
 def paper(as_json: bool, library: str | None, si: bool, plot_png: Path | None) -> None:
     """The paper's statements about its segments and actuators, and whether a segment
     library reproduces each (inputs, fitted ones and predictions)."""
-    from labrig.model.paper.statements import PEAK_RANGE_KPA, evaluate
     from labrig.model.segments.catalog import DEFAULT_LIBRARY, analytical_segment, library_names
+    from labrig.paper.checker import evaluate
+    from labrig.paper.statements import PEAK_RANGE_KPA
 
     if si and library not in (None, "si"):
         raise click.UsageError("--si is --library si: give one of them")
@@ -118,7 +119,7 @@ def paper(as_json: bool, library: str | None, si: bool, plot_png: Path | None) -
 def calibrate(max_evaluations: int, as_json: bool) -> None:
     """Fit the library's free constants to the paper's peak range and Movie S3
     (scipy.optimize, Nelder-Mead) from the current calibration; print the result."""
-    from labrig.model.paper.fit import fit
+    from labrig.paper.fit import fit
 
     def progress(calibration, value):
         if not as_json:

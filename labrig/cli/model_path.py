@@ -4,8 +4,9 @@ and its transitions, as a table, JSON or a plot.
 With ``--deflate`` the path is inflation to the end volume followed by deflation back to
 zero (the rig withdraws between repetitions, so the hysteresis matters): the path arrays
 run up and then down in volume, and every transition says in which direction it
-happened. The table counts transitions as the paper does (a peak crossing and the snap
-it sets off are one, ``labrig.model.actuator.paper_counting``); ``--json`` gives both the
+happened. The table counts transitions as the paper does (the events at one supplied
+volume are one, their relative changes compounded,
+``labrig.model.actuator.paper_counting``); ``--json`` gives both the
 path's events (``transitions``) and that counting (``paper_transitions``). Without
 ``--v-end-ml`` inflation ends where no further transition is possible
 (``labrig.model.actuator.path.default_end_volume_ml``).
@@ -54,8 +55,8 @@ def _table(names, found, v_end_ml: float, seconds: float) -> None:
     console = table_console()
     console.print(table)
     console.print(
-        f"{len(counted)} transitions as the paper counts them (a peak crossing and the snap "
-        f"it sets off are one; {len(found)} events); path computed in {seconds * 1e3:.1f} ms"
+        f"{len(counted)} transitions as the paper counts them (the events at one supplied "
+        f"volume are one; {len(found)} events); path computed in {seconds * 1e3:.1f} ms"
     )
 
 
@@ -80,7 +81,7 @@ def path(
 ) -> None:
     """The quasi-static path of the actuator made of the segments SEG (library names
     such as B46-T20, gent-a/b/c, or CSV files), with its transitions (as the paper
-    counts them: a peak crossing and the snap it sets off are one)."""
+    counts them: the events at one supplied volume are one)."""
     if len(segs) < 2:
         raise InputError(
             f"model path needs at least two segments, got {len(segs)}: e.g. B46-T20 B46-T22"

@@ -13,7 +13,11 @@ import threading
 
 import click
 
-from labrig.errors import InputError
+from labrig.errors import DeviceError, InputError
+
+# the emulator's user methods (labrig.sim.pump_methods), named here so that building the
+# command line imports no emulator
+METHOD_NAMES = ("prime", "rinse")
 
 BAUD_RATES = ("9600", "19200", "38400", "57600", "115200")
 # how often --wait asks the pump: a stall sends nothing by itself, so it is polled for
@@ -60,7 +64,10 @@ def pump(
     }
 
 
-def _open(ctx: click.Context):
+def _open(ctx: click.Context, *, take_control: bool = False):
+    """The pump on ``--port``. ``take_control`` (a manual run): a pump found moving is
+    stopped and said so, and put in Quick Start; without it (status, version, stop)
+    it is looked at as it is."""
     from labrig.drivers.phd_ultra import PhdUltra
 
     settings = ctx.obj
@@ -75,6 +82,7 @@ def _open(ctx: click.Context):
         address=settings["address"],
         address_form=settings["address_form"],
         timeout_s=settings["timeout_s"],
+        take_control=take_control,
     )
 
 
@@ -175,7 +183,7 @@ def _run(
     diameter_mm: float | None,
     wait: bool,
 ) -> None:
-    with _open(ctx) as driver:
+    with _open(ctx, take_control=True) as driver:  # a pump found moving: said in the log
         if diameter_mm is not None:
             driver.configure_syringe(diameter_mm, driver.syringe.volume_ml)
         driver.clear_volumes()
@@ -246,6 +254,23 @@ def _follow(driver) -> None:
     "N:cmd elsewhere) and ignore the others.",
 )
 @click.option("--infuse-only", is_flag=True, help="An infuse-only model: refuse withdraw commands.")
+@click.option(
+    "--no-direction",
+    is_flag=True,
+    help="Firmware whose 'metrics' has no Direction line (it does not say whether it withdraws).",
+)
+@click.option(
+    "--quick-start",
+    type=click.Choice(["i", "w", "iw", "wi"]),
+    default="iw",
+    show_default=True,
+    help="The Quick Start variant it was left in (i: infuse only, w: withdraw only).",
+)
+@click.option(
+    "--method",
+    type=click.Choice(sorted(METHOD_NAMES)),
+    help="A user method it was left in (started with 'run'; 'load qs iw' leaves it).",
+)
 @click.pass_context
 def emulate(
     ctx: click.Context,
@@ -255,6 +280,9 @@ def emulate(
     poll: str,
     strict_address: bool,
     infuse_only: bool,
+    no_direction: bool,
+    quick_start: str,
+    method: str | None,
 ) -> None:
     """Serve an emulated PHD ULTRA on a pseudo-terminal.
 
@@ -288,14 +316,20 @@ def emulate(
         poll_mode=poll,
         strict_address_form=REAL_ADDRESSING if strict_address else None,
         infuse_only=infuse_only,
+        metrics_direction=not no_direction,
+        quick_start=quick_start,
+        method=method,
     ) as emulator:
         click.echo(emulator.port)
         click.echo(
             f"PHD ULTRA emulator at address {address}, clock x{speed:g}; Ctrl-C stops it", err=True
         )
         try:
-            while not done.wait(0.5):
+            while emulator.serving and not done.wait(0.5):
                 pass
         except KeyboardInterrupt:
             pass
+        if not emulator.serving and not done.is_set():
+            # never a process that says it serves a port that is gone
+            raise DeviceError(f"the emulator stopped serving {emulator.port}")
     click.echo("emulator stopped", err=True)

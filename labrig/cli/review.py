@@ -15,7 +15,25 @@ import click
 
 from labrig.errors import InputError
 
-FILE = click.Path(dir_okay=False, path_type=Path)
+
+class RunFileArgument(click.Path):
+    """A run file named on the command line, walked by a watched child process
+    (``labrig.recording.file_check``) as soon as it is read, before the command loads
+    its analysis (seconds of imports): a damaged file is answered at once."""
+
+    def __init__(self) -> None:
+        super().__init__(dir_okay=False, path_type=Path)
+
+    def convert(self, value, param, ctx):
+        path = super().convert(value, param, ctx)
+        if path.is_file():  # a missing file, a pipe: the command's own reading says so
+            from labrig.recording.file_check import check_file
+
+            check_file(path)
+        return path
+
+
+FILE = RunFileArgument()
 
 
 def _console():
@@ -97,14 +115,19 @@ def show(file: Path) -> None:
     required=True,
     help="The image to write (PNG; the suffix picks the format).",
 )
-def plot(file: Path, out: Path) -> None:
+@click.option(
+    "--overwrite",
+    is_flag=True,
+    help="Replace an HDF5 file (a run file) at the output path; without it one is refused.",
+)
+def plot(file: Path, out: Path, overwrite: bool) -> None:
     """Plot a run as in the paper's Figure 2C: mean p-v and l-v with their spread, each
     repetition faint, the model dashed, the transitions marked."""
-    from labrig.analysis.plot import plot_run
-
-    if not out.parent.is_dir():
-        raise InputError(f"-o {out}: the folder {out.parent} does not exist")
     from labrig.analysis.experiments import force_for_run
+    from labrig.analysis.plot import plot_run
+    from labrig.user_files import check_output_path
+
+    check_output_path(out, "-o", overwrite=overwrite)
 
     record, result, stored = load(file)
     _warn_open(record)
@@ -126,13 +149,22 @@ def plot(file: Path, out: Path) -> None:
     required=True,
     help="Folder for the CSV files (created if needed).",
 )
-def export(file: Path, directory: Path) -> None:
+@click.option(
+    "--overwrite",
+    is_flag=True,
+    help="Replace an HDF5 file (a run file) among the CSV files' names; without it one is refused.",
+)
+def export(file: Path, directory: Path, overwrite: bool) -> None:
     """Export a run's raw series and its averaged curves as CSV (units in the column
     names)."""
     from labrig.analysis.export import export_csv
+    from labrig.user_files import check_output_path, check_shown_name
 
     if directory.exists() and not directory.is_dir():
         raise InputError(f"--csv {directory}: exists and is not a folder")
+    check_shown_name(directory, "--csv")
+    for old in sorted(directory.glob("*.csv")) if directory.is_dir() else ():
+        check_output_path(old, "--csv", overwrite=overwrite)  # its names are rewritten
     record, result, stored = load(file)
     _warn_open(record)
     written = export_csv(record, result, directory)

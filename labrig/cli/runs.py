@@ -64,21 +64,33 @@ def _table(rows: list[dict]):
     type=click.Path(dir_okay=False, path_type=Path),
     help="Write the table as CSV (one row per run, every column).",
 )
-def runs(runs: tuple[str, ...], as_json: bool, csv_path: Path | None) -> None:
+@click.option(
+    "--overwrite",
+    is_flag=True,
+    help="Replace an HDF5 file (a run file) at the output path; without it one is refused.",
+)
+def runs(runs: tuple[str, ...], as_json: bool, csv_path: Path | None, overwrite: bool) -> None:
     """A campaign as one table: each run file's protocol, specimen, seed, date and
     outcome, and each snap the model predicts (counted as the paper counts them, as in
     compare --json's paper_transitions) with its volume, dp and dl beside the model's
     and the error."""
-    from labrig.api.campaign import campaign_rows
+    from labrig.api.campaign import campaign_rows, run_files
     from labrig.errors import InputError
+    from labrig.recording.file_check import check_files
+    from labrig.user_files import check_output_path
 
-    if csv_path is not None and not csv_path.parent.is_dir():
-        raise InputError(f"--csv {csv_path}: the folder {csv_path.parent} does not exist")
+    if csv_path is not None:
+        check_output_path(csv_path, "--csv", overwrite=overwrite)
+    # every file walked by one watched child first: a damaged one becomes its row's error
+    check_files(run_files(list(runs)))
     rows = campaign_rows(list(runs))
     if csv_path is not None:
         import pandas as pd
 
-        pd.DataFrame(rows).to_csv(csv_path, index=False)
+        try:
+            pd.DataFrame(rows).to_csv(csv_path, index=False)
+        except OSError as exc:
+            raise InputError(f"--csv {csv_path}: cannot write it ({exc.strerror})") from None
     if as_json:
         click.echo(json.dumps({"runs": rows}))
         return

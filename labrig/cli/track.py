@@ -26,8 +26,17 @@ CSV_HEADER = "t_s,x1_px,y1_px,x2_px,y2_px,length_mm,ok"
     type=click.Path(dir_okay=False, path_type=Path),
     help="Write the CSV here (default: standard output).",
 )
+@click.option(
+    "--overwrite",
+    is_flag=True,
+    help="Replace an HDF5 file (a run file) at the output path; without it one is refused.",
+)
 def track(
-    video: Path, mm_per_px: float | None, reference_distance_mm: float | None, out: Path | None
+    video: Path,
+    mm_per_px: float | None,
+    reference_distance_mm: float | None,
+    out: Path | None,
+    overwrite: bool,
 ) -> None:
     """Track the two markers in VIDEO and write the specimen's length for every frame.
 
@@ -39,6 +48,10 @@ def track(
 
     if (mm_per_px is None) == (reference_distance_mm is None):
         raise InputError("track: give exactly one of --mm-per-px S and --reference-distance-mm D")
+    if out is not None:
+        from labrig.user_files import check_output_path
+
+        check_output_path(out, "--out", overwrite=overwrite)
     started = time.perf_counter()
     length = CameraLength(
         FrameSource.open_file(video),

@@ -24,6 +24,7 @@ import numpy as np
 from labrig.config.protocol import Protocol, parse_protocol, plan
 from labrig.errors import InputError
 from labrig.live.state import FINAL_STATUSES, LiveState, Step
+from labrig.recording.file_check import check_file
 from labrig.recording.run_layout import LOG_FIELDS, repetition_name
 from labrig.recording.run_reader import decode
 
@@ -35,17 +36,22 @@ def open_growing(path: Path, wait_s: float = 5.0) -> h5py.File:
     """The run file opened for reading while another process may be writing it. A
     file just created is locked until its writer switches to SWMR: tried for
     ``wait_s``."""
-    if not path.is_file():
+    if not path.exists():
         raise InputError(f"{path}: no such file")
+    if not path.is_file():  # HDF5 would wait forever on a pipe's open
+        raise InputError(f"{path}: not a regular file (a folder, a device or a pipe)")
     deadline = time.monotonic() + wait_s
     while True:
         try:
+            check_file(path)  # a damaged file is walked by a watched child first
             # no file lock: the writer reopens the file for its analysis once the run
             # has ended, and must not find it locked by a reader that has not yet seen
             # the end (SWMR itself needs no lock on the reader's side)
             return h5py.File(path, "r", libver="latest", swmr=True, locking=False)
-        except OSError as exc:
+        except (OSError, InputError) as exc:
             if time.monotonic() > deadline:
+                if isinstance(exc, InputError):
+                    raise
                 raise InputError(
                     f"{path}: cannot be read while it is recorded ({exc}); a labrig run "
                     "file is written by `labrig run`"

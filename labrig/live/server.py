@@ -71,9 +71,10 @@ class _Handler(BaseHTTPRequestHandler):
         self._answer(head=False)
 
     def _host_allowed(self) -> bool:
-        host = self.headers.get("Host")
-        if host is None:
+        hosts = self.headers.get_all("Host") or []
+        if len(hosts) != 1:  # none, or two that a proxy and this server might read apart
             return False
+        host = hosts[0]
         port = str(self.server.server_address[1])
         names = {"localhost", "127.0.0.1", "[::1]", self.server.server_address[0]}
         allowed = names | {f"{name}:{port}" for name in names}

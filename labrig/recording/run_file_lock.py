@@ -6,11 +6,24 @@ file before it asks for that lock (another program holding the file open found i
 emptied), and a writer in single-writer/multiple-reader (SWMR) mode gives the lock up
 so that readers can follow the file as it grows (a second run then wrote into the first
 one's file).
-So a run, and ``labrig recover``, take labrig's own lock on a sidecar, ``RUN.h5.lock``:
-an OS lock (``flock`` on POSIX, ``msvcrt.locking`` on Windows) that the kernel drops
-however the process ends, so a killed run leaves no lock that holds, at most the empty
-sidecar, which the next holder takes over and removes. Readers (``show``, ``watch``, the
-live page) never take it: they open a live file in SWMR read mode.
+So a run, and ``labrig recover``, take labrig's own locks, OS locks that the kernel
+drops however the process ends (a killed run leaves no lock that holds):
+
+- on the name, a sidecar ``RUN.h5.lock`` (``flock``; ``msvcrt.locking`` on Windows),
+  from before the file exists: two runs told the same ``--out`` never both create it.
+  It also says who holds the file. A killed run leaves at most the empty sidecar,
+  which the next holder takes over and removes.
+- on the file itself, a lock on one byte far past its end, taken as the run creates
+  the file and held until it is closed. It belongs to the file (its device and inode),
+  not to a name: a symlink, a hard link or a removed sidecar reaches the same lock.
+  On Linux it is an open file description lock (``F_OFD_SETLK``): it belongs to the
+  open file, so HDF5 opening and closing the same file in this process cannot drop it
+  (a POSIX record lock elsewhere, which can), and it never meets HDF5's own ``flock``,
+  which readers of a live file (``h5py`` with its defaults) must still get. Windows
+  has the sidecar alone: its byte locks are mandatory, and it moves no open file.
+
+Readers (``show``, ``watch``, the live page) take neither: they open a live file in
+SWMR read mode.
 
 Another program holding the file open (h5py, HDFView) holds HDF5's lock on the file
 itself, shared for a reader; ``refuse_if_open_elsewhere`` asks for that lock before the
@@ -22,6 +35,8 @@ from __future__ import annotations
 import contextlib
 import datetime as dt
 import os
+import stat
+import struct
 from pathlib import Path
 
 from labrig.errors import InputError
@@ -35,6 +50,8 @@ except ImportError:  # Windows
 # Windows locks a byte range, and a locked range cannot be read: the lock sits past the
 # holder's line so that a refused process can still read who holds it
 _WINDOWS_LOCK_OFFSET = 1 << 20
+# the byte of the run file that is locked: past the end of any file, so no read meets it
+_FILE_LOCK_OFFSET = 1 << 62
 
 
 def lock_path(run_path: Path) -> Path:
@@ -55,20 +72,97 @@ def _try_lock(fd: int) -> bool:
     return True
 
 
+def _flock_struct(kind: int) -> bytes:
+    """A ``struct flock`` for the one byte at ``_FILE_LOCK_OFFSET`` (pid 0, as an open
+    file description lock asks)."""
+    return struct.pack("hhqqi4x", kind, os.SEEK_SET, _FILE_LOCK_OFFSET, 1, 0)
+
+
+def _lock_file(fd: int, writable: bool) -> bool:
+    """Lock the file open at ``fd`` itself, without waiting; False if another holds it.
+    A file open only for reading gets a shared lock, which a writer's refuses too."""
+    if fcntl is None:  # Windows: the sidecar alone (Windows moves no open file anyway)
+        return True
+    try:
+        if hasattr(fcntl, "F_OFD_SETLK"):
+            kind = fcntl.F_WRLCK if writable else fcntl.F_RDLCK
+            fcntl.fcntl(fd, fcntl.F_OFD_SETLK, _flock_struct(kind))
+        else:  # a POSIX record lock: held while this process keeps every handle open
+            mode = fcntl.LOCK_EX if writable else fcntl.LOCK_SH
+            fcntl.lockf(fd, mode | fcntl.LOCK_NB, 1, _FILE_LOCK_OFFSET)
+    except OSError:
+        return False
+    return True
+
+
+def _file_locked_elsewhere(path: Path) -> bool:
+    """Whether another open file holds the lock of the file at ``path`` (asked without
+    taking it)."""
+    if fcntl is None or not hasattr(fcntl, "F_OFD_GETLK"):
+        # asking a POSIX record lock from this process would drop its own: the sidecar says
+        return False
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError:
+        return False
+    try:
+        answer = fcntl.fcntl(fd, fcntl.F_OFD_GETLK, _flock_struct(fcntl.F_WRLCK))
+        return struct.unpack("hhqqi4x", answer)[0] != fcntl.F_UNLCK
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
+
+
 class RunFileLock:
-    """The sidecar lock of one run file, held by this process from ``acquire`` to
-    ``release`` (also a context manager). ``purpose`` ("run", "recover", ...) is written
-    into the sidecar so that a refused process can say who holds the file."""
+    """The locks of one run file, its name's (the sidecar) and the file's own, held by
+    this process from ``acquire`` (or ``create_file``) to ``release`` (also a context
+    manager). ``purpose`` ("run", "recover", ...) is written into the sidecar so that a
+    refused process can say who holds the file."""
 
     def __init__(self, run_path: str | Path, purpose: str) -> None:
         self.run_path = Path(run_path)
         self.path = lock_path(self.run_path)
         self.purpose = purpose
         self._fd: int | None = None
+        self._file_fd: int | None = None  # the run file, locked itself
 
     def acquire(self, refusal: str) -> RunFileLock:
-        """Take the lock, or InputError: the run file, who holds it and ``refusal``
-        (what to do about it)."""
+        """Take the lock of the name and, when the run file exists, of the file; or
+        InputError: the run file, who holds it and ``refusal`` (what to do about it)."""
+        self._acquire_name(refusal)
+        nonblocking = getattr(os, "O_NONBLOCK", 0)  # a pipe's open would wait
+        for flags in (os.O_RDWR, os.O_RDONLY):
+            try:
+                fd = os.open(self.run_path, flags | nonblocking)
+            except OSError:
+                continue
+            if stat.S_ISREG(os.fstat(fd).st_mode):
+                self._hold_file(fd, refusal, writable=flags == os.O_RDWR)
+            else:
+                os.close(fd)  # a device or a folder: its user says what is wrong
+            break
+        return self  # no file yet, or none that can be opened: its user says why
+
+    def create_file(self, refusal: str) -> None:
+        """Create the run file empty and lock it (under the name's lock);
+        FileExistsError if a file is already there."""
+        fd = os.open(self.run_path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644)
+        self._hold_file(fd, refusal, writable=True)
+
+    def _hold_file(self, fd: int, refusal: str, *, writable: bool) -> None:
+        if not _lock_file(fd, writable):
+            os.close(fd)
+            self.release()
+            raise InputError(
+                f"{self.run_path}: a labrig process holds this file (a run writing it, or a "
+                f"recover), under this name or another; {refusal}"
+            )
+        if self._file_fd is not None:
+            os.close(self._file_fd)
+        self._file_fd = fd
+
+    def _acquire_name(self, refusal: str) -> None:
         while True:
             try:
                 fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
@@ -92,7 +186,6 @@ class RunFileLock:
         os.lseek(fd, 0, os.SEEK_SET)  # Windows' lock moved the position
         os.write(fd, f"{os.getpid()} {self.purpose}\n".encode())
         self._fd = fd
-        return self
 
     def _holder(self) -> str:
         """Who holds the lock, as the holder wrote it."""
@@ -107,7 +200,11 @@ class RunFileLock:
         return f"another labrig process holds its lock ({self.path})"
 
     def release(self) -> None:
-        """Let go (idempotent): the sidecar is removed while still locked, then closed."""
+        """Let go (idempotent): the file's lock, then the sidecar, removed while still
+        locked, then closed."""
+        if self._file_fd is not None:
+            fd, self._file_fd = self._file_fd, None
+            os.close(fd)
         if self._fd is None:
             return
         fd, self._fd = self._fd, None
@@ -128,9 +225,11 @@ class RunFileLock:
 
 
 def held_by_a_process(run_path: Path) -> bool:
-    """Whether a live process holds ``run_path``'s sidecar lock (a run writing it, or a
-    recover), asked without creating or writing anything: a sidecar left by a killed
-    run locks nothing, so a killed run's file reads as not held."""
+    """Whether a live process holds ``run_path``'s lock, of the file itself (reached by
+    any name) or of its name (a run writing it, or a recover), asked without creating or
+    writing anything: a killed run's locks went with it, so its file reads as not held."""
+    if _file_locked_elsewhere(Path(run_path)):
+        return True
     try:
         fd = os.open(lock_path(Path(run_path)), os.O_RDWR)
     except OSError:
@@ -195,10 +294,25 @@ def replaced_path(path: Path, stamp: str) -> Path:
     counter if that is taken."""
     candidate = path.with_name(f"{path.stem}.replaced-{stamp}{path.suffix}")
     counter = 2
-    while candidate.exists() or candidate.with_suffix(".avi").exists():
+    # lexists: a link there, even a dangling one, is a name taken (rename replaces it)
+    while os.path.lexists(candidate) or os.path.lexists(candidate.with_suffix(".avi")):
         candidate = path.with_name(f"{path.stem}.replaced-{stamp}-{counter}{path.suffix}")
         counter += 1
     return candidate
+
+
+def check_run_name(path: Path) -> None:
+    """InputError unless ``path`` can name a run file: plain text, and not a name of
+    the run's other outputs (its video ``RUN.avi``, its lock ``RUN.h5.lock``), which
+    would then be one file."""
+    from labrig.user_files import check_shown_name
+
+    check_shown_name(path, "--out")
+    if path.suffix.lower() in (".avi", ".lock"):
+        raise InputError(
+            f"{path}: a run file's name cannot end in {path.suffix}: the run's video is "
+            "RUN.avi and its lock RUN.h5.lock beside it; give a name ending in .h5"
+        )
 
 
 def claim_out_path(path: Path, *, overwrite: bool) -> list[str]:
@@ -210,6 +324,7 @@ def claim_out_path(path: Path, *, overwrite: bool) -> list[str]:
     and creates the file only if it is still absent: a run started meanwhile onto the
     same path makes this one stop with one line, and nothing is lost.
     """
+    check_run_name(path)
     video = path.with_suffix(".avi")  # where the run records its video, if it does
     advice = "choose another --out"
     try:

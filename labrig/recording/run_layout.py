@@ -1,6 +1,10 @@
 """The run file's layout, shared by the writer and every reader: the NXlog fields
 with their dtypes and units, the fixed sizes of status strings, and group names."""
 
+# 48 kS/s, the USB-6009's fastest, for 87 minutes: more is no run of this rig, and
+# 2e9 values (16 GB) would be asked of memory before anything could say so
+MAX_DATASET_VALUES = 250_000_000
+
 STATUS_SIZE = 16
 REASON_SIZE = 512
 TIME_SIZE = 32

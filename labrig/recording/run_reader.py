@@ -10,11 +10,8 @@ import h5py
 import numpy as np
 
 from labrig.errors import InputError
-from labrig.recording.run_layout import repetition_name
-
-# 48 kS/s, the USB-6009's fastest, for 87 minutes: more is no run of this rig, and
-# 2e9 values (16 GB) would be asked of memory before anything could say so
-MAX_DATASET_VALUES = 250_000_000
+from labrig.recording.file_check import check_file
+from labrig.recording.run_layout import MAX_DATASET_VALUES, repetition_name
 
 
 @dataclass(frozen=True)
@@ -41,6 +38,7 @@ def open_run(path: str | Path, *, locking: bool = True) -> h5py.File:
         raise InputError(f"{path}: no such file")
     if not path.is_file():  # HDF5 would wait forever on a pipe's open
         raise InputError(f"{path}: not a regular file (a folder, a device or a pipe)")
+    check_file(path)  # a damaged file is walked by a watched child first
     # HDF5's default, not an explicit True: another handle of this process on the file
     # (the writer's) must have been opened with the same locking flags
     lock = {} if locking else {"locking": False}
@@ -66,6 +64,16 @@ def read_values(dataset: h5py.Dataset, where: str):
         raise InputError(
             f"{where}: {dataset.name}: {dataset.size} values do not fit in memory"
         ) from None
+
+
+def read_rows(dataset: h5py.Dataset, first: int, last: int, where) -> np.ndarray:
+    """Rows ``first`` to ``last`` of a dataset; InputError for more than any run holds."""
+    if last - first > MAX_DATASET_VALUES:
+        raise InputError(
+            f"{where}: {dataset.name}: {last - first} rows asked for, more than the "
+            f"{MAX_DATASET_VALUES} of any run of this rig (ask for a window: start_s, stop_s)"
+        )
+    return dataset[first:last]
 
 
 def read_log(run: h5py.File, repetition: int, log: str) -> LogSeries:

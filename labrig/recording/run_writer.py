@@ -21,19 +21,24 @@ does not exist, and holds the lock until the file is closed, SWMR or not.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
+import logging
+import os
 import platform
+import re
 import subprocess
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-import labrig
-from labrig.errors import InputError
+from labrig._version import __version__
+from labrig.errors import InputError, LabrigError
+from labrig.recording.file_check import vouch_for
 from labrig.recording.run_file_lock import RunFileLock
 from labrig.recording.run_layout import (
     CAMERA_FIELDS,
@@ -49,10 +54,19 @@ from labrig.recording.run_layout import (
     VIDEO_FIELDS,
     repetition_name,
 )
+from labrig.recording.unwritable import abandon, quiet_h5py_frees
+
+log = logging.getLogger(__name__)
 
 
 def _now_iso() -> str:
     return dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
+
+
+def _storable(name: str) -> str:
+    """A file name as HDF5 can store it: a byte of the name that is not UTF-8 (Python
+    keeps it as a lone surrogate) is written as its escape, ``\\xff``."""
+    return name.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
 
 
 def _git_commit() -> str:
@@ -60,7 +74,7 @@ def _git_commit() -> str:
     try:
         out = subprocess.run(
             ["git", "rev-parse", "HEAD"],
-            cwd=Path(labrig.__file__).parent,
+            cwd=Path(__file__).parent,
             capture_output=True,
             text=True,
             timeout=5,
@@ -76,7 +90,7 @@ def versions() -> dict[str, str]:
     import scipy
 
     return {
-        "labrig": labrig.__version__,
+        "labrig": __version__,
         "git_commit": _git_commit(),
         "python": platform.python_version(),
         "numpy": np.__version__,
@@ -84,6 +98,11 @@ def versions() -> dict[str, str]:
         "h5py": h5py.__version__,
         "hdf5": h5py.version.hdf5_version,
     }
+
+
+class RunFileFailed(LabrigError):
+    """The run file could not be written (a full disk, the file removed): the run is
+    faulted, and never reported complete."""
 
 
 class RunWriter:
@@ -114,6 +133,7 @@ class RunWriter:
         video_file: str | None = None,
         flush_interval_s: float = 0.5,
         tap: Callable[[int, str, dict[str, np.ndarray]], None] | None = None,
+        pump_identity: Mapping[str, str] | None = None,
     ) -> None:
         self.path = Path(path)
         # sees every append (repetition, log, columns) as written: the live view's feed
@@ -131,35 +151,54 @@ class RunWriter:
         self.with_events = with_events
         self.simulated_segments = simulated_segments
         self.video_file = video_file
+        # who the pump is, as connect read it (``/entry/pump_identity``); empty: none
+        self.pump_identity = dict(pump_identity or {})
         self.flush_interval_s = flush_interval_s
         self._lock = threading.Lock()
         self._closed = False
+        self._failure = ""  # why the file could not be written, once it could not
+        self._unwritable = False  # HDF5 failed to write it: never to be closed
         # rows appended since the last write, per group path, in arrival order
         self._pending: dict[str, list[dict[str, np.ndarray]]] = {}
         self._datasets: dict[tuple[str, str], h5py.Dataset] = {}
         self._claim = RunFileLock(self.path, "run").acquire("choose another --out")
         created: h5py.File | None = None
         try:
-            self._file = created = self._create_file()
+            self._claim_new_file()
+        except BaseException:
+            self._claim.release()
+            raise
+        try:
+            there = os.stat(self.path)
+            self._identity = (there.st_dev, there.st_ino)
+            self._file = created = self._open_new_file()
             self._create_layout(title, protocol_text, protocol_path, rig_config_text)
             self._file.swmr_mode = True
         except BaseException:
-            if created is not None:  # this writer's own new file, half laid out
+            if created is not None:
                 created.close()
-                self.path.unlink(missing_ok=True)
+            self.path.unlink(missing_ok=True)  # this writer's own new file, half laid out
             self._claim.release()
             raise
         self._last_flush = time.monotonic()
 
-    def _create_file(self) -> h5py.File:
-        """The new, empty file (under the lock); InputError if one is already there."""
+    def _claim_new_file(self) -> None:
+        """The new, empty file, made and locked itself (under the name's lock);
+        InputError if one is already there."""
         try:
-            return h5py.File(self.path, "x", libver="latest")
+            self._claim.create_file("choose another --out")
         except FileExistsError:
             raise InputError(
                 f"{self.path}: a file is already there; a run never writes over one "
                 "(labrig run --overwrite moves it aside first)"
             ) from None
+        except OSError as exc:
+            raise InputError(f"{self.path}: cannot create the run file ({exc.strerror})") from None
+
+    def _open_new_file(self) -> h5py.File:
+        """HDF5's handle on the file just made, still empty."""
+        try:
+            return h5py.File(self.path, "w", libver="latest")
         except OSError as exc:
             raise InputError(f"{self.path}: cannot create the run file ({exc})") from None
 
@@ -171,7 +210,7 @@ class RunWriter:
         f.attrs.update(
             NX_class="NXroot",
             default="entry",
-            creator=f"labrig {labrig.__version__}",
+            creator=f"labrig {__version__}",
             file_time=_now_iso(),
         )
         entry = f.create_group("entry")
@@ -184,12 +223,21 @@ class RunWriter:
         # False until the run's last stop is confirmed: a killed run confirmed none
         entry["pump_stop_confirmed"] = False
         protocol = entry.create_dataset("protocol", data=protocol_text)
-        protocol.attrs["source_file"] = protocol_path
+        protocol.attrs["source_file"] = _storable(protocol_path)
         entry["rig_config"] = rig_config_text
         version_group = entry.create_group("versions")
         version_group.attrs["NX_class"] = "NXcollection"
         for name, value in versions().items():
             version_group[name] = value
+        if self.pump_identity:
+            pump = entry.create_group("pump_identity")
+            pump.attrs.update(
+                NX_class="NXcollection",
+                description="the pump as its connection found it ('version' reply, and "
+                "what it was doing then)",
+            )
+            for name, text in self.pump_identity.items():
+                pump[name] = text
         zero = entry.create_group("zero")
         zero.attrs["NX_class"] = "NXcollection"
         zero.create_dataset("offset_kpa", data=np.nan).attrs["units"] = "kPa"
@@ -233,7 +281,7 @@ class RunWriter:
             video = self._create_log(entry, "video", VIDEO_FIELDS)
             video.attrs.update(
                 description="time of each frame of the run's video, in the video's order",
-                file=self.video_file,
+                file=_storable(self.video_file),
             )
 
     @staticmethod
@@ -273,7 +321,8 @@ class RunWriter:
             if self._closed:
                 raise RuntimeError(f"{self.path}: the run file is already closed")
             self._pending.setdefault(where, []).append(rows)
-            self._flush_if_due()
+            with self._io():
+                self._flush_if_due()
         return rows
 
     def _write_pending(self) -> None:
@@ -360,7 +409,7 @@ class RunWriter:
 
     # --- status ----------------------------------------------------------------------
     def set_zero_offset(self, offset_kpa: float) -> None:
-        with self._lock:
+        with self._lock, self._io():
             self._file["entry/zero/offset_kpa"][()] = offset_kpa
             self._flush_if_due(force=True)
 
@@ -368,7 +417,7 @@ class RunWriter:
         """The camera's real frame rate over the run (None: fewer than two frames)."""
         if not self.with_length:
             raise ValueError("this run was created without a camera")
-        with self._lock:
+        with self._lock, self._io():
             self._file["entry/camera/measured_fps"][()] = np.nan if fps is None else fps
             self._flush_if_due(force=True)
 
@@ -383,7 +432,7 @@ class RunWriter:
     ) -> None:
         if status not in REPETITION_STATUSES:
             raise ValueError(f"unknown repetition status {status!r}")
-        with self._lock:
+        with self._lock, self._io():
             reps = self._file["entry/repetitions"]
             i = repetition - 1
             reps["status"][i] = status.encode()
@@ -395,12 +444,13 @@ class RunWriter:
             self._flush_if_due(force=True)
 
     def flush(self) -> None:
-        with self._lock:
+        with self._lock, self._io():
             self._flush_if_due(force=True)
 
     def _flush_if_due(self, force: bool = False) -> None:
         now = time.monotonic()
         if force or now - self._last_flush >= self.flush_interval_s:
+            self._check_still_there()
             self._write_pending()
             self._file.flush()
             self._last_flush = now
@@ -408,30 +458,90 @@ class RunWriter:
     def finalise(self, status: str, reason: str = "", *, pump_stop_confirmed: bool = True) -> None:
         """Record how the run ended and close the file cleanly (idempotent).
         ``pump_stop_confirmed``: False when the pump never confirmed the run's last
-        stop (it may still be moving)."""
+        stop (it may still be moving). RunFileFailed (after letting go of the file) if
+        it could not be written or is gone: a file HDF5 failed to write is left as of
+        its last good flush, flagged open like a killed run's (``labrig recover``)."""
         if status not in RUN_STATUSES[1:]:
             raise ValueError(f"a run ends complete, aborted or faulted, not {status!r}")
         with self._lock:
             if self._closed:
                 return
-            self._write_pending()
-            entry = self._file["entry"]
-            entry["status"][()] = status.encode()
-            entry["reason"][()] = reason.encode()[:REASON_SIZE]
-            entry["pump_stop_confirmed"][()] = pump_stop_confirmed
-            entry["end_time"][()] = _now_iso().encode()
-            reps = entry["repetitions"]
-            states = reps["status"][:]
-            for i, state in enumerate(states):
-                # a repetition still running when the run stopped shares the run's fate
-                if state == b"running":
-                    reps["status"][i] = b"complete" if status == "complete" else status.encode()
-                    reps["reason"][i] = reason.encode()[:REASON_SIZE]
-            self._file.flush()
-            self._file.close()
-            self._closed = True
-            self._claim.release()
+            try:
+                with self._io():
+                    if not self._unwritable:  # a file that failed once fails again
+                        self._write_end(status, reason, pump_stop_confirmed)
+                        self._file.close()
+            except RunFileFailed:
+                pass  # remembered in _failure
+            finally:
+                if self._unwritable:
+                    self._abandon()
+                self._closed = True
+                self._claim.release()
+            with contextlib.suppress(RunFileFailed):  # remembered in _failure
+                self._check_still_there()
+        if self._failure:
+            raise RunFileFailed(self._failure)
+        vouch_for(self.path)  # written here: no reader needs to walk it first
 
     @property
     def closed(self) -> bool:
         return self._closed
+
+    def _write_end(self, status: str, reason: str, pump_stop_confirmed: bool) -> None:
+        self._write_pending()
+        entry = self._file["entry"]
+        entry["status"][()] = status.encode()
+        entry["reason"][()] = reason.encode()[:REASON_SIZE]
+        entry["pump_stop_confirmed"][()] = pump_stop_confirmed
+        entry["end_time"][()] = _now_iso().encode()
+        reps = entry["repetitions"]
+        states = reps["status"][:]
+        for i, state in enumerate(states):
+            # a repetition still running when the run stopped shares the run's fate
+            if state == b"running":
+                reps["status"][i] = b"complete" if status == "complete" else status.encode()
+                reps["reason"][i] = reason.encode()[:REASON_SIZE]
+        self._file.flush()
+
+    # --- a file that cannot be written --------------------------------------------------
+    @contextlib.contextmanager
+    def _io(self) -> Iterator[None]:
+        """HDF5's failure to write (a full disk, a file size limit, a device gone) as
+        one line, remembered: the run is faulted by it and the end reports it."""
+        try:
+            yield
+        except (OSError, RuntimeError) as exc:
+            if isinstance(exc, RunFileFailed):
+                raise
+            quiet_h5py_frees()
+            found = re.search(r"errno = (\d+)", str(exc))
+            errno = getattr(exc, "errno", None) or (int(found.group(1)) if found else None)
+            why = os.strerror(errno) if errno else "HDF5 could not write it"
+            message = f"{self.path}: cannot write the run file ({why}); it holds what was "
+            message += "written before"
+            self._failure = self._failure or message
+            self._unwritable = True
+            raise RunFileFailed(message) from None
+
+    def _check_still_there(self) -> None:
+        """RunFileFailed once the path no longer names the file written (removed, its
+        folder deleted): writing on would go on into a file nobody can open."""
+        try:
+            there = os.stat(self.path)
+        except OSError:
+            there = None
+        if there is None or (there.st_dev, there.st_ino) != self._identity:
+            message = (
+                f"{self.path}: the run file is gone (removed, or its folder deleted, while the "
+                "run wrote it); what it held is lost"
+            )
+            self._failure = self._failure or message
+            raise RunFileFailed(message)
+
+    def _abandon(self) -> None:
+        """Let go of a file HDF5 cannot write, without closing it
+        (``labrig.recording.unwritable``); on disk it is as of its last good flush,
+        consistent (SWMR)."""
+        abandon(self._file.id, *(d.id for d in self._datasets.values()))
+        self._datasets.clear()

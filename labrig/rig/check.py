@@ -125,6 +125,9 @@ def check_pump(
             address_form=config.address_form,
             clock=clock,
             timeout_s=timeout_s,
+            # a pre-flight check moves nothing: it neither stops a running pump nor
+            # changes its mode (a run does both, and says so)
+            take_control=False,
         )
     except PumpPortError as exc:
         return DeviceCheck(
@@ -211,6 +214,15 @@ def _pump_found(pump, config: PumpConfig, port: str, expected: str) -> DeviceChe
     if state == "stalled":
         return DeviceCheck(
             "pump", False, found, "an idle pump", "the stall alarm: clear it on the pump"
+        )
+    if state in ("infusing", "withdrawing"):
+        return DeviceCheck(
+            "pump",
+            False,
+            found,
+            "an idle pump",
+            "what is driving it (another program, a run left going): a run would stop it; "
+            f"stop it on the pump's panel or with `labrig pump --port {port} stop`",
         )
     return DeviceCheck("pump", True, found)
 

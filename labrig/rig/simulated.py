@@ -38,7 +38,9 @@ SIM_CAMERA_SIZE = (640, 360)
 SIM_RECONNECT_S = 2.0
 
 
-def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
+def build_simulated_rig(protocol: Protocol, config: RigConfig, before_connect=None) -> Rig:
+    """The simulated rig; ``before_connect(emulator)`` leaves the emulated pump in a
+    state of its own before the driver connects (running, in a method: tests, soak)."""
     from labrig.drivers.camera import CameraLength, FrameSource
     from labrig.drivers.ni_daq import NiDaqPressure
     from labrig.drivers.phd_ultra import PhdUltra
@@ -98,6 +100,8 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig) -> Rig:
         stack.callback(link_dir.rmdir)
         emulator.start()
         stack.callback(emulator.close)
+        if before_connect is not None:
+            before_connect(emulator)
         pump = PhdUltra.open(
             emulator.port,
             address=config.pump.address,

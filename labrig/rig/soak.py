@@ -8,10 +8,14 @@ sensor, a specimen that bursts, a DAQ that stalls or is unplugged, a pump whose 
 line dies mid-reply or as its stop arrives, a pump that drops off USB and
 re-enumerates, a camera whose frames stop or whose clock jumps, and the endings a person
 or the system gives: Ctrl-C while the run is paced (``--speed``) or holding, SIGTERM,
-SIGHUP. Every run's camera is slow to start (its first frame
-0.3-1 s after the stream starts, as a UVC webcam's), and every run's disk turns slow
-as the fault strikes (each write to the run file then takes ``SLOW_WRITE_S``). A run
-is safe when
+SIGHUP; and the pump as a shared bench leaves it: running when the run connects, in a
+Quick Start variant that refuses a direction, another pump answering behind its
+re-found by-id link, confirmations slower than half a second (each ended by a fault of
+its own, and each with a check of its own: the pump stopped and said so, the mode
+loaded, no stop sent to the other pump, the stop confirmed). Every run's camera is slow
+to start (its first frame 0.3-1 s after the stream starts, as a UVC webcam's), and every
+run's disk turns slow as the fault strikes (each write to the run file then takes
+``SLOW_WRITE_S``). A run is safe when
 - the emulated plunger stood still from at most ``MAX_STOP_S`` of rig time after the
   fault on (``IN_RANGE_DEATH_STOP_S`` for a dead sensor that reads in range; the
   firmware's own record of the volume, not the driver's), or the run says first of
@@ -45,8 +49,8 @@ import numpy as np
 from labrig.config.protocol import load_protocol
 from labrig.config.rig_file import PressureConfig, PumpConfig, RigConfig, SimConfig
 from labrig.recording.run_reader import open_run, read_log
-from labrig.rig.assembly import build_rig
 from labrig.rig.devices import Rig
+from labrig.rig.simulated import build_simulated_rig
 from labrig.run.pump_stop import PUMP_STOP_NOT_CONFIRMED
 from labrig.run.runner import Runner
 
@@ -91,7 +95,9 @@ class Fault:
     unconfirmed (the run must say so first); ``speed``: the run paced to this many
     times real time (a signal comes in host time); ``window_s``: the rig times the
     fault strikes between, when not ``FAULT_WINDOW_S``; ``stop_s``: how long after the
-    fault the plunger may still move."""
+    fault the plunger may still move; ``before_connect``: the state the emulated pump
+    is left in before the driver connects; ``check``: what else the run must show (a
+    list of problems, empty when it does), from the rig and the run file's path."""
 
     inflict: Callable[[Rig, random.Random], None]
     reason: str
@@ -100,6 +106,8 @@ class Fault:
     speed: float | None = None
     window_s: tuple[float, float] | None = None
     stop_s: float = MAX_STOP_S
+    before_connect: Callable[[object, random.Random], None] | None = None
+    check: Callable[[Rig, Path], list[str]] | None = None
     before_recording: bool = False  # strikes before the run records anything
 
 
@@ -153,6 +161,48 @@ def _burst_now(rig: Rig, rng: random.Random) -> None:
     rig.simulation.plant.behaviour = SpecimenBehaviour(
         emulator.net_volume_ml, burst_at_ml=emulator.net_volume_ml(rig.clock.now())
     )
+
+
+def _left_infusing(emulator, rng: random.Random) -> None:
+    """Another program's run left going: a few hundredths of a mL pushed before labrig
+    connects (more inflates the specimen, and the zeroing then refuses the run)."""
+    emulator.keypad(f"irate {rng.uniform(0.6, 1.8):.3f} ml/min", "irun")
+    emulator.clock.sleep(rng.uniform(0.2, 1.0))
+
+
+def _said_at_connect(*words: str) -> Callable[[Rig, Path], list[str]]:
+    """The run file's record of what connect found holds ``words``."""
+
+    def check(rig: Rig, path: Path) -> list[str]:
+        try:
+            with open_run(path) as run:
+                said = run["entry/pump_identity/at_connect"][()].decode()
+        except (OSError, KeyError) as exc:
+            return [f"the run file has no record of the pump at connect ({exc})"]
+        return [] if all(w in said for w in words) else [f"at connect: {said!r}"]
+
+    return check
+
+
+def _another_pump(rig: Rig, rng: random.Random) -> None:
+    emulator = rig.simulation.emulator
+    emulator.re_enumerate(rng.uniform(0.1, 1.0), emulator.another_pump())
+
+
+def _other_pump_untouched(rig: Rig, path: Path) -> list[str]:
+    emulator = rig.simulation.emulator
+    other = emulator.answering
+    if other is emulator.firmware:
+        return ["the other pump never answered behind the link"]
+    sent = [line for line in other.executed if line.startswith(("stop", "stp"))]
+    return [f"the other pump was sent {sent}"] if sent else []
+
+
+def _slow_confirmation(rig: Rig, rng: random.Random) -> None:
+    """Replies to stops and polls take longer than the half second once allowed (a
+    pump redrawing after an alarm), within the reply timeout; then the sensor dies."""
+    rig.simulation.emulator.slow_replies(rng.uniform(0.55, 0.8), ("stop", "status"))
+    _daq(rig).fail("vout-cut")
 
 
 FAULTS: dict[str, Fault] = {
@@ -227,6 +277,25 @@ FAULTS: dict[str, Fault] = {
         speed=SIGNAL_SPEED,
         window_s=(2.5, 5.0),
     ),
+    "pump-running-at-connect": Fault(
+        lambda rig, rng: _daq(rig).fail("vout-cut"),
+        "outside the sensor's range",
+        before_connect=_left_infusing,
+        check=_said_at_connect("the pump was infusing at", "labrig stopped it"),
+    ),
+    "quick-start": Fault(
+        lambda rig, rng: _daq(rig).fail("supply-cut"),
+        "not a number",
+        before_connect=lambda emulator, rng: emulator.keypad(f"load qs {rng.choice('iw')}"),
+        check=_said_at_connect("labrig loaded Quick Start on the pump ('load qs iw')"),
+    ),
+    "another-pump-at-the-link": Fault(
+        _another_pump,
+        "not the pump of this run",
+        unconfirmed=True,
+        check=_other_pump_untouched,
+    ),
+    "slow-confirmation": Fault(_slow_confirmation, "outside the sensor's range"),
 }
 
 
@@ -273,11 +342,15 @@ class SoakSummary:
         return (
             f"soak {'PASS' if self.ok else 'FAIL'}: {self.safe}/{self.runs} runs safe "
             f"(seed {self.seed}; {kinds}); pump stopped at most {self.max_stop_s:.2f} s "
-            f"after the fault ({MAX_STOP_S:g} s allowed, {IN_RANGE_DEATH_STOP_S:g} s for a "
-            f"sensor dead in range); memory {self.rss_start_mb:.0f} -> "
-            f"{self.rss_end_mb:.0f} MB ({'flat' if self.memory_flat else 'GROWING'}); "
-            f"{self.wall_s:.0f} s"
+            f"after the fault where its stop was confirmed ({MAX_STOP_S:g} s allowed, "
+            f"{IN_RANGE_DEATH_STOP_S:g} s for a sensor dead in range); memory "
+            f"{self.rss_start_mb:.0f} -> {self.rss_end_mb:.0f} MB "
+            f"({'flat' if self.memory_flat else 'GROWING'}); {self.wall_s:.0f} s"
         )
+
+
+def _told_unconfirmed(verdict: RunVerdict) -> bool:
+    return verdict.reason.startswith(PUMP_STOP_NOT_CONFIRMED)
 
 
 def resident_mb() -> float:
@@ -325,7 +398,12 @@ def soak(
         safe=sum(v.safe for v in verdicts),
         seed=seed,
         faults=dict(Counter(v.fault for v in verdicts)),
-        max_stop_s=max((v.stopped_after_s for v in verdicts), default=0.0),
+        # where the run said its stop was not confirmed (another pump at the link), the
+        # plunger is the operator's to stop: it runs on by design, and says nothing of
+        # how fast labrig stops a pump
+        max_stop_s=max(
+            (v.stopped_after_s for v in verdicts if not _told_unconfirmed(v)), default=0.0
+        ),
         rss_start_mb=warm,
         rss_end_mb=end,
         memory_flat=end - warm < RSS_GROWTH_LIMIT_MB,
@@ -343,8 +421,11 @@ def _one_run(loaded, path: Path, index: int, kind: str, fault_s: float, seed: in
         pressure=PressureConfig(supply_channel="Dev1/ai1"),
         sim=SimConfig(seed=seed * 1009 + index, reply_timeout_s=REPLY_TIMEOUT_S, speed=fault.speed),
     )
-    rig = build_rig(loaded.protocol, config)
     rng = random.Random(seed * 7919 + index)
+    left = fault.before_connect
+    rig = build_simulated_rig(
+        loaded.protocol, config, None if left is None else lambda emulator: left(emulator, rng)
+    )
     rig.simulation.capture.first_frame_s = rng.uniform(*CAMERA_FIRST_FRAME_S)
     start_s = rig.clock.now()
     struck_at_s = [start_s + fault_s]
@@ -374,6 +455,8 @@ def _one_run(loaded, path: Path, index: int, kind: str, fault_s: float, seed: in
     # a fault before the recording starts leaves nothing to keep
     kept_from_s = -np.inf if fault.before_recording else fault_at_s
     finalised, samples_kept, frames_kept = _check_file(path, result, kept_from_s, problems)
+    if fault.check is not None:
+        problems.extend(fault.check(rig, path))
     path.unlink(missing_ok=True)
     return RunVerdict(
         run=index,

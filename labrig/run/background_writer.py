@@ -20,6 +20,7 @@ import collections
 import logging
 from collections.abc import Callable
 
+from labrig.errors import LabrigError
 from labrig.recording.run_writer import RunWriter
 from labrig.time.clock import Clock
 
@@ -85,6 +86,9 @@ class BackgroundWriter:
                 try:
                     if self.error is None:
                         call(*args, **kwargs)
+                except LabrigError as exc:  # the file itself failed (full, gone): said so
+                    self.error = f"run file: {exc}"
+                    self._on_error(self.error)
                 except Exception as exc:
                     self.error = f"run file: writing {self.writer.path} failed: {exc!r}"
                     self._on_error(self.error)

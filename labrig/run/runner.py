@@ -31,6 +31,7 @@ volume it reports.
 from __future__ import annotations
 
 import logging
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,8 +50,9 @@ from labrig.config.protocol import (
     iter_plan,
     plan,
 )
-from labrig.errors import LabrigError
-from labrig.recording.run_writer import RunWriter
+from labrig.errors import InputError, LabrigError
+from labrig.recording.run_file_lock import check_run_name
+from labrig.recording.run_writer import RunFileFailed, RunWriter
 from labrig.recording.video import VideoRecorder
 from labrig.rig.devices import PressureBlock, PumpState, Rig
 from labrig.run.acquisition import Acquisition, Timing
@@ -133,7 +135,7 @@ class Runner:
         self.timing = timing or Timing()
         self.plan = plan(self.protocol)
         self.monitor = InterlockMonitor(rig.pump, run_interlocks(self.protocol))
-        self.stops = StopRequests(lambda reason: self.monitor.trip(reason, "aborted"))
+        self.stops = StopRequests(self._stop_requested)
         self._t_start = 0.0
         self._step_label = "starting"
         self._repetition_started = False
@@ -142,6 +144,14 @@ class Runner:
         self.writer: BackgroundWriter | None = None
         self.acquisition: Acquisition | None = None
         self.video: VideoRecorder | None = None
+
+    def _stop_requested(self, reason: str) -> None:
+        """A signal's stop: tripped like a fault, and a paced clock (``--speed``) lets
+        the stop and the file's end run at once, not at the pace's next instant."""
+        stop_pacing = getattr(self.clock, "stop_pacing", None)
+        if stop_pacing is not None:
+            stop_pacing()
+        self.monitor.trip(reason, "aborted")
 
     @property
     def shutdown_errors(self) -> list[str]:
@@ -192,6 +202,13 @@ class Runner:
         return result
 
     def _open_run_file(self) -> RunWriter:
+        check_run_name(self.out_path)  # never one name for the file and its video
+        video = self._video_path()
+        if video is not None and os.path.lexists(video):  # the recorder would replace it
+            raise InputError(
+                f"{video}: a run's video is already there; a run never writes over one "
+                "(labrig run --overwrite moves it aside first)"
+            )
         return RunWriter(
             self.out_path,
             title=self.protocol.name,
@@ -206,6 +223,7 @@ class Runner:
             simulated_segments=self._simulated_segments(),
             tap=self.data_tap,
             video_file=self._video_path().name if self._video_path() else None,
+            pump_identity=getattr(self.rig.pump, "run_record", None),
         )
 
     def _video_path(self) -> Path | None:
@@ -482,13 +500,17 @@ class Runner:
                     self._leave_repetition(status, reason)
                 if self.writer.writer.simulated_segments:
                     self._record_simulation(self.clock.now())
-                self.writer.close(
-                    status,
-                    reason,
-                    self.timing.writer_drain_s,
-                    lambda: self.stops.hurry,
-                    pump_stop_confirmed=stop_problem is None,
-                )
+                try:
+                    self.writer.close(
+                        status,
+                        reason,
+                        self.timing.writer_drain_s,
+                        lambda: self.stops.hurry,
+                        pump_stop_confirmed=stop_problem is None,
+                    )
+                except RunFileFailed as exc:  # a full disk, the file removed: never complete
+                    why = f"run file: {exc}"
+                    status, reason = "faulted", why if not reason or why in reason else reason
             finally:
                 self.rig.close()
         return RunResult(self.out_path, status, reason, stop_problem is None)

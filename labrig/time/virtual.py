@@ -24,7 +24,9 @@ its load check): they run in order with the waiters, in whichever thread hands t
 baton on, with time set to their due time.
 
 ``speed`` paces the same timeline to the wall clock (``speed=1`` is real time, for
-training); it never changes what is recorded, only when.
+training); it never changes what is recorded, only when. ``stop_pacing`` lets the rest
+run as fast as it computes, at once (a stop request: at ``--speed 0.01`` the next
+sample may be a minute of wall time away, and the stop must not wait for it).
 """
 
 from __future__ import annotations
@@ -132,6 +134,7 @@ class VirtualClock:
         self._local = threading.local()
         self._pace_wall0 = time.monotonic()
         self._pace_virtual0 = self._now_ns
+        self._unpaced = threading.Event()  # set: pacing has been stopped
 
     # ---- the Clock contract ----------------------------------------------------------
 
@@ -311,9 +314,13 @@ class VirtualClock:
             member.result = _holds(member.predicate)
         return member, None, member.wake_ns
 
+    def stop_pacing(self) -> None:
+        """From now on, and in a wait for the wall clock now, run unpaced (any thread)."""
+        self._unpaced.set()
+
     def _pace(self, t_ns: int) -> None:
         """With a speed, let the wall clock catch up with virtual time ``t_ns``."""
-        if self.speed is None:
+        if self.speed is None or self._unpaced.is_set():
             return
         with self._lock:
             due = self._pace_wall0 + (t_ns - self._pace_virtual0) / 1e9 / self.speed
@@ -322,7 +329,7 @@ class VirtualClock:
                 self._pace_wall0, self._pace_virtual0 = time.monotonic(), t_ns
                 return
         if late < 0:
-            time.sleep(-late)
+            self._unpaced.wait(-late)
 
 
 def _holds(predicate: Callable[[], bool]) -> bool:

@@ -66,16 +66,19 @@ def test_snaps_pair_with_the_nearest_measurement_of_their_direction():
     assert np.isnan(TransitionMatch(INFLATE, None, measured[0]).dv_ml)
 
 
-def test_the_paper_counts_a_crossing_and_its_snap_as_one_snap_paired_once():
+def test_the_paper_counts_events_at_one_volume_as_one_snap_paired_once():
     crossing = PredictedTransition(INFLATE, 7.47, 0, 1, True, 2e-5, 1e-5, 1e-6, -1e-9, -1e-7, 0.0)
-    snap = PredictedTransition(INFLATE, 7.52, 1, 1, False, -0.03, 0.23, -0.001, -0.43, -30.0, -0.05)
-    later = PredictedTransition(INFLATE, 22.0, 1, 2, True, 7e-6, 4e-6, 1e-6, -2e-9, -1e-7, 0.0)
+    snap = PredictedTransition(INFLATE, 7.47, 1, 1, False, -0.03, 0.23, -0.001, -0.43, -30.0, -0.05)
+    later = PredictedTransition(INFLATE, 7.52, 1, 2, True, 7e-6, 4e-6, 1e-6, -2e-9, -1e-7, 0.0)
     counted = paper_counted([crossing, snap, later])
     assert [(t.alpha, t.beta, t.stable) for t in counted] == [(0, 1, False), (1, 2, True)]
     one = counted[0]
     assert one.v_ml == 7.47
+    # the jumps in kPa and mm add; the relative changes compound
     assert one.dp_kpa == pytest.approx(-30.0 - 1e-7) and one.dl_mm == pytest.approx(-0.05)
-    assert one.dE == pytest.approx(-0.03 + 2e-5) and one.dv == pytest.approx(0.23 + 1e-5)
+    assert one.dE == pytest.approx((1 - 0.03) * (1 + 2e-5) - 1, rel=1e-12)
+    assert one.dp == pytest.approx((1 - 0.43) * (1 - 1e-9) - 1, rel=1e-12)
+    assert one.dv == pytest.approx(0.23 + 1e-5)
     rows = match_transitions(counted, [_measured(INFLATE, 7.6)], match_ml=2.0)
     assert [(r.predicted.type, r.measured is not None) for r in rows] == [
         ("snap (0,1)", True),
@@ -163,3 +166,6 @@ def test_library_actuator_run_matches_the_model(library_run):
     assert len(doc["transitions"]) == len(comparison.prediction.transitions)
     assert len(doc["paper_transitions"]) == len(counted)
     assert all(list(t) == list(doc["transitions"][0]) for t in doc["paper_transitions"])
+    # unpredicted: the measured transitions that no transition counted so pairs with
+    alone = [m.measured for m in comparison.paper_matches if m.predicted is None]
+    assert [u["v_meas_ml"] for u in doc["unpredicted"]] == [m.v_ml for m in alone]

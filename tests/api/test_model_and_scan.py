@@ -36,9 +36,9 @@ def test_a_path_plot_on_one_axes_is_the_pressure_panel():
     snaps = path.transitions[~path.transitions["stable"]]
     drawn = [line for line in ax.lines if line.get_marker() == "v" and len(line.get_xdata())]
     assert len(drawn) == len(snaps) > 0
-    # its summary counts as the paper does (the peak crossing and its snap are one)
+    # its summary counts as the paper does (the events at one supplied volume are one)
     counted, events = len(path.paper_transitions), len(path.transitions)
-    assert counted < events
+    assert 0 < counted <= events
     assert repr(path) == (
         f"<labrig.ActuatorPath B48-T30 + B50-T20: {counted} transitions as the paper "
         f"counts them ({events} events)>"
@@ -102,14 +102,50 @@ def test_a_scan_is_its_files_rows_with_names(gent_scan):
     assert list(table["segment2"]) == [names[i] for i in index[:, 1]]
     part = scan.table(1, 3)
     assert part.reset_index(drop=True).equals(table.iloc[1:3].reset_index(drop=True))
-    # counted as the paper counts them: fewer rows, the same sums (the counting's invariant)
+    # counted as the paper counts them: no more rows, the same changes over all (the
+    # counting's invariant: flows add, relative changes compound)
     paper = scan.paper_transitions
     assert 0 < len(paper) <= len(table)
-    for name in ("dv", "dl", "dp"):
-        assert paper[name].sum() == pytest.approx(table[name].sum(), abs=1e-9)
+    assert paper["dv"].sum() == pytest.approx(table["dv"].sum(), abs=1e-9)
+    for name in ("dl", "dp"):
+        assert np.log1p(paper[name]).sum() == pytest.approx(np.log1p(table[name]).sum(), abs=1e-9)
     first = paper["first"].to_numpy()
     assert list(paper["segment1"]) == list(table["segment1"].to_numpy()[first])
     axes = scan.plot()
     assert len(axes) == 3 and axes[0].get_xlabel() == "energy change ΔÊ"
     with pytest.raises(InputError, match="no such file"):
         labrig.open_scan(gent_scan.parent / "missing.h5")
+
+
+def test_an_actuator_from_a_list_and_a_clear_end_volume():
+    assert labrig.actuator(["B48-T30", "B50-T20"]).names == ["B48-T30", "B50-T20"]
+    assert labrig.actuator(("B48-T30", "B50-T20")).names == ["B48-T30", "B50-T20"]
+    with pytest.raises(InputError, match="at least two segments, got 1"):
+        labrig.actuator(["B48-T30"])
+    pair = labrig.actuator("B48-T30", "B50-T20")
+    for wrong in (-1, 0, float("nan"), float("inf"), "3"):
+        with pytest.raises(InputError, match=r"v_end_ml=.*: the end volume of inflation, mL, > 0"):
+            pair.path(v_end_ml=wrong)
+
+
+def test_a_scan_row_becomes_its_actuator_and_a_subset_is_drawn(gent_scan):
+    scan = labrig.open_scan(gent_scan)
+    paper, events = scan.paper_transitions, scan.transitions
+    row = paper.iloc[len(paper) // 2]
+    built = scan.actuator(row)
+    assert built.names == [row["segment1"], row["segment2"]]
+    assert scan.actuator(int(row["actuator"])).names == built.names
+    # solved again, whole: the same events the scan stored for that actuator
+    stored = events[events["actuator"] == row["actuator"]]
+    solved = built.path().transitions
+    np.testing.assert_allclose(solved["v_ml"], stored["v_ml"], atol=1e-6)
+    np.testing.assert_allclose(solved["dE"], stored["dE"], rtol=1e-5)
+    for wrong, message in ((3, "ranks are 0 to 2"), (-1, "ranks are 0 to 2"), ("x", "a row")):
+        with pytest.raises(InputError, match=message):
+            scan.actuator(wrong)
+    subset = paper[paper["direction"] > 0].head(2)
+    axes = scan.plot(transitions=subset)
+    drawn = sum(len(c.get_offsets()) for c in axes[0].collections)
+    assert drawn == len(subset) == 2
+    with pytest.raises(InputError, match="no column dE"):
+        scan.plot(transitions=subset.drop(columns="dE"))

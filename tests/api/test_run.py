@@ -60,6 +60,10 @@ def test_bad_requests_are_one_line_errors(tiny_file, tmp_path):
         run.raw(3)
     with pytest.raises(InputError, match="has no 'force' log"):
         run.raw(1, "force")
+    for wrong in ("2", 1.0, True):
+        with pytest.raises(InputError, match=f"repetition {wrong!r}: a whole number, 1 to 2"):
+            run.raw(wrong)
+    assert labrig.InputError is InputError  # a notebook catches it from labrig itself
     with pytest.raises(InputError, match="no comparison with the model"):
         run.comparison  # noqa: B018
     with pytest.raises(InputError, match="no such file"):

@@ -89,3 +89,17 @@ def test_a_path_the_system_refuses_is_one_line(tmp_path, capsys, command):
     assert code == 2
     (line,) = err.splitlines()
     assert line.startswith(f"error: {name}: ") and "File name too long" in line
+
+
+@pytest.mark.parametrize(
+    ("command", "expected"),
+    [
+        (["runs"], "not a regular file or a folder (a device or a pipe)"),
+        (["watch"], "not a regular file (a folder, a device or a pipe)"),
+    ],
+)
+def test_a_pipe_is_never_called_missing(tmp_path, capsys, command, expected):
+    pipe = tmp_path / "run.h5"
+    os.mkfifo(pipe)
+    code, _, err = run([*command, pipe], capsys)
+    assert (code, err) == (2, f"error: {pipe}: {expected}\n")

@@ -75,7 +75,10 @@ def test_bad_csv_is_one_line_and_exit_2(tmp_path, capsys):
     bad.write_text("volume_ml,pressure_kpa,length_mm\n0,0,20\n0.1,x,20\n")
     code, _, err = run(["model", "curve", str(bad)], capsys)
     assert code == 2
-    assert err.strip() == f"error: {bad}: line 3, column pressure_kpa: 'x' is not a number"
+    assert err.strip() == (
+        f"error: {bad}: line 3, column pressure_kpa: not a number (a decimal number such as "
+        "12.5 or 1.25e1)"
+    )
 
 
 def test_a_measured_table_says_what_was_done_and_plots_the_raw_rows(tmp_path, capsys):

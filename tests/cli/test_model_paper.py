@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from labrig.cli import main
-from labrig.model.paper.fit import BOUNDS, FIELDS, objective
 from labrig.model.segments.braided import R_TUBE_MM
 from labrig.model.segments.calibrated import CALIBRATION
 from labrig.model.segments.catalog import DEFAULT_LIBRARY
 from labrig.model.segments.paper_braided import PaperBraidedSegment
+from labrig.paper.fit import BOUNDS, FIELDS, objective
 
 # the nine statements of the first version keep their keys and order
 FIRST_KEYS = [
@@ -30,7 +30,8 @@ FIRST_KEYS = [
     "S5-release",
     "S6-flow",
 ]
-ROLES = {"input", "fitted", "prediction"}
+ROLES = {"input", "fitted", "selected on", "prediction"}
+STATEMENTS = 37
 
 
 def run(argv, capsys):
@@ -48,7 +49,7 @@ def document(library, capsys):
 
 @pytest.fixture(scope="module")
 def paper_doc():
-    from labrig.model.paper.statements import evaluate
+    from labrig.paper.checker import evaluate
 
     return {o.key: o for o in evaluate("paper")}
 
@@ -58,7 +59,7 @@ def test_json_gives_every_statement_with_tolerance_role_and_library(capsys):
     assert doc["library"] == "paper" and doc["default_library"] == DEFAULT_LIBRARY
     assert doc["fitted_constants"] == 0 and doc["calibration"] is None
     keys = [s["key"] for s in doc["statements"]]
-    assert len(keys) == len(set(keys)) == 31
+    assert len(keys) == len(set(keys)) == STATEMENTS
     assert [k for k in keys if k in FIRST_KEYS] == FIRST_KEYS
     assert doc["holding"] == sum(s["holds"] for s in doc["statements"])
     for s in doc["statements"]:
@@ -94,12 +95,11 @@ def test_which_statements_hold_on_the_paper_library_as_measured(paper_doc):
         "input-mu",
         "input-force",
         "peaks-independent-of-tube",
-        "fig4-11-unstable",
-        "fig4-11-release",
+        "stiffening-rise-with-braid",
         "fig4-11-flow",
-        "fig4-12-both",
-        "fig4-energy-range",
     }
+    # judged up to the sensor's 100 kPa, half of the segments lengthen then shorten
+    assert paper_doc["fig1d-length"].labrig == "18 of 36 do"
 
 
 @pytest.mark.slow
@@ -109,16 +109,22 @@ def test_the_calibrated_library_its_fit_and_its_two_sided_tolerances(capsys):
     assert doc["calibration"] == CALIBRATION.as_dict() and doc["fitted_constants"] == 8
     fitted = {k for k, s in by_key.items() if s["role"] == "fitted"}
     assert fitted == {"peaks-range", "peaks-spread", "S3-volume", "S3-elongation", "S7-water"}
+    # the depth gain was kept for holding 8 of the first 9 statements: selected on
+    selected = {k for k, s in by_key.items() if s["role"] == "selected on"}
+    assert selected == {"S4-volume", "S4-elongation", "S5-two-snaps", "S5-release", "S6-flow"}
     # its modulus is mu (1 + c (R / L_tube)^2) over L_tube = 20-30 mm
     lowest = CALIBRATION.shear_modulus_mpa * (
         1 + CALIBRATION.end_stiffening * (R_TUBE_MM / 30) ** 2
     )
     assert by_key["input-mu"]["labrig"].startswith(f"{lowest:.4g}-")
-    # a release far above "up to 10 %" does not pass: the tolerance is two-sided
+    # counted at one supplied volume its (1,1) snaps release up to 17 % (within 5-20 %);
+    # the 43 % of the demo's pair is a (2,1) snap, which no Fig. 4 range rests on
     release = float(re.search(r"([\d.]+)%", by_key["fig4-11-release"]["labrig"]).group(1))
-    assert release > 20 and not by_key["fig4-11-release"]["holds"]
+    assert 10 < release <= 20 and by_key["fig4-11-release"]["holds"]
+    assert "(2,1) 425" in by_key["fig4-types"]["labrig"] and not by_key["fig4-types"]["holds"]
+    assert by_key["fig4-energy-range"]["labrig"].startswith("-0.171")
     holding = {k for k, s in by_key.items() if s["holds"]}
-    assert len(holding) == doc["holding"] == 15  # as measured
+    assert len(holding) == doc["holding"] == 14  # as measured
 
 
 @pytest.mark.slow
@@ -180,7 +186,7 @@ def synthetic_scan(release_11: float):
     ``release_11``: (0,1) stable and tiny, (1,1) unstable moving 80 %, (1,2) stable in
     half the pairs and unstable (2.5 %, +14 %) in the other half."""
     from labrig.model.actuator.paper_counting import PaperTransition
-    from labrig.model.paper.pair_scan import PairScan
+    from labrig.paper.pair_scan import PairScan
 
     def transition(v, alpha, beta, stable, dE, dv=0.0, dl=0.0, dp=0.0):
         return PaperTransition(v, alpha, beta, stable, dE, dv, dl, dp, 1, events=())
@@ -204,13 +210,13 @@ def synthetic_scan(release_11: float):
 
 
 def test_fig4_holds_for_the_papers_own_numbers_and_not_for_a_43_percent_release():
-    from labrig.model.paper.actuator_statements import _fig3, _fig4
+    from labrig.paper.actuator_statements import _fig3, _fig3_pairs, _fig4
 
     as_described = {o.key: o for o in _fig4(synthetic_scan(0.10))}
     assert all(o.holds for o in as_described.values()), [
         o for o in as_described.values() if not o.holds
     ]
-    assert _fig3(synthetic_scan(0.10)).holds
+    assert _fig3(_fig3_pairs(synthetic_scan(0.10))).holds
     too_much = {o.key: o for o in _fig4(synthetic_scan(0.43))}
     assert not too_much["fig4-11-release"].holds and not too_much["fig4-energy-range"].holds
     too_little = {o.key: o for o in _fig4(synthetic_scan(0.01))}
@@ -226,7 +232,7 @@ def test_fig4_holds_for_the_papers_own_numbers_and_not_for_a_43_percent_release(
     ],
 )
 def test_the_trend_statements_on_synthetic_peaks(peak_of, rises, independent):
-    from labrig.model.paper.segment_statements import _trend_outcomes
+    from labrig.paper.segment_statements import _trend_outcomes
 
     peaks = {
         f"x:B{braid}-T{tube}": float(peak_of(braid, tube))
@@ -236,3 +242,83 @@ def test_the_trend_statements_on_synthetic_peaks(peak_of, rises, independent):
     by_key = {o.key: o for o in _trend_outcomes(peaks, "x:")}
     assert by_key["peaks-rise-with-braid"].holds == rises
     assert by_key["peaks-independent-of-tube"].holds == independent
+
+
+def _with(scan, extra):
+    """``scan`` with the transitions ``extra(pair index)`` added to each pair."""
+    from labrig.paper.pair_scan import PairScan
+
+    return PairScan(
+        {pair: [*ts, *extra(k)] for k, (pair, ts) in enumerate(scan.transitions.items())}, {}
+    )
+
+
+def test_no_fig4_statement_passes_through_a_type_the_paper_never_reports():
+    """The range of dE is judged on (0,1), (1,1) and (1,2): a (2,1) releasing 15 % where
+    the paper's types release 1 % does not make it pass."""
+    from labrig.model.actuator.paper_counting import PaperTransition
+    from labrig.paper.actuator_statements import _fig4
+
+    def release_21(k):
+        return [PaperTransition(25.0, 2, 1, False, -0.15, 0.5, 0.0, -0.2, 1, events=())]
+
+    weak = {o.key: o for o in _fig4(_with(synthetic_scan(0.01), release_21))}
+    assert not weak["fig4-energy-range"].holds and not weak["fig4-types"].holds
+    assert weak["fig4-energy-range"].labrig.startswith("-0.025")
+
+
+def test_fig4s_bounds_can_fail_where_they_used_to_be_out_of_reach():
+    """A (1,1) moving all the fluid, a stable dE of 3e-4 and a (1,2) whose snaps release
+    less than the solver's noise each fail their statement."""
+    from dataclasses import replace
+
+    from labrig.paper.actuator_statements import _fig4
+    from labrig.paper.pair_scan import PairScan
+
+    def changed(scan, edit):
+        return PairScan({p: [edit(t) for t in ts] for p, ts in scan.transitions.items()}, {})
+
+    base = synthetic_scan(0.10)
+    all_flow = changed(base, lambda t: replace(t, dv=1.0) if (t.alpha, t.beta) == (1, 1) else t)
+    assert not {o.key: o for o in _fig4(all_flow)}["fig4-11-flow"].holds
+    big_stable = changed(base, lambda t: replace(t, dE=3e-4) if t.stable else t)
+    assert not {o.key: o for o in _fig4(big_stable)}["fig4-energy-range"].holds
+    noise = changed(base, lambda t: replace(t, dE=-2e-5) if (t.alpha, t.beta) == (1, 2) else t)
+    by_key = {o.key: o for o in _fig4(noise)}
+    assert not by_key["fig4-12-both"].holds and not by_key["fig4-12-release"].holds
+
+
+def _piecewise(knots_ml, values):
+    from types import SimpleNamespace
+
+    return SimpleNamespace(pressure_kpa=lambda v: np.interp(v, knots_ml, values))
+
+
+def test_the_second_minimum_of_two_equal_segments_appears_where_they_pass_their_peak():
+    """Two equal segments rising at 10 kPa/mL to a peak at 5 mL, falling at 5 kPa/mL to 9
+    mL, then rising: by symmetry the state with both at v/2 turns into a maximum at v =
+    10 mL, where two mirrored minima (one segment rising, one falling; slopes 10 - 5 > 0)
+    appear; before it there is one minimum."""
+    from labrig.paper.actuator_statements import second_minimum_ml
+
+    curve = _piecewise([0.0, 5.0, 9.0, 40.0], [0.0, 50.0, 30.0, 340.0])
+    assert second_minimum_ml([curve, curve], 19.0) == pytest.approx(10.0, abs=0.15)
+    rising = _piecewise([0.0, 40.0], [0.0, 400.0])
+    assert second_minimum_ml([rising, rising], 19.0) is None
+
+
+def test_the_segment_statements_judge_the_curve_up_to_the_sensors_range():
+    """A segment that shortens only above 100 kPa does not count as shortening; its
+    stiffening volume is where it crosses 100 kPa."""
+    from types import SimpleNamespace
+
+    from labrig.paper.segment_statements import _below_full_scale, stiffening_volume_ml
+
+    v = np.linspace(0.0, 20.0, 201)
+    p = np.interp(v, [0.0, 5.0, 12.0, 20.0], [0.0, 70.0, 50.0, 250.0])
+    length = np.where(p <= 100.0, 30.0 + v, 30.0 - v)
+    curve = SimpleNamespace(v_ml=v, p_kpa=p, l_mm=length)
+    _, kept_p, kept_l = _below_full_scale(curve)
+    assert kept_p[-2] <= 100.0 < kept_p[-1] and np.all(np.diff(kept_l[:-1]) > 0)
+    # 100 kPa on the last branch: 12 + 8 (100 - 50) / 200 = 14 mL
+    assert stiffening_volume_ml(curve) == pytest.approx(14.0, abs=1e-9)

@@ -1,6 +1,7 @@
 """``labrig model path`` through the real entry point: the JSON contract, the table,
 deflation, the plot, CSV segments, and bad input as one line with exit code 2."""
 
+import itertools
 import json
 
 import numpy as np
@@ -174,3 +175,21 @@ def test_any_other_error_is_one_line_unless_debug(capsys, monkeypatch):
     )
     with pytest.raises(ZeroDivisionError):
         main(["--debug", "model", "path", "SI-B42-T24", "SI-B50-T22"])
+
+
+def test_the_papers_counting_groups_only_events_at_one_supplied_volume(capsys):
+    """B46-T20 + B46-T22 (Movie S3): each paper transition is made of events at one
+    supplied volume, two transitions are never at one, and its relative changes are
+    its events' compounded."""
+    code, out, _ = run(["model", "path", "B46-T20", "B46-T22", "--json"], capsys)
+    assert code == 0
+    doc = json.loads(out)
+    events, counted = doc["transitions"], doc["paper_transitions"]
+    assert sorted(i for t in counted for i in t["events"]) == list(range(len(events)))
+    for t in counted:
+        members = [events[i] for i in t["events"]]
+        assert all(abs(e["v_ml"] - t["v_ml"]) <= 1e-6 for e in members)
+        for name in ("dE", "dl", "dp"):
+            assert t[name] == pytest.approx(np.prod([1 + e[name] for e in members]) - 1, abs=2e-6)
+    volumes = [t["v_ml"] for t in counted]
+    assert all(b - a > 1e-6 for a, b in itertools.pairwise(volumes))

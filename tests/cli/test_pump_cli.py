@@ -246,3 +246,91 @@ def read_reply(port, *, expect_payload: bool) -> bytes:
         if parse_reply(raw, expect_payload=expect_payload) is not None:
             return raw
     raise AssertionError(f"incomplete reply {raw!r}")
+
+
+def test_status_and_infuse_on_a_pump_that_does_not_say_it_is_infuse_only(capsys):
+    """Left in poll on, strict about addresses, infuse-only, its ``metrics`` without a
+    Direction line: ``status`` and ``infuse`` work (the refused ``wvolume`` says it
+    cannot withdraw), and ``withdraw`` is refused before anything is sent."""
+    options = {"poll_mode": "on", "strict_address_form": "none", "infuse_only": True}
+    with PumpEmulator(ScaledClock(100.0), metrics_direction=False, **options) as emulator:
+        code, out, err = run_main(["pump", "--port", emulator.port, "status"], capsys)
+        assert code == 0, err
+        rows = table(out)
+        assert rows["state"] == "idle"
+        assert rows["withdraw rate"] == "none (infuse-only pump)"
+        assert rows["withdrawn"] == "0.0000 mL"
+        infuse = ["infuse", "--rate-ml-min", "30", "--volume-ml", "0.5"]
+        code, out, err = run_main(["pump", "--port", emulator.port, *infuse], capsys)
+        assert code == 0, err
+        assert out.strip() == "infuse: 30 mL/min until 0.5 mL"
+        code, _, err = run_main(
+            ["pump", "--port", emulator.port, "withdraw", "--rate-ml-min", "1"], capsys
+        )
+        assert code == 3 and "infuse-only" in err and err.count("\n") == 1
+        withdraw_commands = [line for line in emulator.received if line.startswith("w")]
+        assert set(withdraw_commands) == {"wvolume"}  # the probes at each connect only
+
+
+def test_the_methods_the_command_offers_are_the_emulators():
+    from labrig.sim.pump_methods import METHODS
+
+    assert set(pump_cli.METHOD_NAMES) == set(METHODS)
+
+
+def emulate_process(*options: str) -> tuple[subprocess.Popen, str]:
+    process = subprocess.Popen(
+        [sys.executable, "-m", "labrig", "pump", "emulate", "--speed", "50", *options],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    return process, process.stdout.readline().strip()
+
+
+def test_emulate_survives_an_invalid_byte_without_a_traceback():
+    emulate, port = emulate_process()
+    watchdog = threading.Timer(20.0, emulate.kill)
+    watchdog.start()
+    try:
+        with serial.Serial(port, 115200, timeout=5.0) as line:
+            line.write(b"\xff")  # alone, then ended by CR: one unknown command
+            line.write(b"\r")
+            assert line.read_until(b"\n:").endswith(b"Unknown command\r\n:")
+            line.write(b"ver\r")
+            assert line.read_until(b"\n:") == b"\nPHD ULTRA 3.0.5\r\n:"
+        emulate.terminate()
+        _, err = emulate.communicate(timeout=10)
+        assert emulate.returncode == 0
+        assert "Traceback" not in err and "Error" not in err
+    finally:
+        watchdog.cancel()
+        if emulate.poll() is None:
+            emulate.kill()
+
+
+INFUSE_HALF_ML = ("infuse", "--rate-ml-min", "30", "--volume-ml", "0.5")
+
+
+def test_a_manual_run_on_a_pump_found_infusing_stops_it_and_says_so():
+    emulate, port = emulate_process("--poll", "on", "--strict-address")
+    watchdog = threading.Timer(30.0, emulate.kill)
+    watchdog.start()
+    try:
+        with PhdUltra.open(port) as pump:  # another program left it infusing
+            pump.clear_volumes()
+            pump.set_infuse_rate(6.0)
+            pump.infuse()
+        infuse = subprocess.run(
+            [sys.executable, "-m", "labrig", "pump", "--port", port, *INFUSE_HALF_ML],
+            capture_output=True,
+            text=True,
+            timeout=20,
+        )
+        assert infuse.returncode == 0, infuse.stderr
+        [said] = [line for line in infuse.stderr.splitlines() if "labrig stopped it" in line]
+        assert said.startswith("the pump was infusing at 6 mL/min (")
+    finally:
+        watchdog.cancel()
+        emulate.kill()
+        emulate.communicate(timeout=10)

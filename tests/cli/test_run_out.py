@@ -89,3 +89,40 @@ def test_an_unusable_out_path_is_one_line(tmp_path, capsys, out, expected):
     code, _, err = run(["run", protocol, "--sim", "--out", target], capsys)
     assert code == 2
     assert err.strip().splitlines()[-1] == f"error: {target}: {expected}"
+
+
+VIDEO = TINY.replace("pressure_rate_hz: 100}", "pressure_rate_hz: 100, camera_fps: 5, video: true}")
+
+
+@pytest.mark.parametrize(
+    ("out", "expected"),
+    [
+        (
+            "x.avi",
+            "a run file's name cannot end in .avi: the run's video is RUN.avi and its lock "
+            "RUN.h5.lock beside it; give a name ending in .h5",
+        ),
+        (
+            "x.h5.lock",
+            "a run file's name cannot end in .lock: the run's video is RUN.avi and its lock "
+            "RUN.h5.lock beside it; give a name ending in .h5",
+        ),
+    ],
+)
+def test_the_run_file_and_its_video_never_share_a_name(tmp_path, capsys, out, expected):
+    protocol = tmp_path / "video.yaml"
+    protocol.write_text(VIDEO)
+    code, _, err = run(["run", protocol, "--sim", "--out", tmp_path / out], capsys)
+    assert code == 2
+    assert err.strip().splitlines()[-1] == f"error: {tmp_path / out}: {expected}"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["video.yaml"]
+
+
+@pytest.mark.parametrize("out", ["a\nb.h5", "run\u202egpj.h5", "bell\a.h5"])
+def test_an_out_name_that_shows_as_another_is_refused(tmp_path, capsys, out):
+    protocol = tmp_path / "tiny.yaml"
+    protocol.write_text(TINY)
+    code, _, err = run(["run", protocol, "--sim", "--out", tmp_path / out], capsys)
+    assert code == 2
+    assert "is a control or a text-direction mark" in err.strip().splitlines()[-1]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tiny.yaml"]

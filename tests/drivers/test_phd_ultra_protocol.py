@@ -18,6 +18,7 @@ from labrig.drivers.phd_ultra_errors import (
     PumpCommandError,
     PumpError,
     PumpLimitError,
+    PumpModeError,
     PumpProtocolError,
     PumpRangeError,
     PumpTimeout,
@@ -34,6 +35,8 @@ from labrig.drivers.phd_ultra_protocol import (
     parse_can_withdraw,
     parse_diameter_mm,
     parse_force_pct,
+    parse_identity,
+    parse_mode,
     parse_rate_limits,
     parse_rate_ml_min,
     parse_reply,
@@ -408,14 +411,26 @@ def test_a_formatted_rate_reads_back_within_its_rounding(rate_ml_min):
 
 # ---- the driver's exchanges ----------------------------------------------------------
 
-CONNECT = [
+IDLE = (b"00status\r", b"\n0 0 0 i..TI.\r\n:")
+# a stop, confirmed by two status polls showing the motor standing, the counter unchanged
+STOPPED = [(b"00stop\r", b"\n:"), IDLE, IDLE]
+VERSION = b"\nFirmware:      v3.0.5\r\nPump address:  0\r\nSerial number: D401460\r\n:"
+# what connect reads before it sends anything the pump could refuse, and its stop
+LOOKED_AT = [
     (b"00poll off\r", b"\n:"),
     (b"00ver\r", b"\nPHD ULTRA 3.0.5\r\n:"),
-    (b"00nvram off\r", b"\n:"),
-    (b"00metrics\r", b"\nPump type          PHD ULTRA\r\nDirection          Infuse/withdraw\r\n:"),
-    (b"00diameter\r", b"\n26.7000 mm\r\n:"),
-    (b"00svolume\r", b"\n60 ml\r\n:"),
+    IDLE,
+    (b"00version\r", VERSION),
+    (b"00mode\r", b"\nQuick Start Infuse/Withdraw\r\n:"),
+    *STOPPED,
 ]
+NVRAM_OFF = (b"00nvram off\r", b"\n:")
+METRICS = (
+    b"00metrics\r",
+    b"\nPump type          PHD ULTRA\r\nDirection          Infuse/withdraw\r\n:",
+)
+SYRINGE = [(b"00diameter\r", b"\n26.7000 mm\r\n:"), (b"00svolume\r", b"\n60 ml\r\n:")]
+CONNECT = [*LOOKED_AT, NVRAM_OFF, METRICS, *SYRINGE]
 INFUSE_LIMITS = (b"00irate lim\r", b"\n116.1297 nl/min to 120.5968 ml/min\r\n:")
 WITHDRAW_LIMITS = (b"00wrate lim\r", b"\n116.1297 nl/min to 120.5968 ml/min\r\n:")
 LIMITS = [INFUSE_LIMITS, WITHDRAW_LIMITS]
@@ -431,10 +446,11 @@ def test_connect_identifies_switches_off_nvram_and_reads_the_syringe(chunk):
 
 def test_nvram_falls_back_to_the_other_argument():
     table = [
-        *CONNECT[:2],
+        *LOOKED_AT,
         (b"00nvram off\r", b"\nArgument error: [off]\r\n   Unknown argument\r\n:"),
         (b"00nvram none\r", b"\n:"),
-        *CONNECT[3:],
+        METRICS,
+        *SYRINGE,
     ]
     with expected_protocol(table) as pump:
         pump.connect()
@@ -445,11 +461,12 @@ def test_nvram_falls_back_to_the_other_argument():
 def test_connect_warns_and_goes_on_when_no_nvram_form_is_accepted():
     unknown = b"\nCommand error: [nvram]\r\n   Unknown command\r\n:"
     table = [
-        *CONNECT[:2],
+        *LOOKED_AT,
         (b"00nvram off\r", b"\nArgument error: [off]\r\n   Unknown argument\r\n:"),
         (b"00nvram none\r", unknown),
         (b"00rsave off\r", b"\nCommand error: [rsave]\r\n   Unknown command\r\n:"),
-        *CONNECT[3:],
+        METRICS,
+        *SYRINGE,
     ]
     with expected_protocol(table) as pump:
         pump.connect()
@@ -461,9 +478,10 @@ def test_connect_warns_and_goes_on_when_no_nvram_form_is_accepted():
 
 def test_an_infuse_only_pump_is_asked_nothing_about_withdrawing():
     table = [
-        *CONNECT[:3],
+        *LOOKED_AT,
+        NVRAM_OFF,
         (b"00metrics\r", b"\nPump type          PHD ULTRA\r\nDirection          Infuse only\r\n:"),
-        *CONNECT[4:],
+        *SYRINGE,
         INFUSE_LIMITS,
         (b"00irate 10.0000 ml/min\r", b"\n:"),
         (b"00irate\r", b"\n10.0000 ml/min\r\n:"),
@@ -566,7 +584,10 @@ def test_run_commands_must_show_the_running_prompt():
 
 
 def test_stop_must_leave_the_motor_standing():
-    table = [(b"00stop\r", b"\n:"), (b"00stop\r", b"\n>")]
+    running = (b"00status\r", b"\n100000000000 3 300000000000 I..TI.\r\n>")
+    # stopped; then a stop answered ':' whose status polls show the motor running, a
+    # second stop, still running: no prompt character alone confirms a stop
+    table = [*STOPPED, (b"00stop\r", b"\n:"), running, (b"00stop\r", b"\n>"), running]
     with expected_protocol(table) as pump:
         pump.stop()
         with pytest.raises(PumpError, match="still reports infusing"):
@@ -608,7 +629,8 @@ def test_addresses_in_both_forms_and_a_reply_from_another_pump():
         [(b"12:ver\r", b"\nPHD ULTRA 3.0.5\r\n12:")], address=12, address_form="colon"
     ) as pump:
         assert pump.identify() == "PHD ULTRA 3.0.5"
-    table = [(b"05ver\r", b"\nPHD ULTRA 3.0.5\r\n07:"), (b"05stop\r", b"\n05:")]
+    idle = (b"05status\r", b"\n0 0 0 i..TI.\r\n05:")
+    table = [(b"05ver\r", b"\nPHD ULTRA 3.0.5\r\n07:"), (b"05stop\r", b"\n05:"), idle, idle]
     with (
         expected_protocol(table, address=5) as pump,
         pytest.raises(PumpProtocolError, match="from pump address 7"),
@@ -619,7 +641,7 @@ def test_addresses_in_both_forms_and_a_reply_from_another_pump():
 def test_no_reply_times_out_and_the_driver_stops_the_pump():
     # the stop written at once (its reply discarded with any late one), then a second
     # stop whose reply is read
-    table = [(b"00ivolume\r", b""), (b"00stop\r", b"\n:"), (b"00stop\r", b"\n:")]
+    table = [(b"00ivolume\r", b""), (b"00stop\r", b"\n:"), *STOPPED]
     with expected_protocol(table) as pump, pytest.raises(PumpTimeout) as raised:
         pump.volumes_ml()
     assert "'ivolume'" in str(raised.value)
@@ -627,14 +649,14 @@ def test_no_reply_times_out_and_the_driver_stops_the_pump():
 
 
 def test_a_garbled_reply_is_a_protocol_error_and_the_driver_stops_the_pump():
-    table = [(b"00ivolume\r", b"\n\xff\xfe\x93\r\n12.5 ml\r\n>"), (b"00stop\r", b"\n:")]
+    table = [(b"00ivolume\r", b"\n\xff\xfe\x93\r\n12.5 ml\r\n>"), *STOPPED]
     with expected_protocol(table) as pump, pytest.raises(PumpProtocolError) as raised:
         pump.volumes_ml()
     assert "the pump was stopped" in str(raised.value)
 
 
 def test_a_value_where_none_belongs_is_a_protocol_error():
-    table = [(b"00cvolume\r", b"\n12.5 ml\r\n:"), (b"00stop\r", b"\n:")]
+    table = [(b"00cvolume\r", b"\n12.5 ml\r\n:"), *STOPPED]
     with expected_protocol(table) as pump, pytest.raises(PumpProtocolError, match="unexpected"):
         pump.clear_volumes()
 
@@ -712,9 +734,11 @@ def test_the_direction_line_of_metrics(lines, can_withdraw):
 
 def test_a_pump_that_does_not_say_whether_it_withdraws_is_asked_and_warned_about():
     table = [
-        *CONNECT[:3],
+        *LOOKED_AT,
+        NVRAM_OFF,
         (b"00metrics\r", b"\nCommand error: [metrics]\r\n   Unknown command\r\n:"),
-        *CONNECT[4:],
+        (b"00wvolume\r", b"\n0 ul\r\n:"),
+        *SYRINGE,
         WITHDRAW_LIMITS,  # an infuse-only pump would refuse this: before anything moves
         (b"00wrate 1.0000 ml/min\r", b"\n:"),
         (b"00wrate\r", b"\n1 ml/min\r\n:"),
@@ -725,6 +749,7 @@ def test_a_pump_that_does_not_say_whether_it_withdraws_is_asked_and_warned_about
         [warning] = pump.connect_warnings
         assert "does not say whether it withdraws" in warning
         assert "refused 'metrics'" in warning
+        assert "answers 'wvolume', so it is taken as withdrawing" in warning
         pump.set_withdraw_rate(1.0)
 
 
@@ -733,3 +758,199 @@ def test_the_status_time_is_in_seconds_as_the_manual_gives_it():
     line = parse_status_line("16666666667 30 500000000000 I..TI.")
     assert line.time_s == 30
     assert line.volume_ml / (line.time_s / 60) == pytest.approx(line.rate_ml_min, rel=1e-9)
+
+
+# ---- the pump as the bench leaves it: read first, then stopped and put in Quick Start --
+
+
+def connect_table(status=IDLE[1], mode=b"\nQuick Start Infuse/Withdraw\r\n:", after=()):
+    """Connect's exchanges with the pump's ``status`` and ``mode`` replies given, and
+    ``after`` between its stop and the syringe (default: NVRAM and metrics)."""
+    return [
+        *LOOKED_AT[:2],
+        (b"00status\r", status),
+        (b"00version\r", VERSION),
+        (b"00mode\r", mode),
+        *STOPPED,
+        *(after or (NVRAM_OFF, METRICS)),
+        *SYRINGE,
+    ]
+
+
+def test_a_pump_found_infusing_is_stopped_and_the_operator_told_what_it_did():
+    # 6 mL/min = 1e11 fL/s; 2.35 mL on its infused counter
+    table = connect_table(status=b"\n100000000000 23 2350000000000 I..TI.\r\n>")
+    with expected_protocol(table) as pump:
+        pump.connect()
+    [notice] = pump.connect_notices
+    assert notice.startswith("the pump was infusing at 6 mL/min (2.3500 mL infused on its counter)")
+    assert notice.endswith("labrig stopped it (stop confirmed by its status)")
+    assert pump.run_record["at_connect"] == notice
+
+
+def test_a_pump_found_withdrawing_says_withdrawn():
+    table = connect_table(status=b"\n50000000000 2 100000000000 W..TI.\r\n<")
+    with expected_protocol(table) as pump:
+        pump.connect()
+    assert "withdrawing at 3 mL/min (0.1000 mL withdrawn" in pump.connect_notices[0]
+
+
+@pytest.mark.parametrize(
+    ("status", "said"),
+    [
+        (b"\n0 60 1000000000000 i..TIT\r\nT*", "the pump was target reached (its alarm on)"),
+        (b"\n0 60 1000000000000 i.STI.\r\n*", "the pump was stalled (its alarm on)"),
+    ],
+)
+def test_a_pump_found_with_its_alarm_on_is_stopped_and_told(status, said):
+    with expected_protocol(connect_table(status=status)) as pump:
+        pump.connect()
+    assert pump.connect_notices[0].startswith(said)
+
+
+def test_a_pump_in_a_method_standing_in_a_pause_is_stopped_and_put_in_quick_start():
+    """Idle by its prompt and its flags, but its method will move it again: the stop
+    goes first, then ``load qs iw``, read back."""
+    table = connect_table(
+        mode=b"\nMethod prime\r\n:",
+        after=[
+            NVRAM_OFF,
+            METRICS,
+            (b"00load qs iw\r", b"\n:"),
+            (b"00mode\r", b"\nQuick Start Infuse/Withdraw\r\n:"),
+        ],
+    )
+    with expected_protocol(table) as pump:
+        pump.connect()
+    stopped, loaded = pump.connect_notices
+    assert stopped.startswith("the pump was in a method ('Method prime'), standing")
+    assert loaded == (
+        "labrig loaded Quick Start on the pump ('load qs iw'): it was in 'Method prime'"
+    )
+
+
+@pytest.mark.parametrize(
+    ("mode", "infuse_only", "loaded"),
+    [
+        (b"Quick Start Infuse", False, b"iw"),
+        (b"Quick Start Withdraw", False, b"iw"),
+        (b"Quick Start Withdraw", True, b"i"),
+        (b"Quick Start Infuse", True, None),
+        (b"Quick Start Withdraw/Infuse", False, None),
+    ],
+)
+def test_the_quick_start_variant_labrig_needs_is_loaded_when_missing(mode, infuse_only, loaded):
+    metrics = METRICS
+    if infuse_only:
+        metrics = (b"00metrics\r", b"\nDirection          Infuse only\r\n:")
+    after = [NVRAM_OFF, metrics]
+    name = {b"i": b"Infuse", b"iw": b"Infuse/Withdraw"}
+    if loaded is not None:
+        after += [
+            (b"00load qs " + loaded + b"\r", b"\n:"),
+            (b"00mode\r", b"\nQuick Start " + name[loaded] + b"\r\n:"),
+        ]
+    with expected_protocol(connect_table(mode=b"\n" + mode + b"\r\n:", after=after)) as pump:
+        pump.connect()
+    assert len(pump.connect_notices) == (loaded is not None)
+
+
+def test_a_pump_that_will_not_leave_its_method_is_refused_in_one_line():
+    after = [
+        NVRAM_OFF,
+        METRICS,
+        (b"00load qs iw\r", b"\nCommand error: [load]\r\n   Method locked\r\n:"),
+    ]
+    table = connect_table(mode=b"\nMethod prime\r\n:", after=after)[:-2]  # no syringe read
+    with expected_protocol(table) as pump, pytest.raises(PumpModeError) as raised:
+        pump.connect()
+    message = str(raised.value)
+    assert "\n" not in message
+    assert "is in 'Method prime' and refused 'load qs iw': Command error" in message
+    assert "on its panel, stop any method" in message
+    assert "Quick Start, then Infuse/Withdraw" in message
+
+
+def test_looking_at_a_pump_leaves_it_running():
+    """``pump status``: no stop, no mode change; the rest of connect as always."""
+    table = [
+        *LOOKED_AT[:2],
+        (b"00status\r", b"\n100000000000 23 2350000000000 I..TI.\r\n>"),
+        (b"00version\r", VERSION.replace(b":", b">")),
+        (b"00mode\r", b"\nQuick Start Infuse\r\n>"),
+        (b"00nvram off\r", b"\n>"),
+        (b"00metrics\r", METRICS[1].replace(b"\n:", b"\n>")),
+        (b"00diameter\r", b"\n26.7000 mm\r\n>"),
+        (b"00svolume\r", b"\n60 ml\r\n>"),
+    ]
+    with expected_protocol(table) as pump:
+        pump.connect(take_control=False)
+    assert pump.connect_notices == []
+
+
+def test_a_pump_that_does_not_say_and_refuses_wvolume_cannot_withdraw():
+    """Infuse-only firmware whose ``metrics`` has no Direction line: the refused
+    ``wvolume`` says it, with a warning; no withdraw command is sent after."""
+    after = [
+        NVRAM_OFF,
+        (b"00metrics\r", b"\nPump type          PHD ULTRA\r\n:"),
+        (b"00wvolume\r", b"\nCommand error: [wvolume]\r\n   Unknown command\r\n:"),
+    ]
+    table = [
+        *connect_table(after=after),
+        (b"00status\r", b"\n0 0 0 i..TI.\r\n:"),
+        (b"00ivolume\r", b"\n0 ul\r\n:"),
+    ]
+    with expected_protocol(table) as pump:
+        pump.connect()
+        assert not pump.can_withdraw
+        [warning] = pump.connect_warnings
+        assert "no Direction line" in warning and "refused 'wvolume'" in warning
+        assert "it cannot withdraw" in warning
+        assert pump.status().withdrawn_ml == 0.0
+
+
+def test_a_stop_is_confirmed_by_the_counter_standing_not_by_the_prompt():
+    """The prompt says idle at once, the counter still creeps (a motor coasting, flags
+    that lag): polled until two polls agree."""
+    table = [
+        (b"00stop\r", b"\n:"),
+        (b"00status\r", b"\n0 3 300000000000 i..TI.\r\n:"),
+        (b"00status\r", b"\n0 3 300100000000 i..TI.\r\n:"),
+        (b"00status\r", b"\n0 3 300100000000 i..TI.\r\n:"),
+    ]
+    with expected_protocol(table) as pump:
+        pump.stop()
+    creeping = [(b"00stop\r", b"\n:")] + [
+        (b"00status\r", b"\n0 3 30%d000000000 i..TI.\r\n:" % i) for i in range(4)
+    ]
+    with expected_protocol(creeping) as pump, pytest.raises(PumpError, match="not confirmed"):
+        pump.stop()
+
+
+def test_the_pumps_identity_from_its_version_reply():
+    identity = parse_identity(
+        "PHD ULTRA 3.0.5",
+        ("Firmware:      v3.0.5", "Pump address:  12", "Serial number: D401460"),
+    )
+    assert (identity.model, identity.firmware) == ("PHD ULTRA", "3.0.5")
+    assert (identity.serial_number, identity.address) == ("D401460", 12)
+    assert identity.describe() == "PHD ULTRA 3.0.5, serial D401460, address 12"
+    bare = parse_identity("PHD ULTRA 3.0.5", ("Firmware: v3.0.5",))
+    assert (bare.serial_number, bare.address) == (None, None)
+    assert bare.describe() == "PHD ULTRA 3.0.5, serial no serial number, address ?"
+
+
+@pytest.mark.parametrize(
+    ("text", "variant"),
+    [
+        ("Quick Start Infuse", "i"),
+        ("Quick Start Withdraw", "w"),
+        ("Quick Start Infuse/Withdraw", "iw"),
+        ("quick start withdraw/infuse", "wi"),
+        ("Method prime", None),
+        ("Quick Start Something", None),
+    ],
+)
+def test_the_mode_reply(text, variant):
+    assert parse_mode(text) == variant

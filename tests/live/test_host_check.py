@@ -73,3 +73,21 @@ def test_any_other_host_gets_421_and_no_data(server, host, path, method):
     if method == "GET":
         assert body.startswith("421 Misdirected Request: this live view answers only")
         assert "host check" not in body and "{" not in body
+
+
+@pytest.mark.parametrize("second", ["evil.example.com", "127.0.0.1:{port}"])
+def test_two_host_headers_get_421(server, second):
+    """A proxy may read the last of two Host headers where this server read the first:
+    two are refused, whichever they name."""
+    address, port = server._server.server_address[:2]
+    connection = http.client.HTTPConnection(address, port, timeout=30)
+    try:
+        connection.putrequest("GET", "/api/state", skip_host=True)
+        connection.putheader("Host", f"127.0.0.1:{port}")
+        connection.putheader("Host", second.format(port=port))
+        connection.endheaders()
+        response = connection.getresponse()
+        assert response.status == 421
+        assert "host check" not in response.read().decode()
+    finally:
+        connection.close()

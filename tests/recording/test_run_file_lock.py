@@ -223,3 +223,29 @@ def test_a_run_refused_its_file_leaves_no_rig_running(live_run, tmp_path):
         Runner(loaded, rig, path).run()
     assert set(threading.enumerate()) - threads_before == set()
     assert not os.path.exists(pty)
+
+
+@pytest.mark.parametrize("reach", ["symlink", "hardlink", "sidecar removed"])
+def test_the_lock_belongs_to_the_file_not_its_name(live_run, reach):
+    """A live run reached by another name, or with its sidecar removed: no recover, no
+    second writer, no --overwrite moving it aside."""
+    path, process = live_run
+    if reach == "sidecar removed":
+        lock_path(path).unlink()
+        other = path
+    else:
+        other = path.with_name("other.h5")
+        (other.symlink_to if reach == "symlink" else other.hardlink_to)(path)
+    before = path.read_bytes()
+    assert held_by_a_process(other)
+    for attempt in (
+        lambda: recover_run(other),
+        lambda: claim_out_path(other, overwrite=True),
+        lambda: make_writer(other),
+    ):
+        with pytest.raises(InputError, match="a labrig process"):
+            attempt()
+    assert path.read_bytes() == before
+    process.communicate("\n", timeout=60)
+    with open_run(path) as run:
+        assert run["entry/status"][()] == b"complete"

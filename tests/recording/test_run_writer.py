@@ -136,7 +136,7 @@ def test_missing_and_foreign_files_are_clear_errors(tmp_path):
         open_run(tmp_path / "absent.h5")
     foreign = tmp_path / "foreign.h5"
     foreign.write_bytes(b"not hdf5 at all")
-    with pytest.raises(InputError, match="not a readable HDF5 file"):
+    with pytest.raises(InputError, match="not an HDF5 file"):
         open_run(foreign)
     with h5py.File(tmp_path / "other.h5", "w") as f:
         f["x"] = 1

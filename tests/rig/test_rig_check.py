@@ -19,7 +19,8 @@ BENCH = "protocols/rigs/bench.yaml"
 # what the check may send: queries, NVRAM writes off, and the stop the driver sends
 # after a reply that never came (a stop moves nothing)
 READ_ONLY = {"ver", "version", "poll off", "nvram off", "metrics", "diameter", "svolume",
-             "irate lim", "wrate lim", "force", "status", "ivolume", "wvolume", "stop"}  # fmt: skip
+             "irate lim", "wrate lim", "force", "status", "ivolume", "wvolume", "stop",
+             "mode"}  # fmt: skip
 
 
 def rig_check(capsys, *args: str) -> tuple[int, dict[str, str]]:
@@ -109,6 +110,20 @@ def test_the_pump_check_on_a_pump_left_by_other_software_says_what_it_can_do():
         sent = {re.sub(r"^\d{1,2}:?", "", line) for line in emulator.received}
         assert sent <= READ_ONLY | {"nvram none", "rsave off"}, sent - READ_ONLY
         assert not any(line.startswith("w") for line in sent)  # metrics said infuse-only
+
+
+def test_a_pump_found_infusing_fails_the_check_and_is_left_running():
+    """The check moves nothing, a stop included: a moving pump is named, not touched."""
+    clock = RealClock()
+    with PumpEmulator(clock) as emulator:
+        emulator.keypad("irate 1.2 ml/min", "irun")
+        check = check_pump(PumpConfig(port=emulator.port), clock)
+        assert not check.ok
+        assert "; infusing" in check.found
+        assert f"labrig pump --port {emulator.port} stop" in check.line()
+        sent = {re.sub(r"^\d{1,2}:?", "", line) for line in emulator.received}
+        assert "stop" not in sent and not any(s.startswith("load") for s in sent), sent
+        assert emulator.net_volume_ml(clock.now()) > 0
 
 
 def test_a_missing_ni_daqmx_driver_is_named():

@@ -4,15 +4,18 @@ driver)."""
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 
 import pytest
 import serial
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from labrig.drivers.phd_ultra_protocol import parse_rate_limits
 from labrig.rig.devices import PumpState
-from labrig.sim.pump import PumpEmulator
+from labrig.sim.pump import LOG_LIMIT, PumpEmulator
 from labrig.sim.syringe_drive import INFUSE, WITHDRAW, SyringeDrive
 from labrig.time.virtual import VirtualClock
 
@@ -360,3 +363,82 @@ def test_the_by_id_link_is_gone_while_the_pump_is_and_follows_it_back(tmp_path):
     finally:
         emulator.close()
     assert not link.is_symlink()
+
+
+# ---- any byte, any amount: the emulator answers on and its log stays bounded ----------
+
+# what the emulator may log, at most, of each kind of trouble: LOG_LIMIT records and the
+# one saying the rest are counted
+LOG_BOUND = 3 * (LOG_LIMIT + 1)
+
+
+def _drain(port: serial.Serial) -> None:
+    """Read until the line has been quiet for a while (replies to what was sent)."""
+    while port.read(4096):
+        pass
+
+
+def _answers_ver(port: serial.Serial) -> bool:
+    """Back to a known state (what random bytes may have set: poll mode, address),
+    then the pump must answer ``ver`` as ever."""
+    port.write(b"\rpoll off\raddress 0\r")
+    _drain(port)
+    port.write(b"ver\r")
+    answer = b"\nPHD ULTRA 3.0.5\r\n:"
+    port.timeout = 5.0  # a late reply to the noise may still come first on a busy host
+    try:
+        return port.read_until(answer).endswith(answer)
+    finally:
+        port.timeout = QUIET_S
+
+
+@settings(max_examples=60, deadline=None)
+@given(noise=st.binary(min_size=1, max_size=600))
+def test_any_bytes_leave_the_emulator_answering(noise):
+    """One ``\\xff`` once ended the serving thread (an error encoding its refusal) and
+    took the pseudo-terminal with it while the process went on serving."""
+    log = logging.getLogger("labrig.sim.pump")
+    records = []
+    handler = logging.Handler()
+    handler.emit = records.append
+    log.addHandler(handler)
+    try:
+        with (
+            PumpEmulator(VirtualClock()) as emulator,
+            serial.Serial(emulator.port, 115200, timeout=QUIET_S) as port,
+        ):
+            port.write(noise)
+            _drain(port)
+            assert _answers_ver(port)
+            assert emulator.serving
+            assert emulator.troubles["error"] == 0  # every line answered, none failed
+    finally:
+        log.removeHandler(handler)
+    assert len(records) <= LOG_BOUND
+
+
+def test_a_single_invalid_byte_is_answered_as_an_unknown_command(emulator, port):
+    port.write(b"\xff\r")
+    port.timeout = 5.0
+    assert port.read_until(b"\n:") == b"\nCommand error: [?]\r\n   Unknown command\r\n:"
+    assert emulator.serving
+
+
+def test_a_flood_is_answered_with_a_bounded_log(emulator, caplog):
+    """Megabytes of bad lines and one endless line, with nobody reading the replies:
+    the output buffer fills, the long line is cut, and the log says so a few times."""
+    with (
+        caplog.at_level(logging.WARNING, logger="labrig.sim.pump"),
+        serial.Serial(emulator.port, 115200, timeout=QUIET_S, write_timeout=30) as port,
+    ):
+        for _ in range(40):
+            port.write(b"\xff\xfe\r" * 5000)
+        port.write(b"x" * 100_000 + b"\r")
+        time.sleep(0.5)
+        port.reset_input_buffer()
+        _drain(port)
+        assert _answers_ver(port)
+    assert emulator.troubles["full"] > LOG_LIMIT  # replies were dropped, many times
+    assert emulator.troubles["line"] == 1
+    assert len(caplog.records) <= LOG_BOUND
+    assert emulator.serving

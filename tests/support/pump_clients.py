@@ -124,9 +124,29 @@ TECHNICIAN = [
     (b"bogus\r", b"\nCommand error: [bogus]\r\n   Unknown command\r\n:"),
 ]
 
+# A technician with a user method (the emulator's 'prime': 0.5 mL at 6 mL/min, a 10 s
+# pause, 0.5 mL): loaded, refused a Quick Start run, started, found standing in its
+# pause (idle prompt, flags standing, the target flag clear), refused a new mode while
+# it runs, stopped (the pause then never ends in motion), and left for Quick Start.
+METHOD = [
+    (b"load prime\r", b"\n:"),
+    (b"mode\r", b"\nMethod prime\r\n:"),
+    (b"irun\r", b"\nCommand error: [irun]\r\n   Not allowed in method prime\r\n:"),
+    (b"run\r", b"\n>"),
+    (WAIT, 7.0),  # 5 s for the first 0.5 mL, then 2 s into the pause
+    (b"status\r", b"\n0 5 500000000000 i..TI.\r\n:"),
+    (b"load qs iw\r", b"\nCommand error: [load]\r\n   Not allowed while running\r\n:"),
+    (b"stop\r", b"\n:"),
+    (WAIT, 20.0),  # past the pause's end: nothing moves
+    (b"ivolume\r", b"\n500 ul\r\n:"),
+    (b"load qs iw\r", b"\n:"),
+    (b"mode\r", b"\nQuick Start Infuse/Withdraw\r\n:"),
+]
+
 SEQUENCES = {
     "flowchem Elite11": (FLOWCHEM_ELITE11, {"reply_style": "prefixed"}),
     "chembot infuse": (CHEMBOT_INFUSE, {}),
     "Pico Plus (BioCAT)": (PICO_PLUS, {}),
     "technician": (TECHNICIAN, {}),
+    "technician with a method": (METHOD, {}),
 }

@@ -9,31 +9,29 @@ deflating; at 22 mL "a second instability of type (1, 2)"). Its algorithm steps 
 supplied volume and compares the states of consecutive steps, so everything between two
 steps is one transition, typed by the segments right of their peak before and after.
 
-Grouping (``group_paper_transitions``): a snap that comes within ``SAME_VOLUME_ML`` of
-supplied volume after the event before it (a crossing, or a snap it lands in) belongs to
-that event's transition; a crossing always starts a transition of its own, as does
-anything after a change of actuator or of direction. So a crossing and the snap it sets
-off are one unstable transition, a crossing that sets off nothing stays a stable one,
-and two crossings stay two. The tolerance is needed because a smooth peak's falling
-side starts flat, so the fold the crossing leads to comes a little further on (0.003-1.0
-mL on the calibrated library's 630 pairs), never at exactly the crossing's volume.
-``SAME_VOLUME_ML`` is 1.5 mL: on that library the counts of (0, 1), (1, 1) and (1, 2)
-are the same for any tolerance from 1.01 to 5 mL, and it is half the 3 mL between the
-two instabilities of Fig. 3 (19 and 22 mL), which the paper counts as two
-(docs/explanation/scans.md has the counts against the tolerance).
+Grouping (``group_paper_transitions``): events of one actuator and one direction at the
+same supplied volume (within ``SAME_VOLUME_ML``, rounding) are one transition: a
+crossing that sets off a snap at its own volume, a snap that lands past another fold
+and snaps again. Events at two volumes are two transitions, however close: the paper's
+algorithm compares the states of consecutive volumes, and a fold a smooth peak's
+crossing leads to comes a little further on (0.002-1.0 mL on the calibrated library's
+630 pairs), where the supplied volume has changed. So a crossing that sets off a snap
+further on is a stable transition and the snap another, typed by its own states (a
+(2, 1) or a (2, 2) where the crossing made it so). ``SAME_VOLUME_ML`` is 1e-6 mL: far
+below the smallest gap between two events of that library (0.002 mL), far above the
+rounding of the volumes at which a cascade's snaps start (docs/explanation/scans.md has
+the counts).
 
 A transition's numbers are:
 - ``v_ml``: the supplied volume just before its first event; ``direction`` its events'.
 - ``alpha``: the first event's alpha; ``beta``: the last event's beta.
 - ``stable``: True only if no event of it is a snap.
-- ``dE``, ``dv``, ``dl``, ``dp``: the sums of its events' values. Each event's value is
-  relative to its own pre state, and between a crossing and its snap the pump supplies
-  up to ``SAME_VOLUME_ML``, whose work is not released by the transition (1 mL at 70 kPa
-  is 70 mJ, several per cent of the stored energy: more than many snaps release). The
-  sum keeps the changes at the events and leaves out the smooth stretch between them;
-  where events chain at one volume it is the change from the first pre to the last post
-  to first order. So the sums of dE, dv, dl and dp over a path are the same counted
-  either way.
+- ``dE``, ``dl``, ``dp``: its events' relative changes compounded, (1 + a)(1 + b) - 1:
+  each is relative to its own pre state, which is the post state of the event before it
+  at the same volume, so the compound is the change from the first pre to the last post.
+- ``dv``: the sum of its events' flows, each a fraction of the same supplied volume: the
+  largest gain of a segment over the whole transition where one segment gains in each
+  (a cascade of snaps into it), at most that otherwise.
 """
 
 from __future__ import annotations
@@ -45,10 +43,11 @@ import numpy as np
 
 from labrig.model.actuator.transitions import Transition, TransitionNumbers
 
-SAME_VOLUME_ML = 1.5
+SAME_VOLUME_ML = 1e-6
 # the fields of a fine-grained event (a scan file's row, a ``Transition``)
 EVENT_FIELDS = ("direction", "v_ml", "alpha", "beta", "stable", "dE", "dv", "dl", "dp")
-SUMMED = ("dE", "dv", "dl", "dp")
+COMPOUNDED = ("dE", "dl", "dp")
+SUMMED = ("dv",)
 
 
 def group_paper_transitions(
@@ -70,11 +69,7 @@ def group_paper_transitions(
     count = len(v)
     joins = np.zeros(count, dtype=bool)
     if count > 1:
-        joins[1:] = (
-            ~stable[1:]
-            & (direction[1:] == direction[:-1])
-            & (np.abs(v[1:] - v[:-1]) <= same_volume_ml)
-        )
+        joins[1:] = (direction[1:] == direction[:-1]) & (np.abs(v[1:] - v[:-1]) <= same_volume_ml)
         if actuator is not None:
             actuator = np.asarray(actuator)
             joins[1:] &= actuator[1:] == actuator[:-1]
@@ -89,6 +84,10 @@ def group_paper_transitions(
         "first": first,
         "events": last - first + 1,
     }
+    for name in COMPOUNDED:
+        values = np.asarray(events[name], dtype=float)
+        # through log1p: a transition of one event keeps its value to the last digit
+        out[name] = np.expm1(np.add.reduceat(np.log1p(values), first)) if count else values[:0]
     for name in SUMMED:
         values = np.asarray(events[name], dtype=float)
         out[name] = np.add.reduceat(values, first) if count else values[:0]

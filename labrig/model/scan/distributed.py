@@ -33,9 +33,9 @@ class ClusterLost(LabrigError):
 
 
 def _labrig_version() -> str:
-    import labrig
+    from labrig._version import __version__
 
-    return labrig.__version__
+    return __version__
 
 
 def connect(address: str):
@@ -88,14 +88,14 @@ def run_chunks_on_cluster(
     client,
     library: ScanLibrary,
     chunks: list[Chunk],
-    sink: Callable[[ChunkResult], None],
+    sink: Callable[[list[ChunkResult]], None],
     *,
     stop: threading.Event | None = None,
 ) -> None:
     """Run ``chunks`` on the cluster of ``client``; every result to ``sink`` in chunk
-    order. At most 2 * threads + 2 chunks are in flight (as on the local pool; threads
-    of the workers there are at the time), so the client's and the workers' memory
-    stays bounded however long the scan. ``stop`` set:
+    order (a list of one). At most 2 * threads + 2 chunks are in flight (as on the local
+    pool; threads of the workers there are at the time), so the client's and the
+    workers' memory stays bounded however long the scan. ``stop`` set:
     ScanInterrupted after the next result, the rest cancelled. A scheduler gone or a
     chunk that killed its workers (dask retries it on others first): ClusterLost."""
     from distributed import KilledWorker
@@ -127,7 +127,7 @@ def run_chunks_on_cluster(
                     "same command with --resume continues it"
                 ) from None
             fill()
-            sink(result)
+            sink([result])
             if stop is not None and stop.is_set():
                 raise ScanInterrupted("the scan was stopped; its finished chunks are kept")
     finally:

@@ -107,12 +107,13 @@ def _scan_into(
     chunks = scan.pending_chunks()
     done = {"chunks": scan.chunks_done, "actuators": total - sum(c.stop - c.start for c in chunks)}
 
-    def sink(result: ChunkResult) -> None:
-        scan.append(result)
-        done["chunks"] += 1
-        done["actuators"] += result.n_actuators
-        if progress is not None:
-            progress(ScanProgress(done["actuators"], total, done["chunks"], scan.n_chunks))
+    def sink(results: list[ChunkResult]) -> None:
+        scan.append(results)
+        for result in results:  # each chunk told, as if written one by one
+            done["chunks"] += 1
+            done["actuators"] += result.n_actuators
+            if progress is not None:
+                progress(ScanProgress(done["actuators"], total, done["chunks"], scan.n_chunks))
 
     try:
         if progress is not None:

@@ -85,7 +85,10 @@ def load_library(spec: str | None) -> ScanLibrary:
             from labrig.model.segments.gent import gent_membrane as build
         else:
             from labrig.model.segments.catalog import analytical_segment as build
-        return ScanLibrary(name, tuple(build(n) for n in segment_names))
+        from labrig.model.scan.library_cache import cached_curves
+
+        curves = cached_curves(name, segment_names, lambda: tuple(build(n) for n in segment_names))
+        return ScanLibrary(name, curves)
     folder = Path(spec)
     if not folder.is_dir():
         raise InputError(
@@ -341,12 +344,13 @@ class ScanInterrupted(Exception):
 def run_chunks(
     library: ScanLibrary,
     chunks: list[Chunk],
-    sink: Callable[[ChunkResult], None],
+    sink: Callable[[list[ChunkResult]], None],
     *,
     workers: int,
     stop: threading.Event | None = None,
 ) -> None:
-    """Run ``chunks`` and hand every result to ``sink`` in chunk order.
+    """Run ``chunks`` and hand every result to ``sink`` in chunk order: a list of the
+    results that are ready one after another, which the scan file writes at once.
 
     At most 2 * workers + 2 chunks are in flight, so memory stays bounded however long
     the scan (results that finish early wait for the slower one before them). When
@@ -362,16 +366,16 @@ def run_chunks(
 
     for curve in library.curves:  # built before any fork, so that workers inherit them
         kernel_of(curve)
+    solve = _rows_function(library)
+    if chunks and isinstance(solve, _CompiledRows):
+        solve.warm()  # here, apart from the chunks' time, in one worker or many
     if workers <= 1 or len(chunks) <= 1:
         for chunk in chunks:
             check_stop()
-            sink(run_chunk(library, chunk))
+            sink([run_chunk(library, chunk)])
         return
     import multiprocessing
 
-    solve = _rows_function(library)
-    if isinstance(solve, _CompiledRows):
-        solve.warm()
     methods = multiprocessing.get_all_start_methods()
     # fork: the workers inherit the imported modules and the curves (0.5 s saved per
     # worker); elsewhere the library is pickled to each worker once
@@ -381,10 +385,12 @@ def run_chunks(
     with context.Pool(workers, initializer=_init_worker, initargs=(library,)) as pool:
         pending = deque(pool.apply_async(_run_in_worker, (c,)) for c in _take(todo, window))
         while pending:
-            result = pending.popleft().get()
-            for chunk in _take(todo, 1):
+            ready = [pending.popleft().get()]
+            while pending and pending[0].ready():
+                ready.append(pending.popleft().get())
+            for chunk in _take(todo, len(ready)):
                 pending.append(pool.apply_async(_run_in_worker, (chunk,)))
-            sink(result)
+            sink(ready)
             check_stop()
 
 

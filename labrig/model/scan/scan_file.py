@@ -25,14 +25,14 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
-import labrig
+from labrig._version import __version__
 from labrig.errors import InputError
 from labrig.model.scan.scan import (
     TRANSITION_FIELDS,
@@ -61,6 +61,8 @@ def _growing(group, name: str, dtype, width: int | None = None):
 
 
 def _append(dataset, values) -> None:
+    if not len(values):  # most chunks fail nowhere: two h5py calls saved per dataset
+        return
     start = dataset.shape[0]
     dataset.resize(start + len(values), axis=0)
     dataset[start:] = values
@@ -91,7 +93,7 @@ class ScanFile:
         h5 = h5py.File(path, "w")
         attrs = h5.attrs
         attrs["kind"] = KIND
-        attrs["labrig_version"] = labrig.__version__
+        attrs["labrig_version"] = __version__
         attrs["n"] = n
         attrs["deflate"] = deflate
         attrs["chunk_size"] = chunk_size
@@ -196,29 +198,47 @@ class ScanFile:
     def n_chunks(self) -> int:
         return len(self.h5["chunks/done"])
 
-    def append(self, result: ChunkResult) -> None:
-        """Write one chunk's rows, then mark it done, then flush."""
-        rows, failures, chunks = self.h5["transitions"], self.h5["failures"], self.h5["chunks"]
-        row_start = rows["actuator"].shape[0]
-        failure_start = failures["actuator"].shape[0]
-        _append(rows["actuator"], result.actuator)
-        _append(rows["segments"], result.segments)
+    def append(self, results: Sequence[ChunkResult]) -> None:
+        """Write the rows of chunks that follow one another (the next ones in order),
+        then mark them done, then flush: one write per dataset for them all, since a
+        scan's parent spent more time in h5py's work per call than in writing (n = 3:
+        199 chunks of 36 actuators, 30 calls each)."""
+        if not results:
+            return
+        first, last = results[0].index, results[-1].index + 1
+        if [r.index for r in results] != list(range(first, last)):
+            raise ValueError(f"chunks {[r.index for r in results]}: not one after another")
+        h5 = self.h5
+        rows, failures, chunks = h5["transitions"], h5["failures"], h5["chunks"]
+        index = {}
+        for key, group, field in (
+            ("row", rows, "actuator"),
+            ("failure", failures, "failed_actuator"),
+        ):
+            counts = np.array([len(getattr(r, field)) for r in results], dtype=np.int64)
+            stops = group["actuator"].shape[0] + np.cumsum(counts)
+            index[f"{key}_start"], index[f"{key}_stop"] = stops - counts, stops
+
+        def joined(field: str) -> np.ndarray:
+            return np.concatenate([getattr(r, field) for r in results])
+
+        _append(rows["actuator"], joined("actuator"))
+        _append(rows["segments"], joined("segments"))
         for name in TRANSITION_FIELDS:
-            _append(rows[name], result.columns[name])
-        _append(failures["actuator"], result.failed_actuator)
-        _append(failures["segments"], result.failed_segments)
-        _append(failures["error"], np.array(result.failed_error, dtype=object))
-        i = result.index
-        chunks["row_start"][i] = row_start
-        chunks["row_stop"][i] = rows["actuator"].shape[0]
-        chunks["failure_start"][i] = failure_start
-        chunks["failure_stop"][i] = failures["actuator"].shape[0]
-        chunks["seconds"][i] = result.seconds
-        chunks["done"][i] = True
-        attrs = self.h5.attrs
-        attrs["worker_peak_rss_mib"] = max(float(attrs["worker_peak_rss_mib"]), result.peak_rss_mib)
+            _append(rows[name], np.concatenate([r.columns[name] for r in results]))
+        _append(failures["actuator"], joined("failed_actuator"))
+        _append(failures["segments"], joined("failed_segments"))
+        errors = [e for r in results for e in r.failed_error]
+        _append(failures["error"], np.array(errors, dtype=object))
+        for key, values in index.items():
+            chunks[key][first:last] = values
+        chunks["seconds"][first:last] = [r.seconds for r in results]
+        chunks["done"][first:last] = True
+        attrs = h5.attrs
+        peak = max(r.peak_rss_mib for r in results)
+        attrs["worker_peak_rss_mib"] = max(float(attrs["worker_peak_rss_mib"]), peak)
         attrs["elapsed_s"] = self._elapsed_before + time.perf_counter() - self._started
-        self.h5.flush()
+        h5.flush()
 
     def close(self, *, workers: int, parent_peak_rss_mib: float) -> None:
         attrs = self.h5.attrs

@@ -2,7 +2,7 @@
 largest snap, and the paper's Fig. 4 A-C for the scan.
 
 Transitions are counted as the paper counts them: the scan file's rows are the path's
-fine-grained events, and a peak crossing with the snap it sets off is one transition
+fine-grained events, and the events at one supplied volume are one transition
 (``labrig.model.actuator.paper_counting``). A transition's type is (alpha, beta) —
 segments right of their pressure peak before and after — with its stability (unstable
 if it holds a snap at constant volume) and its direction; the paper's Fig. 4 colours

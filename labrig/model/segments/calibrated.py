@@ -23,7 +23,7 @@ names as the model's limits (docs/explanation/calibration.md):
 - the braids themselves give radially after contact (``braid_stiffness``), with an
   assumed stiffness, so that no branch is a wall.
 
-The values are the result of ``labrig model calibrate`` (``labrig.model.paper.fit``),
+The values are the result of ``labrig model calibrate`` (``labrig.paper.fit``),
 fitted to the peak range of the 36 segments and Movie S3 only.
 """
 

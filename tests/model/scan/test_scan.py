@@ -146,17 +146,20 @@ def test_the_file_is_the_same_with_one_or_two_workers(tmp_path):
 def test_an_interrupted_scan_resumes_to_the_same_file(tmp_path):
     library = small_library()
     whole, cut = tmp_path / "whole.h5", tmp_path / "cut.h5"
-    run_scan(library, 2, whole, workers=1, chunk_size=4)
+    run_scan(library, 2, whole, workers=1, chunk_size=1)
 
     def stop_after_three_chunks(progress):
         if progress.chunks_done == 3:
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        run_scan(library, 2, cut, workers=2, chunk_size=4, progress=stop_after_three_chunks)
+        run_scan(library, 2, cut, workers=2, chunk_size=1, progress=stop_after_three_chunks)
     partial = read_scan(cut)
-    assert not partial.complete and partial.actuators_done == 12
-    assert set(partial.actuator.tolist()) <= set(range(12))
+    # the third chunk and those written with it (the chunks ready together are written
+    # at once): at most the pool's window more, 2 * 2 + 2 chunks of the 28
+    done = partial.actuators_done
+    assert not partial.complete and 3 <= done <= 9
+    assert set(partial.actuator.tolist()) <= set(range(done))
     # a scan killed while writing a chunk leaves rows past the last finished chunk
     with h5py.File(cut, "r+") as h5:
         for name, dataset in h5["transitions"].items():
@@ -165,7 +168,7 @@ def test_an_interrupted_scan_resumes_to_the_same_file(tmp_path):
                 dataset[-5:] = 99
     seen = []
     run_scan(library, 2, cut, workers=2, resume=True, progress=seen.append)
-    assert seen[0].chunks_done == 3 and seen[-1].actuators_done == 28
+    assert seen[0].chunks_done == done and seen[-1].actuators_done == 28
     assert_same_contents(whole, cut)
     assert read_scan(cut).complete
 
@@ -200,7 +203,9 @@ def test_libraries_by_name_and_folder(tmp_path):
     assert analytical.names == list(LIBRARY_NAMES) and load_library("Analytical") == analytical
     paper = load_library("paper")
     assert paper.label == "paper" and paper.names[0] == "paper:B40-T20"
-    assert paper.curves[-1] is analytical_segment("paper:B50-T30")
+    built = analytical_segment("paper:B50-T30")  # the scan's may come from its cache
+    assert paper.curves[-1].name == built.name and paper.curves[-1].V0_ml == built.V0_ml
+    np.testing.assert_array_equal(paper.curves[-1].p_kpa, built.p_kpa)
     assert load_library("gent").names == ["gent-a", "gent-b", "gent-c"]
     for name in ("B50-T20", "B46-T22"):
         write_csv(analytical_segment(name), tmp_path / f"m-{name}.csv")

@@ -19,7 +19,8 @@ from functools import cache
 
 import numpy as np
 
-from labrig.model.paper.statements import (
+from labrig.model.segments.calibrated import CALIBRATION, Calibration, calibrated_curve
+from labrig.paper.statements import (
     MOVIE_S3,
     PEAK_RANGE_KPA,
     inflation_snaps,
@@ -27,7 +28,6 @@ from labrig.model.paper.statements import (
     peak_pressures,
     second_peak_crossings,
 )
-from labrig.model.segments.calibrated import CALIBRATION, Calibration, calibrated_curve
 
 FIELDS = (
     "shear_modulus_mpa",

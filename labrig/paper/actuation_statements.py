@@ -17,8 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from labrig.model.paper.pair_scan import actuator_transitions
-from labrig.model.paper.statements import MOVIE_S5, PREDICTION, Library, Outcome, within
+from labrig.paper.actuator_statements import evidence
+from labrig.paper.pair_scan import actuator_transitions
+from labrig.paper.statements import MOVIE_S5, PREDICTION, Library, Outcome, within
 
 # (key, fluid, air reservoir mL, pump mL/min, the paper's text, the tolerance in s)
 CASES = (
@@ -38,7 +39,7 @@ def actuation_time_s(library: Library, names, fluid: str, reservoir_ml: float, r
     from labrig.analysis.actuation import step_response
     from labrig.sim.dynamic_plant import FLUIDS, DynamicPlant, Plumbing
 
-    snaps = [t for t in actuator_transitions(library, names) if not t.stable]
+    snaps = evidence(actuator_transitions(library, names))
     if not snaps:
         return None
     target_ml = snaps[0].v_ml - BELOW_SNAP_ML

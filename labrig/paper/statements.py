@@ -4,15 +4,18 @@ Each statement has the paper's value, labrig's, a two-sided tolerance (a magnitu
 paper gives as "about x" or "up to x" holds within a factor of two of x, a volume within
 3 mL; decision record 0006 fixed them before the paper-numbers library was computed),
 its role (``input``: a constant the paper gives; ``fitted``: in the subset a library was
-fitted to; ``prediction``: the rest) and the library it was computed on
+fitted to; ``selected on``: used to choose between fits that met that subset equally;
+``prediction``: the rest) and the library it was computed on
 (``labrig.model.segments.catalog``: ``paper``, ``paper-r``, ``calibrated``, ``si``).
 
-The statements live in ``segment_statements`` (Fig. 1C, D, Fig. S4, the paper's
-constants), ``actuator_statements`` (Movies S3-S6, Fig. 3, Fig. 4) and
-``actuation_statements`` (Movie S7, on the simulated plumbing); transitions are
-counted as the paper counts them (``labrig.model.actuator.paper_counting``).
+This module holds what the statements share (their record, the paper's names and
+ranges, reading a library's snaps); the statements live in ``segment_statements``
+(Fig. 1C, D, Fig. S4, the paper's constants), ``actuator_statements`` (Movies S3-S6,
+Fig. 3, Fig. 4) and ``actuation_statements`` (Movie S7, on the simulated plumbing), and
+``checker`` gathers them for a library; transitions are counted as the paper counts
+them (``labrig.model.actuator.paper_counting``).
 
-The calibration's objective (``labrig.model.paper.fit``) reads a library through the
+The calibration's objective (``labrig.paper.fit``) reads a library through the
 helpers here with the path's fine-grained events, as when it was fitted.
 """
 
@@ -36,7 +39,17 @@ MOVIE_S5 = ("B44-T30", "B48-T26")
 MOVIE_S6 = ("B40-T28", "B44-T30", "B50-T24")
 VOLUME_TOLERANCE_ML = 3.0
 
-INPUT, FITTED, PREDICTION = "input", "fitted", "prediction"
+INPUT, FITTED, SELECTED, PREDICTION = "input", "fitted", "selected on", "prediction"
+ROLES = (INPUT, FITTED, SELECTED, PREDICTION)
+
+# the types the paper reports for n = 2 (Fig. 4); a statement about pairs is judged on
+# transitions of these types only, so that none passes through a type it never shows
+PAPER_TYPES = frozenset({(0, 1), (1, 1), (1, 2)})
+# an unstable transition releases at least this share of the stored energy: far above
+# the solver's noise (a stable transition's dE over labrig's 1e-4 mL window is at most
+# 5.8e-5 on every library, the paper's up to 4e-5), far below the smallest release the
+# paper quotes (an unstable (1, 2)'s "up to 2.5 %")
+MIN_RELEASE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -65,7 +78,7 @@ class Outcome:
     paper: str
     labrig: str
     holds: bool
-    role: str  # "input", "fitted" or "prediction"
+    role: str  # one of ROLES
     why: str  # for a statement that does not hold: what the model does instead
     tolerance: str = ""
     library: str = ""
@@ -129,37 +142,3 @@ def nearest(snaps: list, v_ml: float):
 
 def snaps_text(snaps: list[Snap]) -> str:
     return "; ".join(s.describe() for s in snaps) or "no snap on inflation"
-
-
-def evaluate(library_name: str) -> list[Outcome]:
-    """Every statement for the library ``library_name`` (``paper``, ``paper-r``, ``calibrated``,
-    ``si``): a few seconds, most of them the 630 pairs of Fig. 3 and Fig. 4 and Movie
-    S7's three runs of the simulated plumbing."""
-    from labrig.model.paper import actuation_statements, actuator_statements, segment_statements
-    from labrig.model.segments.catalog import analytical_segment
-
-    prefix = f"{library_name}:"
-    outcomes = segment_statements.evaluate(analytical_segment, prefix)
-    outcomes += actuator_statements.evaluate(analytical_segment, prefix)
-    outcomes += actuation_statements.evaluate(analytical_segment, prefix)
-    fitted = FITTED_KEYS.get(library_name, frozenset())
-    return [
-        Outcome(
-            **{
-                **asdict(o),
-                "library": library_name,
-                "role": FITTED if o.key in fitted else o.role,
-            }
-        )
-        for o in outcomes
-    ]
-
-
-# the statements each library was fitted to (``labrig.model.paper.fit`` for the
-# calibrated one, and the simulated couplings' bore on Movie S7's water case with it);
-# the paper-numbers and the SI's libraries fit nothing
-FITTED_KEYS = {
-    "calibrated": frozenset(
-        {"peaks-range", "peaks-spread", "S3-volume", "S3-elongation", "S7-water"}
-    ),
-}

@@ -1,2 +1,0 @@
-"""The model against the paper: its statements, checked, and the fit that calibrates the
-library on a named subset of them."""

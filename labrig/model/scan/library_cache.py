@@ -1,0 +1,132 @@
+"""A named library's tabulated segments kept between scans, as numba keeps the compiled
+solver: tabulating the 36 braided segments (an Ogden membrane solved at every volume of
+each table) took more CPU than the actuators of a whole n = 3 scan (3.5 s of CPU against 2.6 s;
+tests/benchmarks/bench_scan_wall.py), and every scan did it again for the same tables.
+
+The file holds each segment's name, source, V0 and its three tables as they were
+tabulated (float64, so the tables and the scan's results are the same bits as freshly
+built: the scan file's library digest checks it on a resume). It is named by a hash of
+what the tables depend on: the library's segment names, every file of
+``labrig.model.segments`` (the code and data that tabulate them) and the versions of
+Python, numpy and scipy; any change to those names another file, and the old one is
+removed when the new one is written. The folder is ``$LABRIG_CACHE_DIR`` if set, else
+``__pycache__`` beside this module where that is writable (numba's choice for its own
+cache), else the user's cache folder. A file that cannot be read or written is rebuilt
+or skipped: the cache only ever saves time.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import platform
+import tempfile
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from labrig.model.segments.curve import SegmentCurve
+
+CACHE_VARIABLE = "LABRIG_CACHE_DIR"
+SEGMENTS_PACKAGE = Path(__file__).resolve().parents[1] / "segments"
+_FORMAT = "labrig scan library 1"
+_PREFIX = "scan-library-"
+
+
+def cache_folder() -> Path:
+    """Where the tables are kept (see the module docstring)."""
+    chosen = os.environ.get(CACHE_VARIABLE)
+    if chosen:
+        return Path(chosen)
+    beside = Path(__file__).resolve().parent / "__pycache__"
+    if os.access(beside if beside.is_dir() else beside.parent, os.W_OK):
+        return beside
+    home = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(home) / "labrig"
+
+
+def _key(label: str, names: Sequence[str]) -> str:
+    """A hash of everything the library's tables depend on."""
+    import scipy
+
+    h = hashlib.sha256()
+    for part in (_FORMAT, label, *names, platform.python_version(), np.__version__):
+        h.update(part.encode() + b"\0")
+    h.update(scipy.__version__.encode() + b"\0")
+    for path in sorted(SEGMENTS_PACKAGE.rglob("*")):
+        if path.is_file() and "__pycache__" not in path.parts:
+            h.update(path.relative_to(SEGMENTS_PACKAGE).as_posix().encode() + b"\0")
+            h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def cached_curves(
+    label: str, names: Sequence[str], build: Callable[[], tuple[SegmentCurve, ...]]
+) -> tuple[SegmentCurve, ...]:
+    """The curves of library ``label`` (segments ``names``, in order), read from the
+    cache, or built by ``build`` and stored there for the next scan; the same objects
+    for every scan of the process (each curve's kernel is built once per curve)."""
+    key = _key(label, names)
+    curves = _IN_PROCESS.get(key)
+    if curves is None:
+        path = cache_folder() / f"{_PREFIX}{label}-{key[:32]}.npz"
+        curves = _read(path, key, names)
+        if curves is None:
+            curves = build()
+            _write(path, label, key, curves)
+        _IN_PROCESS[key] = curves
+    return curves
+
+
+_IN_PROCESS: dict[str, tuple[SegmentCurve, ...]] = {}
+
+
+def _read(path: Path, key: str, names: Sequence[str]) -> tuple[SegmentCurve, ...] | None:
+    try:
+        with np.load(path, allow_pickle=False) as stored:
+            if str(stored["key"]) != key or list(stored["names"]) != list(names):
+                return None
+            return tuple(
+                SegmentCurve(
+                    name=str(name),
+                    v_ml=stored[f"v_ml_{i}"],
+                    p_kpa=stored[f"p_kpa_{i}"],
+                    l_mm=stored[f"l_mm_{i}"],
+                    V0_ml=float(stored["V0_ml"][i]),
+                    source=str(stored["source"][i]),
+                )
+                for i, name in enumerate(stored["names"])
+            )
+    except (OSError, KeyError, ValueError):  # none yet, or damaged: built again
+        return None
+
+
+def _write(path: Path, label: str, key: str, curves: tuple[SegmentCurve, ...]) -> None:
+    """Store the tables, and remove the library's files of other keys (no longer read)."""
+    if any(c.measured is not None for c in curves):
+        return  # a measured table's import record is not kept here
+    arrays = {
+        "key": np.array(key),
+        "names": np.array([c.name for c in curves]),
+        "source": np.array([c.source for c in curves]),
+        "V0_ml": np.array([c.V0_ml for c in curves], dtype=float),
+    }
+    for i, c in enumerate(curves):
+        arrays |= {f"v_ml_{i}": c.v_ml, f"p_kpa_{i}": c.p_kpa, f"l_mm_{i}": c.l_mm}
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle, temporary = tempfile.mkstemp(dir=path.parent, suffix=".npz")
+    except OSError:  # a read-only folder: the next scan builds them again
+        return
+    try:
+        # written whole, then renamed: a scan reading at the same time sees all or nothing
+        with os.fdopen(handle, "wb") as out:
+            np.savez(out, **arrays)
+        os.replace(temporary, path)
+    except OSError:  # a full disk
+        Path(temporary).unlink(missing_ok=True)
+        return
+    for older in path.parent.glob(f"{_PREFIX}{label}-*.npz"):  # of code since changed
+        if older != path:
+            older.unlink(missing_ok=True)
