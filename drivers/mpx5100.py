@@ -29,6 +29,11 @@ SUPPLY_LOST_V = 0.5 * NOMINAL_SUPPLY_V
 # still be a true in-range pressure, so it is the tolerance of the range flag and the
 # largest offset a healthy sensor shows at atmospheric pressure.
 ACCURACY_KPA = 2.5
+# The top of the sensor's output band: its largest full-scale output, 4.813 V at 5 V
+# (100 kPa plus the accuracy). Nothing a healthy sensor at or below 100 kPa gives reads
+# above it, so the rig wires a cut output wire to read above it (a pull-up to the
+# supply; NAMUR NE 43: a broken wire reads outside the measuring band).
+BAND_TOP_KPA = RANGE_KPA[1] + ACCURACY_KPA
 
 
 def pressure_kpa(v_out: np.ndarray, v_supply: np.ndarray | float = NOMINAL_SUPPLY_V) -> np.ndarray:
@@ -49,7 +54,7 @@ def beyond_sensor_range(p_kpa: np.ndarray) -> np.ndarray:
     """True where a (zeroed) pressure lies outside 0-100 kPa by more than the sensor's
     accuracy, i.e. where the output may be saturated and the number is not a pressure."""
     p = np.asarray(p_kpa, dtype=float)
-    return (p < RANGE_KPA[0] - ACCURACY_KPA) | (p > RANGE_KPA[1] + ACCURACY_KPA)
+    return (p < RANGE_KPA[0] - ACCURACY_KPA) | (p > BAND_TOP_KPA)
 
 
 def beyond_adc_range(v: np.ndarray, min_v: float, max_v: float, bits: int = 14) -> np.ndarray:
@@ -83,10 +88,17 @@ def zero_offset(p_raw_kpa: np.ndarray, flagged: np.ndarray) -> ZeroOffset:
     """
     p = np.asarray(p_raw_kpa, dtype=float)
     offset = zero_mean(p, flagged, what="pressure sensor", wiring="the sensor's wiring and supply")
+    if np.any(p > BAND_TOP_KPA):
+        raise DeviceError(
+            f"zeroing: the sensor reads up to {np.max(p):.2f} kPa, above the MPX5100's output band "
+            f"(at most {BAND_TOP_KPA:g} kPa): its output wire is open (the pull-up at the "
+            "DAQ's input holds a cut wire there); check the sensor's output wire and connector"
+        )
     if abs(offset) > ACCURACY_KPA:
         raise DeviceError(
             f"zeroing: the sensor reads {offset:.2f} kPa at what should be atmospheric "
             f"pressure, more than the MPX5100's ±{ACCURACY_KPA} kPa offset; open the line to "
-            "atmosphere and check the channel and the sensor supply"
+            "atmosphere and check the channel, the sensor supply and its output wire (cut "
+            "on a rig without the pull-up, it reads about 27 kPa)"
         )
     return ZeroOffset(offset_kpa=offset, noise_kpa=float(np.std(p)), n_samples=int(p.size))

@@ -32,7 +32,8 @@ Behaviour copied from the device rather than replayed:
   quantisation of the hardware range, 13 bits in RSE and 14 differential (the usual
   datasheet split, unverified against NI), saturating at the range's ends;
 - the ways the bench dies, from a clock time on (``fail``, ``FAILURES``): the sensor's
-  Vout wire cut (the open input floats, ``floating_input_v``), its Vout shorted to
+  Vout wire cut (the open input floats, ``floating_input_v``, where the wiring holds it:
+  the input network alone, or a pull-up to the sensor's supply), its Vout shorted to
   ground (the input reads 0 V), its supply wire cut (no output, and a measured
   supply of 0 V), its output frozen (every later sample the same code), the device
   stalling (no sample acquired after it: reads wait and time out, -200284) or vanishing
@@ -85,6 +86,7 @@ FAILURES = ("vout-floating", "vout-cut", "supply-cut", "frozen", "stall", "vanis
 # 1.398 V behind 127 + 39.2 || 30.9 = 144 kOhm, the spec's input impedance: a cut wire
 # reads 1.40 V, 26.6 kPa through an MPX5100 on 5 V.
 FLOATING_INPUT_V = 2.5 * 39.2 / (39.2 + 30.9)
+INPUT_IMPEDANCE_KOHM = 127 + 39.2 * 30.9 / (39.2 + 30.9)
 # What a dangling wire behind 144 kOhm picks up (a model: it depends on the wire and the
 # room): mains hum, and broadband noise a few codes wide (one RSE code is 2.44 mV).
 FLOATING_HUM_V = 0.010  # amplitude
@@ -342,8 +344,10 @@ class SimDaqTask:
         clock_error_ppm: float = 0.0,
         other_signals: dict[str, Callable[[np.ndarray], np.ndarray]] | None = None,
         transfer_latency_s: tuple[float, float] = (0.0, 0.0),
+        pull_up_kohm: float | None = None,
     ) -> None:
         self.clock = clock
+        self.pull_up_kohm = pull_up_kohm
         self.pressure_kpa_at = pressure_kpa_at
         self.supply_v = float(supply_v)
         self.noise_kpa = float(noise_kpa)
@@ -623,10 +627,16 @@ class SimDaqTask:
 
     def floating_input_v(self, t_s: np.ndarray) -> np.ndarray:
         """What an open input reads at the sample times ``t_s``: the input network's
-        1.40 V, mains hum and broadband noise (``FLOATING_*``)."""
+        1.40 V, mains hum and broadband noise (``FLOATING_*``); with a pull-up to the
+        sensor's supply (``pull_up_kohm``), the divider of the two, and the pick-up
+        smaller in the ratio of the node's impedance to the bare input's."""
+        level_v, pickup = FLOATING_INPUT_V, 1.0
+        if self.pull_up_kohm is not None:
+            level_v, node_kohm = open_input_v(self.supply_v, self.pull_up_kohm)
+            pickup = node_kohm / INPUT_IMPEDANCE_KOHM
         hum_v = FLOATING_HUM_V * np.sin(2 * np.pi * MAINS_HZ * t_s + self._hum_phase)
         noise_v = self._floating_rng.normal(0.0, FLOATING_NOISE_V, len(t_s))
-        return FLOATING_INPUT_V + hum_v + noise_v
+        return level_v + pickup * (hum_v + noise_v)
 
     # -- helpers ------------------------------------------------------------------------
 
@@ -638,6 +648,14 @@ class SimDaqTask:
 
     def _error(self, message: str, code: DAQmxErrors) -> DaqError:
         return DaqError(message, code.value, task_name=self._name)
+
+
+def open_input_v(supply_v: float, pull_up_kohm: float) -> tuple[float, float]:
+    """An open input pulled up to ``supply_v``: its Thevenin voltage (the pull-up and the
+    input network's 1.40 V behind 144 kOhm) and the node's impedance (kOhm)."""
+    r_in, r_up = INPUT_IMPEDANCE_KOHM, float(pull_up_kohm)
+    level_v = (supply_v * r_in + FLOATING_INPUT_V * r_up) / (r_in + r_up)
+    return level_v, r_in * r_up / (r_in + r_up)
 
 
 def coerced_rate_hz(rate_hz: float) -> float:

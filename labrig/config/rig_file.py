@@ -23,6 +23,8 @@ from labrig.user_files import MAX_CONFIG_BYTES, read_text_file
 # derives it: 4.7 kOhm against the USB-6009's 144 kOhm input holds an open input at
 # 4.89 V, above the MPX5100's 4.813 V most).
 DEFAULT_PULL_UP_KOHM = 4.7
+# the largest that still holds an open input above the band's 4.8125 V: 7.9 kOhm
+MAX_PULL_UP_KOHM = 7.5
 # A 50 mL Hamilton 1000-series gastight syringe (the paper's), inner diameter in mm.
 DEFAULT_SYRINGE_DIAMETER_MM = 27.6
 DEFAULT_SYRINGE_VOLUME_ML = 50.0
@@ -81,12 +83,13 @@ class PressureConfig(Strict):
     supply_v: float = Field(5.0, gt=0, description="Assumed supply when none is measured")
     pull_up_kohm: float | None = Field(
         DEFAULT_PULL_UP_KOHM,
-        gt=0,
-        le=100,
+        ge=1,
+        le=MAX_PULL_UP_KOHM,
         description="The resistor from the sensor's output to its 5 V supply at the DAQ's "
         "input, so a cut output wire reads above the sensor's band and faults the run as a "
-        "wire fault; null for a rig wired without it (a cut wire then reads about 27 kPa, in "
-        "range, and only the zeroing sees it)",
+        "wire fault (above 7.5 kOhm it would read inside the band); null for a rig wired "
+        "without it (a cut wire then reads about 27 kPa, in range, and only the zeroing "
+        "sees it)",
     )
 
 

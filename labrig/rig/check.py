@@ -351,7 +351,8 @@ def check_pressure(
             f"{where}: {flagged} of {n} samples beyond the range, reading {p_kpa:+.2f} kPa",
             f"atmospheric pressure, 0 +- {tolerance:g} kPa (the MPX5100's offset tolerance)",
             "that the line is open to atmosphere, the sensor's supply, the channel it is "
-            "wired to and the terminal configuration",
+            "wired to, the terminal configuration and its output wire (open, it reads "
+            "about 104 kPa with the rig's pull-up, 27 kPa without)",
         )
     return DeviceCheck("pressure", True, f"{found}, atmospheric within +-{tolerance:g} kPa")
 

@@ -140,6 +140,7 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig, before_connect=No
                 output_channel=p.channel,
                 supply_channel=p.supply_channel,
                 other_signals=other_signals,
+                pull_up_kohm=p.pull_up_kohm,
             )
             daq_tasks.append(task)
             return task

@@ -3,18 +3,19 @@ each checked for what a technician counts on.
 
 Every run infuses and withdraws on the simulated rig (virtual time: a run of 22 s of
 rig time takes a fraction of that on the host) while one of ``FAULTS`` strikes at a
-time drawn from the seed: a sensor wire cut, a frozen sensor, a DAQ that stalls or is
-unplugged, a pump whose reply line dies mid-reply or as its stop arrives, a pump that
-drops off USB and re-enumerates, a camera whose frames stop or whose clock jumps, and
-the endings a person or the system gives: Ctrl-C while the run is paced (``--speed``)
-or holding, SIGTERM, SIGHUP; and the pump as a shared bench leaves it: running when the
-run connects, in a Quick Start variant that refuses a direction, another pump answering
-behind its re-found by-id link, confirmations slower than half a second (each ended by
-a fault of its own, and each with a check of its own: the pump stopped and said so, the
-mode loaded, no stop sent to the other pump, the stop confirmed). Every run's camera
-is slow to start (its first frame 0.3-1 s after the stream starts, as a UVC webcam's),
-and every run's disk turns slow as the fault strikes (each write to the run file then
-takes ``SLOW_WRITE_S``). A run is safe when
+time drawn from the seed: a sensor wire cut (before the run or during it), a frozen
+sensor, a specimen that bursts, a DAQ that stalls or is unplugged, a pump whose reply
+line dies mid-reply or as its stop arrives, a pump that drops off USB and
+re-enumerates, a camera whose frames stop or whose clock jumps, and the endings a person
+or the system gives: Ctrl-C while the run is paced (``--speed``) or holding, SIGTERM,
+SIGHUP; and the pump as a shared bench leaves it: running when the run connects, in a
+Quick Start variant that refuses a direction, another pump answering behind its
+re-found by-id link, confirmations slower than half a second (each ended by a fault of
+its own, and each with a check of its own: the pump stopped and said so, the mode
+loaded, no stop sent to the other pump, the stop confirmed). Every run's camera is slow
+to start (its first frame 0.3-1 s after the stream starts, as a UVC webcam's), and every
+run's disk turns slow as the fault strikes (each write to the run file then takes
+``SLOW_WRITE_S``). A run is safe when
 - the emulated plunger stood still from at most ``MAX_STOP_S`` of rig time after the
   fault on (``IN_RANGE_DEATH_STOP_S`` for a dead sensor that reads in range; the
   firmware's own record of the volume, not the driver's), or the run says first of
@@ -107,6 +108,7 @@ class Fault:
     stop_s: float = MAX_STOP_S
     before_connect: Callable[[object, random.Random], None] | None = None
     check: Callable[[Rig, Path], list[str]] | None = None
+    before_recording: bool = False  # strikes before the run records anything
 
 
 # a signal's run is paced: the handler runs in host time, and an unpaced rig would
@@ -119,10 +121,9 @@ SIGNAL_WINDOW_S = (2.5, 6.0)
 SLOW_WRITE_S = 0.5
 # every run's camera delivers its first frame this long after the stream starts
 CAMERA_FIRST_FRAME_S = (0.3, 1.0)
-# A dead sensor that still reads in range is seen only by the pressure's response to
-# the volume infused: it strikes where the soak specimen's infusion is judged with a
-# millilitre of it still ahead (about 1-3 mL infused at 60 mL/min), and the pump may
-# run on for that millilitre (1 s) and the stop (at most 1.3 s, measured over the window)
+# A frozen sensor still reads in range: it strikes while the soak specimen is infused
+# (about 1-3 mL at 60 mL/min) and is seen once its one number has lasted 0.3 s after a
+# dithering second; the pump may run on for that and the stop
 IN_RANGE_DEATH_WINDOW_S = (2.5, 3.5)
 IN_RANGE_DEATH_STOP_S = 1.5
 
@@ -143,6 +144,23 @@ def _stop_dies(rig: Rig, rng: random.Random) -> None:
     """The reply line dies as the stop arrives, the stop sent for a cut supply."""
     rig.simulation.emulator.go_silent_at_stop()
     _daq(rig).fail("supply-cut")
+
+
+def _cut_before_the_zeroing(rig: Rig, rng: random.Random) -> None:
+    """The wire cut 0.1-0.2 s into the zeroing's own acquisition, before the run's."""
+    rig.clock.wait_for(lambda: rig.simulation.daq_tasks, 60.0)
+    rig.clock.sleep(rng.uniform(0.1, 0.2))
+    _daq(rig).fail("vout-floating")
+
+
+def _burst_now(rig: Rig, rng: random.Random) -> None:
+    """The specimen opens to the air at the volume the pump has supplied now."""
+    from labrig.sim.specimen import SpecimenBehaviour
+
+    emulator = rig.simulation.emulator
+    rig.simulation.plant.behaviour = SpecimenBehaviour(
+        emulator.net_volume_ml, burst_at_ml=emulator.net_volume_ml(rig.clock.now())
+    )
 
 
 def _left_infusing(emulator, rng: random.Random) -> None:
@@ -194,7 +212,7 @@ FAULTS: dict[str, Fault] = {
     "sensor-supply-cut": Fault(lambda rig, rng: _daq(rig).fail("supply-cut"), "not a number"),
     "sensor-frozen": Fault(
         lambda rig, rng: _daq(rig).fail("frozen"),
-        "did not respond to the volume infused",
+        "pressure reading frozen",
         window_s=IN_RANGE_DEATH_WINDOW_S,
         stop_s=IN_RANGE_DEATH_STOP_S,
     ),
@@ -208,14 +226,20 @@ FAULTS: dict[str, Fault] = {
     "camera-stops": Fault(
         lambda rig, rng: rig.simulation.camera.stop_frames(), "camera: no sample"
     ),
-    # the sensor's output wire cut: the open input floats at 27 kPa; only the pressure's
-    # response to the volume infused can tell (where the model expects it to move)
+    # the sensor's output wire cut during the run: the pull-up holds the open input
+    # above the sensor's band
     "floating-wire": Fault(
-        lambda rig, rng: _daq(rig).fail("vout-floating"),
-        "did not respond to the volume infused",
-        window_s=IN_RANGE_DEATH_WINDOW_S,
-        stop_s=IN_RANGE_DEATH_STOP_S,
+        lambda rig, rng: _daq(rig).fail("vout-floating"), "pressure sensor wire open"
     ),
+    # cut before the run: the zeroing reads above the band, nothing moves
+    "wire-cut-before": Fault(
+        _cut_before_the_zeroing,
+        "its output wire is open",
+        window_s=(0, 0),
+        before_recording=True,
+    ),
+    # the specimen bursts (or a fitting comes off) while the pump infuses
+    "specimen-burst": Fault(_burst_now, "the specimen lost pressure", window_s=(2.5, 9.0)),
     "camera-clock-jump": Fault(
         lambda rig, rng: rig.simulation.camera.jump_clock(rng.choice((-1, 1)) * rng.uniform(2, 30)),
         "the camera's clock jumped",
@@ -428,7 +452,9 @@ def _one_run(loaded, path: Path, index: int, kind: str, fault_s: float, seed: in
     stopped_after_s = _stopped_after_s(rig, fault_at_s, end_s)
     if stopped_after_s > fault.stop_s and result.stop_confirmed:
         problems.append(f"the plunger moved until {stopped_after_s:.2f} s after the fault")
-    finalised, samples_kept, frames_kept = _check_file(path, result, fault_at_s, problems)
+    # a fault before the recording starts leaves nothing to keep
+    kept_from_s = -np.inf if fault.before_recording else fault_at_s
+    finalised, samples_kept, frames_kept = _check_file(path, result, kept_from_s, problems)
     if fault.check is not None:
         problems.extend(fault.check(rig, path))
     path.unlink(missing_ok=True)
@@ -460,7 +486,8 @@ def _stopped_after_s(rig: Rig, fault_at_s: float, end_s: float) -> float:
 
 def _check_file(path: Path, result, fault_at_s: float, problems: list[str]):
     """Finalised with the run's status and reason; every pressure sample from the first
-    to the fault there, evenly spaced; the frames up to the camera's allowance before."""
+    to the fault there, evenly spaced; the frames up to the camera's allowance before
+    (nothing before a fault at -inf)."""
     try:
         with open_run(path) as run:
             entry = run["entry"]
@@ -476,7 +503,7 @@ def _check_file(path: Path, result, fault_at_s: float, problems: list[str]):
         problems.append(f"the file says {status!r} ({reason!r}), the run {result.status!r}")
     period_s = 1.0 / PRESSURE_RATE_HZ
     before = pressure[pressure < fault_at_s]
-    samples_kept = (
+    samples_kept = fault_at_s == -np.inf or (
         len(before) > 0
         and np.all(np.abs(np.diff(before) - period_s) < 0.01 * period_s)
         and before[-1] >= fault_at_s - 1.5 * period_s
@@ -488,7 +515,7 @@ def _check_file(path: Path, result, fault_at_s: float, problems: list[str]):
         )
     frame_s = 1.0 / CAMERA_FPS
     seen = frames[frames < fault_at_s]
-    frames_kept = (
+    frames_kept = fault_at_s == -np.inf or (
         len(seen) > 0
         and np.all(np.abs(np.diff(seen) - frame_s) < 0.01 * frame_s)
         and seen[-1] >= fault_at_s - 0.5 - frame_s

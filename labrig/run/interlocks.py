@@ -10,15 +10,14 @@ a condition that is already true refuses the start.
 
 from __future__ import annotations
 
-import bisect
 import math
 import threading
 from collections import deque
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from labrig.drivers import mpx5100
 from labrig.errors import LinkLost
 from labrig.rig.devices import PressureBlock, Pump, PumpState, PumpStatus
 
@@ -43,8 +42,9 @@ class Interlock:
 
 @dataclass(frozen=True)
 class PressureCeiling(Interlock):
-    """Trips when any sample exceeds the limit (an over-range reading counts); the
-    reason names the first sample above it, the moment the limit was passed."""
+    """Trips when any sample exceeds the limit (an over-range reading counts, but not
+    one that leapt from below the limit to above the sensor's output band: that is a
+    wire); the reason names the first sample above it, the moment the limit was passed."""
 
     max_pressure_kpa: float
 
@@ -53,6 +53,10 @@ class PressureCeiling(Interlock):
         if len(above) == 0:
             return None
         first = int(above[0])
+        if block.out_of_range[first] and block.pressure_kpa[first] > mpx5100.RANGE_KPA[1]:
+            # straight from below the limit to above the sensor's band: no pressure rises
+            # so in one sample; a cut wire does (``PressureSignal`` names it)
+            return None
         return (
             f"pressure {block.pressure_kpa[first]:.1f} kPa above the limit "
             f"{self.max_pressure_kpa:g} kPa at t = {block.t_s[first]:.2f} s"
@@ -61,10 +65,11 @@ class PressureCeiling(Interlock):
 
 class PressureSignal(Interlock):
     """Trips on a sample that is no pressure reading: not a number (the sensor's supply
-    lost: 0/0), or flagged beyond the sensor's or the ADC's range while not above the
-    limit (an output shorted to ground reads -4.4 kPa). A sensor dead that way reads
-    low, never high, so the ceiling alone would let the pump infuse into it. A cut
-    output wire reads in range: ``PressureResponse`` sees it."""
+    lost: 0/0), above the sensor's output band (a cut output wire, which the rig's
+    pull-up holds there: NAMUR NE 43's rule that a broken wire reads outside the
+    measuring band), or flagged beyond the sensor's or the ADC's range (an output
+    shorted to ground reads -4.4 kPa). A sensor dead that way reads low or out of band,
+    never as a pressure, so the ceiling alone would let the pump infuse into it."""
 
     outcome = "faulted"
 
@@ -80,6 +85,12 @@ class PressureSignal(Interlock):
                 f"pressure signal lost at t = {t_s:.2f} s: the reading is not a number "
                 "(check the sensor's supply and its wires)"
             )
+        if p[first] > mpx5100.RANGE_KPA[1]:
+            return (
+                f"pressure sensor wire open at t = {t_s:.2f} s: the reading "
+                f"{p[first]:.1f} kPa is above the sensor's output band, where the pull-up "
+                "holds a cut output wire; check the sensor's output wire and connector"
+            )
         return (
             f"pressure reading {p[first]:.1f} kPa at t = {t_s:.2f} s is outside the "
             "sensor's range (an output shorted to ground reads -4.4 kPa: check the "
@@ -87,178 +98,221 @@ class PressureSignal(Interlock):
         )
 
 
-# The pressure-response interlock's numbers (docs/reference/interlocks.md derives them).
-# The pressure is judged in 0.1 s means: five mains periods at 50 Hz, six at 60 Hz, so
-# hum cancels, and a 0.05 kPa sample noise (the USB-6009's 13-bit RSE step) becomes 0.005.
-RESPONSE_BIN_S = 0.1
-# Over each 1 mL infused the pressure must move by 1 kPa ...
-RESPONSE_WINDOW_ML = 1.0
-RESPONSE_MIN_CHANGE_KPA = 1.0
-# ... wherever the model, shifted by up to 1 mL either way (a real specimen's features
-# do not sit exactly where its model's do) and made half as stiff, expects at least that.
-RESPONSE_SHIFT_ML = 1.0
-RESPONSE_STIFFNESS_FRACTION = 0.5
-# the fewest 0.1 s means a judged window holds (a window the pressure did not cover is
-# not judged)
-RESPONSE_MIN_BINS = 3
+# A frozen reading: the same number sample after sample for this long (and this many
+# samples), judged only on a signal whose noise dithered the converter over the second
+# before: its sample noise, from the second differences (which a smooth pressure leaves
+# near 0), at least FROZEN_NOISE_KPA, 0.65 of a 13-bit RSE step of 0.054 kPa (a quiet
+# sensor flickering between two codes shows at most half a step)
+# (docs/reference/interlocks.md).
+FROZEN_S = 0.3
+FROZEN_MIN_SAMPLES = 30
+FROZEN_ARMING_S = 1.0
+FROZEN_NOISE_KPA = 0.035
 
 
-class PressureResponse(Interlock):
-    """Trips when the pressure does not respond to the volume infused: a sensor whose
-    output wire is cut reads the USB-6009's open input, about 1.4 V or 27 kPa, in range
-    and noisy, whatever the specimen does, so no range check sees it.
+class PressureFrozen(Interlock):
+    """Trips when a reading that was dithering stops changing at all: a live input with
+    noise of most of a converter step or more never repeats one number for ``FROZEN_S``
+    (a quiet one does, on a flat pressure, and is never judged). The DAQ's buffer or the
+    driver repeating one block is the cause."""
 
-    A flat pressure alone proves nothing: interconnected segments cross long stretches
-    (the demo's deflation: 24 kPa from 23 mL down to 7) where fluid moves between them
-    at almost constant pressure, and a snap-through's peak is flat to first order. So
-    a window is judged only where the specimen's model (``model_v_ml``/``model_p_kpa``:
-    its quasi-static inflation) expects the pressure to move: over each
-    ``window_ml`` infused, the model's change, taken at the smallest it is for any
-    shift of the window by up to ``shift_ml`` and scaled by ``stiffness_fraction``,
-    must reach ``min_change_kpa``; the pressure's 0.1 s means must then span at least
-    ``min_change_kpa``. Only infusion is judged (withdrawal follows another path).
+    outcome = "faulted"
+
+    def __init__(self) -> None:
+        self._t = np.empty(0)
+        self._p = np.empty(0)
+
+    def check_pressure(self, block: PressureBlock) -> str | None:
+        good = np.isfinite(block.pressure_kpa)
+        t = np.concatenate([self._t, block.t_s[good]])
+        p = np.concatenate([self._p, block.pressure_kpa[good]])
+        if len(t) == 0:
+            return None
+        keep = t >= t[-1] - (FROZEN_ARMING_S + FROZEN_S + 1.0)
+        t, p = self._t, self._p = t[keep], p[keep]
+        changed = np.flatnonzero(p[1:] != p[:-1])
+        run_start = int(changed[-1]) + 1 if len(changed) else 0
+        if t[-1] - t[run_start] < FROZEN_S or len(p) - run_start < FROZEN_MIN_SAMPLES:
+            return None
+        # the second before the run, and the change into it
+        arming = np.flatnonzero(t[:run_start] >= t[run_start] - FROZEN_ARMING_S)
+        if len(arming) < FROZEN_MIN_SAMPLES:
+            return None
+        noise_kpa = float(np.std(np.diff(p[arming[0] : run_start], 2))) / math.sqrt(6)
+        if noise_kpa < FROZEN_NOISE_KPA:
+            return None
+        return (
+            f"pressure reading frozen at {p[-1]:.2f} kPa from t = {t[run_start]:.2f} s: "
+            f"{len(p) - run_start} samples of one number where the signal had "
+            f"{noise_kpa:.3f} kPa of noise the second before; the DAQ or its driver repeats "
+            "old data: check the DAQ's USB link"
+        )
+
+
+# The specimen interlock's numbers (docs/reference/interlocks.md measures them). The
+# pressure is judged in 0.1 s means: five mains periods at 50 Hz, six at 60 Hz, so hum
+# cancels.
+SPECIMEN_BIN_S = 0.1
+# A burst: in one infusion, after the pressure has reached BURST_ARMED_KPA, its means stay
+# below BURST_FLOOR_FRACTION of the infusion's peak over BURST_WINDOW_ML infused (and
+# BURST_MIN_BINS means). A snap drops the pressure and it rises again as fluid comes.
+BURST_ARMED_KPA = 3.0
+BURST_FLOOR_FRACTION = 0.2
+BURST_WINDOW_ML = 0.3
+BURST_MIN_BINS = 2
+# A leak: while the pump withdraws and still counts more than LEAK_COUNTED_ML in the
+# specimen, LEAK_SUCTION_SAMPLES samples in a row read below -LEAK_SUCTION_KPA, come
+# down to it without a leap of LEAK_MAX_STEP_KPA (a wire shorted to ground leaps to
+# -4.4 kPa): the specimen is empty before the count says so. The threshold is above the
+# sensor's -2.5 kPa range end, so it is met before a sample is flagged, and below the
+# flow's drop at the end of a healthy withdrawal.
+LEAK_SUCTION_KPA = 1.0
+LEAK_SUCTION_SAMPLES = 10
+LEAK_MAX_STEP_KPA = 2.0
+LEAK_COUNTED_ML = 0.2
+
+
+class SpecimenPressure(Interlock):
+    """Trips when the specimen loses its pressure or its fluid: a burst or a leak,
+    judged from the pressure and the volume alone (no model of the specimen).
+
+    - A burst (or a fitting that came off): while the pump infuses, the pressure falls
+      from what it reached in that infusion to near atmosphere and stays there as more
+      fluid comes. A snap-through drops it too, but a snap ends on a branch that holds
+      pressure and rises again as fluid keeps coming.
+    - A leak: the specimen holds less than the pump has put in, so a withdrawal empties
+      it before the pump's count reaches zero, and the pump then draws on an empty
+      specimen: the pressure falls below atmosphere with volume still counted. A share
+      of the flow lost while infusing is not seen before that: without a model it is a
+      softer specimen (a refill to the most the specimen held does not meet the first
+      inflation's pressure even without a leak: interconnected segments refill on
+      another branch, docs/reference/interlocks.md).
 
     Thread-safe: ``check_pressure`` and ``check_pump`` come from different threads.
     """
 
     outcome = "faulted"
 
-    def __init__(
-        self,
-        model_v_ml: Sequence[float],
-        model_p_kpa: Sequence[float],
-        *,
-        window_ml: float = RESPONSE_WINDOW_ML,
-        min_change_kpa: float = RESPONSE_MIN_CHANGE_KPA,
-        shift_ml: float = RESPONSE_SHIFT_ML,
-        stiffness_fraction: float = RESPONSE_STIFFNESS_FRACTION,
-    ) -> None:
-        v = np.asarray(model_v_ml, dtype=float)
-        p = np.asarray(model_p_kpa, dtype=float)
-        # a snap shows as two points at one volume: the grid takes the later (post-snap)
-        keep = np.append(v[1:] > v[:-1], True)
-        self._model_v, self._model_p = v[keep], p[keep]
-        self.window_ml = float(window_ml)
-        self.min_change_kpa = float(min_change_kpa)
-        self.stiffness_fraction = float(stiffness_fraction)
-        # the shifts on a 0.05 mL grid, the model's own sampling
-        self._shifts_ml = np.linspace(-shift_ml, shift_ml, 2 * math.ceil(shift_ml / 0.05) + 1)
+    def __init__(self) -> None:
         self._lock = threading.Lock()
         self._bin = (-1, 0.0, 0)  # the 0.1 s bin being filled: index, sum, count
-        self._bins: deque[tuple[float, float]] = deque()  # (start time, mean) of full bins
-        self._moves: list[tuple[float, float]] = []  # (time, volume) of this infusion
-        self._judged = 0  # the moves already judged
-
-    @classmethod
-    def for_protocol(cls, protocol) -> PressureResponse | None:
-        """The interlock for a protocol's specimen, its model up to the volume limit
-        (None where it cannot be judged: ``for_specimen``)."""
-        from labrig.model.segments.catalog import load_segment
-
-        specimen = protocol.specimen
-        return cls.for_specimen(
-            [load_segment(spec) for spec in specimen.segments],
-            specimen.fluid,
-            specimen.length,
-            protocol.limits.max_volume_ml,
-        )
-
-    @classmethod
-    def for_specimen(
-        cls, segments: Sequence, fluid: str, length: str, v_max_ml: float
-    ) -> PressureResponse | None:
-        """The interlock for a specimen of these segments (``SegmentCurve``), or None
-        where the pump's volume is not the model's: air compresses (the pump displaces
-        more than the segments take in) and a blocked specimen is held off its free path."""
-        if fluid != "water" or length != "free":
-            return None
-        from labrig.model.actuator.prediction import predicted_inflation
-
-        v_ml, p_kpa, _ = predicted_inflation(segments, v_max_ml)
-        return cls(v_ml, p_kpa)
-
-    def expected_change_kpa(self, v_from_ml: float, v_to_ml: float) -> float:
-        """The smallest pressure change the specimen can show from one volume to the
-        other: the model's, at its smallest over the shifts that keep the window within
-        the model's volumes, times the stiffness fraction (0 where none does)."""
-        v0, v1 = v_from_ml + self._shifts_ml, v_to_ml + self._shifts_ml
-        inside = (v0 >= self._model_v[0]) & (v1 <= self._model_v[-1])
-        if not inside.any():
-            return 0.0
-        v0, v1 = v0[inside], v1[inside]
-        p0 = np.interp(v0, self._model_v, self._model_p)
-        p1 = np.interp(v1, self._model_v, self._model_p)
-        return self.stiffness_fraction * float(np.min(np.abs(p1 - p0)))
+        self._bins: deque[tuple[float, float]] = deque()  # (start time, mean), not judged
+        # this infusion: its polled (time, volume) from the oldest a bin still needs,
+        # its start, its peak mean, and its trailing low stretch (start time, volume
+        # there, means in it) or None
+        self._moves: deque[tuple[float, float]] = deque()
+        self._t0_s = 0.0
+        self._peak_kpa = 0.0
+        self._low: tuple[float, float, int] | None = None
+        # while the pump withdraws: since when, and the volume its latest status counts
+        self._withdrawing: tuple[float, float] | None = None
+        self._last_kpa = 0.0  # the latest finite sample
+        self._suction_run = 0  # samples in a row below -LEAK_SUCTION_KPA
 
     def check_pressure(self, block: PressureBlock) -> str | None:
-        good = np.isfinite(block.pressure_kpa) & ~block.out_of_range
+        finite = np.isfinite(block.pressure_kpa)
+        good = finite & ~block.out_of_range
         t, p = block.t_s[good], block.pressure_kpa[good]
         with self._lock:
             if len(t):
                 self._add_to_bins(t, p)
-            return self._judge()
+            # suction may run past the sensor's low range end: every finite sample
+            return self._suction(block.t_s[finite], block.pressure_kpa[finite]) or self._burst()
 
     def check_pump(self, status: PumpStatus, volume_ml: float) -> str | None:
         with self._lock:
             moves = self._moves
             if status.state is not PumpState.INFUSING or (moves and volume_ml < moves[-1][1]):
                 moves.clear()
-                self._judged = 0
             if status.state is PumpState.INFUSING:
+                if not moves:  # a new infusion
+                    self._t0_s, self._peak_kpa, self._low = status.t_s, 0.0, None
                 moves.append((status.t_s, volume_ml))
-            return self._judge()
+            if status.state is PumpState.WITHDRAWING:
+                since_s = self._withdrawing[0] if self._withdrawing else status.t_s
+                self._withdrawing = (since_s, volume_ml)
+            else:
+                self._withdrawing = None
+            return self._burst()
 
     def _add_to_bins(self, t: np.ndarray, p: np.ndarray) -> None:
-        k = np.floor(t / RESPONSE_BIN_S).astype(np.int64)
+        k = np.floor(t / SPECIMEN_BIN_S).astype(np.int64)
         index, total, count = self._bin
         starts = np.flatnonzero(np.diff(k, prepend=k[0] - 1))
         for first, last in zip(starts, [*starts[1:], len(k)], strict=True):
             if k[first] != index:
                 if count:
-                    self._bins.append((index * RESPONSE_BIN_S, total / count))
+                    self._bins.append((index * SPECIMEN_BIN_S, total / count))
                 index, total, count = int(k[first]), 0.0, 0
             total += float(np.sum(p[first:last]))
             count += last - first
         self._bin = (index, total, count)
 
-    def _judge(self) -> str | None:
-        """Judge each infusion point the pressure has covered, as the end of a window."""
-        covered_s = self._bin[0] * RESPONSE_BIN_S  # every full bin ends by then
-        moves = self._moves
-        while self._judged < len(moves) and moves[self._judged][0] <= covered_s:
-            end = self._judged
-            self._judged += 1
-            t_end, v_end = moves[end]
-            # the latest point a full window before (an infusion's volumes only rise)
-            start = bisect.bisect_right(moves, v_end - self.window_ml, hi=end, key=_volume) - 1
-            if start < 0:
-                continue
-            t_start, v_start = moves[start]
-            # older points and bins can no longer start a window
-            del moves[:start]
-            self._judged -= start
-            while self._bins and self._bins[0][0] < t_start - RESPONSE_BIN_S:
-                self._bins.popleft()
-            if self.expected_change_kpa(v_start, v_end) < self.min_change_kpa:
-                continue
-            means = [p for t, p in self._bins if t >= t_start and t + RESPONSE_BIN_S <= t_end]
-            if len(means) < RESPONSE_MIN_BINS:
-                continue
-            span_kpa = max(means) - min(means)
-            if span_kpa < self.min_change_kpa:
-                return (
-                    f"pressure did not respond to the volume infused: {v_end - v_start:.2f} mL "
-                    f"from {v_start:.2f} mL (t = {t_start:.2f} to {t_end:.2f} s) moved it by "
-                    f"{span_kpa:.2f} kPa where the specimen's model expects at least "
-                    f"{self.min_change_kpa:g}: a cut sensor output wire floats (the "
-                    "USB-6009 reads about 27 kPa), or the specimen leaks; check the "
-                    "sensor's wires and the specimen's connections"
-                )
+    def _suction(self, t: np.ndarray, p: np.ndarray) -> str | None:
+        """Samples below atmosphere while withdrawing with volume still counted."""
+        withdrawing = self._withdrawing
+        if withdrawing is None or withdrawing[1] <= LEAK_COUNTED_ML:
+            self._suction_run = 0
+            self._last_kpa = float(p[-1]) if len(p) else self._last_kpa
+            return None
+        for t_s, p_kpa in zip(t.tolist(), p.tolist(), strict=True):
+            previous, self._last_kpa = self._last_kpa, p_kpa
+            if p_kpa >= -LEAK_SUCTION_KPA:
+                self._suction_run = 0
+            elif self._suction_run or (
+                # crossing down from atmosphere, not a leap nor a reading already low
+                previous >= -LEAK_SUCTION_KPA and previous - p_kpa < LEAK_MAX_STEP_KPA
+            ):
+                self._suction_run += 1
+                if self._suction_run >= LEAK_SUCTION_SAMPLES:
+                    return (
+                        f"the specimen leaks: withdrawing, the pressure fell to {p_kpa:.1f} "
+                        f"kPa below atmosphere at t = {t_s:.2f} s with {withdrawing[1]:.2f} "
+                        "mL still counted in it: it held less than the pump has put in; "
+                        "check the fittings and the specimen for a leak"
+                    )
         return None
 
+    def _burst(self) -> str | None:
+        """Judge each full bin this infusion's polls cover, in order, once."""
+        moves, bins = self._moves, self._bins
+        if not moves:
+            bins.clear()  # nothing infused: nothing to judge
+            return None
+        while bins and bins[0][0] + SPECIMEN_BIN_S <= moves[-1][0]:
+            t_s, mean_kpa = bins.popleft()
+            if t_s < self._t0_s:
+                continue
+            floor_kpa = BURST_FLOOR_FRACTION * self._peak_kpa
+            if self._peak_kpa < BURST_ARMED_KPA or mean_kpa >= floor_kpa:
+                self._peak_kpa = max(self._peak_kpa, mean_kpa)
+                self._low = None
+                continue
+            if self._low is None:
+                self._low = (t_s, self._volume_at(t_s), 0)
+            low_s, low_ml, n_low = self._low
+            self._low = (low_s, low_ml, n_low + 1)
+            end_s = t_s + SPECIMEN_BIN_S
+            infused_ml = self._volume_at(end_s) - low_ml
+            if n_low + 1 >= BURST_MIN_BINS and infused_ml >= BURST_WINDOW_ML:
+                return (
+                    f"the specimen lost pressure: it fell from {self._peak_kpa:.1f} kPa to "
+                    f"{mean_kpa:.1f} kPa at {low_ml:.2f} mL and stayed below "
+                    f"{floor_kpa:.1f} kPa over {infused_ml:.2f} mL infused (t = {low_s:.2f} "
+                    f"to {end_s:.2f} s): a burst or a fitting that came off; check the "
+                    "specimen and its connections"
+                )
+        # polls before the oldest bin still to judge (or the one being filled) are no
+        # longer needed
+        oldest_s = bins[0][0] if bins else self._bin[0] * SPECIMEN_BIN_S
+        while len(moves) > 1 and moves[1][0] <= oldest_s:
+            moves.popleft()
+        return None
 
-def _volume(move: tuple[float, float]) -> float:
-    return move[1]
+    def _volume_at(self, t_s: float) -> float:
+        """The infused volume at ``t_s``, between this infusion's polls."""
+        times = [t for t, _ in self._moves]
+        return float(np.interp(t_s, times, [v for _, v in self._moves]))
 
 
 @dataclass(frozen=True)

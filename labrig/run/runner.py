@@ -61,9 +61,10 @@ from labrig.run.interlocks import (
     Interlock,
     InterlockMonitor,
     PressureCeiling,
-    PressureResponse,
+    PressureFrozen,
     PressureSignal,
     PumpStall,
+    SpecimenPressure,
     VolumeCeiling,
 )
 from labrig.run.pump_stop import final_stop, unconfirmed_reason
@@ -75,16 +76,18 @@ MOVING = (PumpState.INFUSING, PumpState.WITHDRAWING)
 
 
 def run_interlocks(protocol: Protocol) -> list[Interlock]:
-    """The interlocks every reading of a run is judged by, in order (one line each)."""
-    interlocks = [
+    """The interlocks every reading of a run is judged by, in order (one line each);
+    none needs the specimen's model."""
+    # the specimen's before the signal's: suction on an emptied (leaking) specimen
+    # reads below the sensor's range a moment after it shows in the means
+    return [
         PressureCeiling(protocol.limits.max_pressure_kpa),
+        SpecimenPressure(),
         PressureSignal(),
+        PressureFrozen(),
         VolumeCeiling(protocol.limits.max_volume_ml),
         PumpStall(),
     ]
-    # None for a specimen the free water model does not describe (air, blocked)
-    response = PressureResponse.for_protocol(protocol)
-    return interlocks if response is None else [*interlocks, response]
 
 
 @dataclass(frozen=True)

@@ -4,15 +4,17 @@ live one. Prints the figures docs/reference/interlocks.md quotes.
 Run: python tests/benchmarks/bench_sensor_interlocks.py [--seeds N]
 
 1. The floating wire: the MPX5100's output cut, the USB-6009's open input read through
-   the real driver (SimDaqTask's model of the input network); mean and noise in kPa.
+   the real driver (SimDaqTask's model of the input network), bare and with the rig's
+   pull-up; mean and noise in kPa, and the share flagged out of the sensor's band.
 2. The stuck-signal check (every sample one number for 0.5 s, at least 50 samples)
    against a quiet sensor: the demo's specimen on the plant, infused to 38 mL, held,
    withdrawn and held, read through the driver, for sensor noise from none to one ADC
-   step (0.054 kPa in RSE); and the same check judged only while the pump moves, over
-   0.5, 2 and 5 s. A run counts once, at its first trip.
-3. The pressure-response interlock: each shipped protocol it judges (water, free
-   length), its first infusion, healthy (false trips) and with the wire cut at each
-   0.5 mL (the volume infused from the cut to the trip).
+   step (0.054 kPa in RSE); the same check judged only while the pump moves, over
+   0.5, 2 and 5 s; and labrig's ``PressureFrozen`` (0.3 s, judged only after a second
+   whose noise dithered the converter). A run counts once, at its first trip.
+3. The run's interlocks (none needs the model): each shipped protocol of water on a
+   free length, its first infusion, healthy (false trips) and with the wire cut (the
+   pull-up's wiring) at each 0.5 mL (the volume infused from the cut to the trip).
 """
 
 from __future__ import annotations
@@ -27,9 +29,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from support.sensor_runs import Leg, acquire, infuse_judged, shipped_infusions
 
+from labrig.config.rig_file import DEFAULT_PULL_UP_KOHM
 from labrig.drivers.ni_daq import NiDaqPressure
 from labrig.model.segments.catalog import load_segment
 from labrig.rig.devices import PressureBlock, PumpState, PumpStatus
+from labrig.run.interlocks import PressureFrozen
 from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
 from labrig.time.virtual import VirtualClock
 
@@ -40,28 +44,39 @@ MOVING_WINDOWS_S = (0.5, 2.0, 5.0)
 
 def floating_wire(seeds: int) -> None:
     print("1. floating wire (the open input, read through the driver for 5 s)")
-    for seed in range(seeds):
-        clock = VirtualClock()
-        tasks = []
+    for pull_up_kohm in (None, DEFAULT_PULL_UP_KOHM):
+        wiring = "no pull-up" if pull_up_kohm is None else f"{pull_up_kohm:g} kOhm pull-up"
+        for seed in range(seeds):
+            clock = VirtualClock()
+            tasks = []
 
-        def new_task(seed=seed, clock=clock, tasks=tasks):
-            tasks.append(SimDaqTask(clock, lambda t: np.full(len(t), 40.0), seed=seed))
-            return tasks[-1]
+            def new_task(seed=seed, clock=clock, tasks=tasks, pull_up_kohm=pull_up_kohm):
+                tasks.append(
+                    SimDaqTask(
+                        clock,
+                        lambda t: np.full(len(t), 40.0),
+                        seed=seed,
+                        pull_up_kohm=pull_up_kohm,
+                    )
+                )
+                return tasks[-1]
 
-        daq = NiDaqPressure(
-            clock, task_factory=new_task, reader_factory=SimAnalogMultiChannelReader
-        )
-        with clock.participate():
-            daq.start()
-            tasks[-1].fail("vout-floating")
-            clock.sleep(5.0)
-            p = daq.read().pressure_kpa
-            daq.stop()
-        means = p[: p.size // 100 * 100].reshape(-1, 100).mean(axis=1)
-        print(
-            f"   seed {seed}: mean {p.mean():.2f} kPa, noise {p.std():.3f} kPa per sample, "
-            f"{means.std():.4f} kPa in 0.1 s means"
-        )
+            daq = NiDaqPressure(
+                clock, task_factory=new_task, reader_factory=SimAnalogMultiChannelReader
+            )
+            with clock.participate():
+                daq.start()
+                tasks[-1].fail("vout-floating")
+                clock.sleep(5.0)
+                block = daq.read()
+                daq.stop()
+            p = block.pressure_kpa
+            means = p[: p.size // 100 * 100].reshape(-1, 100).mean(axis=1)
+            print(
+                f"   {wiring}, seed {seed}: mean {p.mean():.2f} kPa, noise {p.std():.3f} kPa "
+                f"per sample, {means.std():.4f} kPa in 0.1 s means, "
+                f"{np.mean(block.out_of_range):.0%} flagged out of band"
+            )
 
 
 class StuckSignal:
@@ -88,6 +103,16 @@ class StuckSignal:
         return None
 
 
+class Frozen:
+    """labrig's ``PressureFrozen``, in the shape of the candidates above."""
+
+    def __init__(self) -> None:
+        self.interlock = PressureFrozen()
+
+    def check(self, block: PressureBlock, status: PumpStatus) -> str | None:
+        return self.interlock.check_pressure(block)
+
+
 def stuck_signal(seeds: int, rate_ml_min: float, hold_s: float) -> None:
     segments = [load_segment(name) for name in ("B48-T30", "B50-T20")]
     infuse_s = 38.0 / rate_ml_min * 60
@@ -102,12 +127,17 @@ def stuck_signal(seeds: int, rate_ml_min: float, hold_s: float) -> None:
         f"{hold_s:g} s; runs tripped of {seeds}"
     )
     for noise_kpa in NOISES_KPA:
-        tripped = {"always, 0.5 s": 0, **{f"moving, {w:g} s": 0 for w in MOVING_WINDOWS_S}}
+        tripped = {
+            "always, 0.5 s": 0,
+            **{f"moving, {w:g} s": 0 for w in MOVING_WINDOWS_S},
+            "frozen, armed by noise": 0,
+        }
         states = set()
         for seed in range(seeds):
             checks = {
                 "always, 0.5 s": StuckSignal(0.5, while_moving=False),
                 **{f"moving, {w:g} s": StuckSignal(w) for w in MOVING_WINDOWS_S},
+                "frozen, armed by noise": Frozen(),
             }
             seen: dict[str, str] = {}
 
@@ -128,8 +158,8 @@ def stuck_signal(seeds: int, rate_ml_min: float, hold_s: float) -> None:
         )
 
 
-def pressure_response(seeds: int) -> None:
-    print(f"3. pressure response: first infusion of each judged protocol, {seeds} seeds")
+def run_interlocks(seeds: int) -> None:
+    print(f"3. the run's interlocks: first infusion of each protocol, {seeds} seeds")
     for name, protocol, step in shipped_infusions():
         false_trips = sum(infuse_judged(protocol, step, seed) is not None for seed in range(seeds))
         latencies, unseen = [], []
@@ -155,7 +185,7 @@ def main() -> None:
     floating_wire(args.seeds)
     stuck_signal(args.seeds, 40.0, 5.0)
     stuck_signal(args.seeds, 20.0, 10.0)
-    pressure_response(args.seeds)
+    run_interlocks(args.seeds)
 
 
 if __name__ == "__main__":

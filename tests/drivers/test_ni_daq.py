@@ -490,17 +490,23 @@ def test_a_dead_sensor_wire_reads_as_no_pressure(failure, check):
         assert np.isnan(block.pressure_kpa[after]).all()
 
 
+def read_with_the_wire_cut(rig, *, at_s: float, then_s: float):
+    """Acquire, cut the sensor's output wire at ``at_s``, read ``then_s`` later: the
+    block and where it is after the cut."""
+    rig.daq.start(1000.0)
+    rig.clock.sleep(at_s)
+    rig.tasks[-1].fail("vout-floating")
+    rig.clock.sleep(then_s)
+    block = rig.daq.read()
+    return block, block.t_s >= at_s
+
+
 def test_a_cut_output_wire_floats_where_the_usb_6009_input_network_holds_it():
     """An open RSE input reads the Thevenin voltage of the 6009's input network (127 kOhm
     to a node tied to ground by 39.2 kOhm and to +2.5 V by 30.9 kOhm): 1.40 V, 26.6 kPa
     through the MPX5100 on 5 V, in range and not flagged, with mains hum on it."""
     rig = Rig(ramp_after(0.0, 10.0), sim={"noise_kpa": 0.0}, supply_channel="Dev1/ai1")
-    rig.daq.start(1000.0)
-    rig.clock.sleep(0.5)
-    rig.tasks[-1].fail("vout-floating")
-    rig.clock.sleep(2.0)
-    block = rig.daq.read()
-    after = block.t_s >= 0.5
+    block, after = read_with_the_wire_cut(rig, at_s=0.5, then_s=2.0)
     p = block.pressure_kpa[after]
     # the node's voltage with the pin open: no current through the 127 kOhm
     open_v = 2.5 / (1 / 39.2e3 + 1 / 30.9e3) / 30.9e3
@@ -514,6 +520,25 @@ def test_a_cut_output_wire_floats_where_the_usb_6009_input_network_holds_it():
     np.testing.assert_allclose(
         block.pressure_kpa[~after], rig.truth(block.t_s[~after]) + 0.8, atol=0.3
     )
+
+
+def test_with_the_pull_up_a_cut_output_wire_reads_above_the_band_and_is_flagged():
+    """A 4.7 kOhm pull-up from the input to the sensor's 5 V: the open pin settles where
+    the currents into it balance (Kirchhoff), 4.89 V, above the MPX5100's 4.813 V most;
+    every sample is flagged, even after a zero taken at -2.5 kPa (the band is judged
+    before the zero is taken off). The connected sensor is unaffected."""
+    rig = Rig(ramp_after(0.0, 10.0), sim={"pull_up_kohm": 4.7, "noise_kpa": 0.0})
+    rig.daq.offset_kpa = -2.5
+    block, after = read_with_the_wire_cut(rig, at_s=0.5, then_s=1.0)
+    # KCL at the pin: (5 - V)/4.7k into it, (V - V_th)/R_th out into the input network
+    r_th = 127e3 + 1 / (1 / 39.2e3 + 1 / 30.9e3)
+    v_th = 2.5 * 39.2 / (39.2 + 30.9)
+    open_v = (5.0 / 4.7e3 + v_th / r_th) / (1 / 4.7e3 + 1 / r_th)
+    assert open_v > 4.813
+    raw_kpa = (open_v / 5.0 - 0.04) / 0.009
+    assert np.mean(block.pressure_kpa[after]) == pytest.approx(raw_kpa + 2.5, abs=0.05)
+    assert block.out_of_range[after].all()
+    assert not block.out_of_range[~after].any()
 
 
 # What a USB-6009 shows: its count is of the samples that reached the host, a transfer

@@ -83,11 +83,13 @@ def test_a_dead_sensor_stops_the_pump(tmp_path, failure, config, reason):
     assert_samples_kept_up_to(outcome, fault_s)
 
 
-@pytest.mark.parametrize("failure", ["frozen", "vout-floating"])
-def test_a_sensor_dead_in_range_stops_the_pump_within_the_judged_millilitre(tmp_path, failure):
-    """A frozen reading or a floating output wire reads in range: only the pressure's
-    response to the volume infused sees it, over the millilitre judged (1 s at
-    60 mL/min), where the specimen's model expects the pressure to move."""
+@pytest.mark.parametrize(
+    ("failure", "reason"),
+    [("frozen", "pressure reading frozen"), ("vout-floating", "pressure sensor wire open")],
+)
+def test_a_sensor_dead_in_range_stops_the_pump_from_its_own_signal(tmp_path, failure, reason):
+    """A frozen reading stops dithering; a cut output wire reads above the sensor's band
+    (the pull-up). Neither needs the specimen's model: the pump stops within a second."""
     seen = []
     outcome = run_sim(
         tmp_path,
@@ -95,9 +97,35 @@ def test_a_sensor_dead_in_range_stops_the_pump_within_the_judged_millilitre(tmp_
         inject=strike_at(0.5, lambda rig: rig.simulation.daq_tasks[-1].fail(failure), seen),
     )
     assert outcome.result.status == "faulted"
-    assert "did not respond to the volume infused" in outcome.result.reason
-    assert plunger_stopped_after_s(outcome, seen[0]) <= 1.5
+    assert outcome.result.reason.startswith(reason)
+    assert plunger_stopped_after_s(outcome, seen[0]) <= 1.0
     assert_samples_kept_up_to(outcome, seen[0])
+
+
+def test_a_wire_cut_before_the_run_is_refused_at_the_zeroing(tmp_path):
+    """Cut before the run: with the pull-up the zero reads above the band and names the
+    wire; on a rig without it the open input's 27 kPa is no zero either."""
+    for pull_up_kohm, reason in ((4.7, "its output wire is open"), (None, "about 27 kPa")):
+        config = RigConfig(
+            pump=PumpConfig(port="emulator"),
+            pressure=PressureConfig(pull_up_kohm=pull_up_kohm),
+            sim=SimConfig(),
+        )
+        outcome = run_sim(
+            tmp_path,
+            short_protocol(),
+            config=config,
+            inject=lambda rig: _cut_before_zeroing(rig),
+            name=f"cut-{pull_up_kohm}.h5",
+        )
+        assert outcome.result.status == "faulted", outcome.result.reason
+        assert reason in outcome.result.reason
+        assert outcome.rig.simulation.emulator.net_volume_ml(outcome.end_s) == 0.0
+
+
+def _cut_before_zeroing(rig):
+    rig.clock.wait_for(lambda: rig.simulation.daq_tasks, timeout_s=60.0)
+    rig.simulation.daq_tasks[-1].fail("vout-floating", at_s=0.0)
 
 
 def test_a_stalled_daq_stops_the_pump_after_half_a_second_without_samples(tmp_path):

@@ -2,6 +2,7 @@
 the plant is built from (its segments and its real-world behaviour), the protocol's
 specimen stays the model the run is compared with, and the run file records the truth."""
 
+import json
 import textwrap
 
 import pytest
@@ -9,6 +10,7 @@ import yaml
 from support.simrig import run_sim
 
 from labrig.analysis.runfile import load_run
+from labrig.cli import main
 from labrig.config.protocol import load_protocol
 from labrig.config.rig_file import PumpConfig, RigConfig, SimConfig, SimSpecimen, load_rig_config
 from labrig.errors import InputError
@@ -50,21 +52,47 @@ def sim_config(**truth) -> RigConfig:
     return RigConfig(pump=PumpConfig(port="emulator"), sim=SimConfig(specimen=specimen))
 
 
+def test_the_partial_cycle_protocol_completes_with_a_whole_sensor(tmp_path):
+    outcome = run_sim(tmp_path, PARTIAL.format(segments=DEMO_SEGMENTS))
+    assert outcome.result.status == "complete", outcome.result.reason
+
+
 def test_the_truth_as_run_is_in_the_run_file(tmp_path):
     outcome = run_sim(
         tmp_path,
-        SHORT_CYCLE,
-        config=sim_config(segments=["SI-B48-T30"], stiffness_factor=1.02),
+        PARTIAL.format(segments=DEMO_SEGMENTS),
+        config=sim_config(segments=["SI-B48-T30", "SI-B50-T20"], stiffness_factor=1.2),
     )
     assert outcome.result.status == "complete", outcome.result.reason
     as_run = yaml.safe_load(load_run(outcome.path).rig_config_text)
     truth = as_run["sim"]["specimen"]
-    assert truth["segments"] == ["SI-B48-T30"]
-    assert truth["stiffness_factor"] == 1.02
+    assert truth["segments"] == ["SI-B48-T30", "SI-B50-T20"]
+    assert truth["stiffness_factor"] == 1.2
     # the default truth is recorded too: the protocol's own segments
-    default = run_sim(tmp_path, SHORT_CYCLE, name="default.h5")
+    default = run_sim(tmp_path, PARTIAL.format(segments=DEMO_SEGMENTS), name="default.h5")
     as_run = yaml.safe_load(load_run(default.path).rig_config_text)
-    assert as_run["sim"]["specimen"]["segments"] == ["B48-T30"]
+    assert as_run["sim"]["specimen"]["segments"] == ["B48-T30", "B50-T20"]
+
+
+def compare_rmse(path, capsys) -> dict:
+    with pytest.raises(SystemExit) as done:
+        main(["compare", str(path), "--json"])
+    assert done.value.code == 0
+    return json.loads(capsys.readouterr().out)["rmse"]
+
+
+def test_compare_shows_a_specimen_that_differs_from_its_model(tmp_path, capsys):
+    """The same protocol on a specimen that is its model and on one that is 0.6 times as
+    softer: both complete, and compare's pressure error is far larger on the second."""
+    text = SHORT_CYCLE
+    agreeing = run_sim(tmp_path, text, name="agreeing.h5")
+    differing = run_sim(
+        tmp_path, text, name="differing.h5", config=sim_config(stiffness_factor=0.6)
+    )
+    assert agreeing.result.status == differing.result.status == "complete"
+    agree = compare_rmse(agreeing.path, capsys)["inflate_pressure_kpa"]
+    differ = compare_rmse(differing.path, capsys)["inflate_pressure_kpa"]
+    assert differ > 10 * agree and differ > 5.0, (agree, differ)
 
 
 def test_a_protocol_whose_segments_no_library_holds_needs_the_truth(tmp_path):
@@ -97,8 +125,27 @@ def test_the_truths_keys_are_checked_with_the_key_and_the_range(tmp_path, key, v
         f"pump: {{port: emulator}}\nsim:\n  specimen:\n    {key}: {value}\n"
     )
     path = tmp_path / "p.yaml"
-    path.write_text(
-        PARTIAL.format(segments=DEMO_SEGMENTS).replace("rig: sim", "rig: rigs/sim.yaml")
-    )
+    path.write_text(SHORT_CYCLE.replace("rig: sim", "rig: rigs/sim.yaml"))
     with pytest.raises(InputError, match=rf"sim\.yaml: line 4: sim\.specimen\.{key}: .*{allowed}"):
         load_rig_config(load_protocol(path))
+
+
+def test_a_burst_at_12_ml_faults_the_run_before_13_ml_are_infused(tmp_path):
+    outcome = run_sim(
+        tmp_path, PARTIAL.format(segments=DEMO_SEGMENTS), config=sim_config(burst_at_ml=12.0)
+    )
+    assert outcome.result.status == "faulted"
+    assert outcome.result.reason.startswith("the specimen lost pressure")
+    emulator = outcome.rig.simulation.emulator
+    stopped_ml = emulator.net_volume_ml(outcome.end_s)
+    assert emulator.net_volume_ml(outcome.end_s + 30.0) == stopped_ml  # standing still
+    assert 12.0 < stopped_ml <= 13.0
+
+
+def test_a_leak_is_reported_as_a_leak_when_the_specimen_is_emptied(tmp_path):
+    """10 % of 8 mL lost: withdrawn, the specimen is empty with 0.8 mL still counted."""
+    outcome = run_sim(tmp_path, SHORT_CYCLE, config=sim_config(leak_fraction=0.1))
+    assert outcome.result.status == "faulted"
+    assert outcome.result.reason.startswith("the specimen leaks")
+    emulator = outcome.rig.simulation.emulator
+    assert 0.5 <= emulator.net_volume_ml(outcome.end_s + 30.0) <= 0.8

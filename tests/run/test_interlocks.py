@@ -5,7 +5,7 @@ import threading
 
 import numpy as np
 import pytest
-from support.sensor_runs import PROTOCOLS, infuse_judged, shipped_infusions
+from support.sensor_runs import infuse_judged, shipped_infusions
 
 from labrig.rig.devices import PressureBlock, PumpState, PumpStatus
 from labrig.run import interlocks
@@ -123,113 +123,136 @@ def test_a_reading_that_is_no_pressure_trips_the_signal_interlock():
     assert low.startswith("pressure reading -5.2 kPa at t = 0.00 s is outside the sensor's range")
 
 
-# -- the pressure must respond to the volume infused -------------------------------------
+def test_a_cut_wire_reads_above_the_band_and_is_named_a_wire_not_a_high_pressure():
+    """With the pull-up a cut output wire leaps from a pressure to above the sensor's
+    band in one sample: the ceiling leaves it to the signal interlock, which names it."""
+    leap = samples([40.0, 40.1, 103.4, 103.3], t0_s=2.0, out_of_range=[0, 0, 1, 1])
+    assert PressureCeiling(95.0).check_pressure(leap) is None
+    reason = interlocks.PressureSignal().check_pressure(leap)
+    assert reason.startswith("pressure sensor wire open at t = 2.00 s: the reading 103.4 kPa")
+    assert "pressure" in reason and "above the limit" not in reason
+    # a pressure that rises through the limit is the ceiling's
+    rising = samples([94.0, 95.5, 99.0, 103.4], out_of_range=[0, 0, 0, 1])
+    assert PressureCeiling(95.0).check_pressure(rising).startswith("pressure 95.5 kPa above")
 
 
-def response_for(model_v, model_p):
-    return interlocks.PressureResponse(np.asarray(model_v, float), np.asarray(model_p, float))
+def test_a_frozen_reading_trips_only_after_a_dithering_one():
+    rng = np.random.default_rng(5)
+    live = np.round(20.0 + rng.normal(0.0, 0.05, 1000), 2)  # noise of about a step
+    frozen = interlocks.PressureFrozen()
+    assert frozen.check_pressure(samples(live)) is None
+    reason = frozen.check_pressure(samples(np.full(400, live[-1]), t0_s=1.0))
+    assert reason.startswith(f"pressure reading frozen at {live[-1]:.2f} kPa from t = 1.00 s")
+    # a quiet sensor repeats its code on a flat pressure: never judged
+    quiet = interlocks.PressureFrozen()
+    steps = np.repeat(np.round(20.0 + np.arange(20) * 0.05, 2), 100)  # one step every 0.1 s
+    assert quiet.check_pressure(samples(steps)) is None
+    assert quiet.check_pressure(samples(np.full(2000, steps[-1]), t0_s=2.0)) is None
 
 
-def infuse(interlock, pressure_at, rate_ml_min, volume_ml, period_s=0.2):
-    """Feed ``interlock`` as a run's loops do: a pressure block of 1 kHz samples and a
-    pump status every ``period_s`` while infusing at ``rate_ml_min``; the specimen
-    volume at the trip, or None."""
-    t = 0.0
-    while t * rate_ml_min / 60 < volume_ml:
-        t_block = t + np.arange(1, round(period_s * 1000) + 1) * 1e-3
-        reason = interlock.check_pressure(
-            PressureBlock(t_block, pressure_at(t_block), np.zeros(len(t_block), bool))
-        )
-        t = float(t_block[-1])
-        volume_ml_now = t * rate_ml_min / 60
-        reason = reason or interlock.check_pump(
-            PumpStatus(t, PumpState.INFUSING, volume_ml_now, 0.0), volume_ml_now
-        )
-        if reason:
-            return volume_ml_now, reason
+def feed(interlock, pressure_at, legs, period_s=0.2):
+    """Feed ``interlock`` as a run's loops do: a block of 1 kHz samples and a pump
+    status every ``period_s`` along ``legs`` ((state, seconds, mL/min) one after the
+    other); the specimen volume and the reason at the first trip, or None."""
+    t, volume_ml = 0.0, 0.0
+    for state, seconds, rate_ml_min in legs:
+        end = t + seconds
+        while t < end - 1e-9:
+            t_block = t + np.arange(1, round(period_s * 1000) + 1) * 1e-3
+            volume_at = volume_ml + (t_block - t) * rate_ml_min / 60
+            block = PressureBlock(t_block, pressure_at(volume_at), np.zeros(len(t_block), bool))
+            reason = interlock.check_pressure(block)
+            t, volume_ml = float(t_block[-1]), float(volume_at[-1])
+            reason = reason or interlock.check_pump(PumpStatus(t, state, 0.0, 0.0), volume_ml)
+            if reason:
+                return volume_ml, reason
     return None
 
 
-# a model that rises 10 kPa/mL to 5 mL, stays at 50 kPa to 15 mL, then rises again
-STEP_V = [0.0, 5.0, 15.0, 25.0]
-STEP_P = [0.0, 50.0, 50.0, 150.0]
+INFUSING, WITHDRAWING = PumpState.INFUSING, PumpState.WITHDRAWING
 
 
-def test_a_pressure_that_follows_the_model_never_trips_even_on_its_flat_stretch():
-    rng = np.random.default_rng(3)
-    rate = 30.0  # mL/min
+def test_a_burst_trips_within_half_a_millilitre_and_a_snap_does_not():
+    rng = np.random.default_rng(6)
 
-    def specimen(t):
-        return np.interp(t * rate / 60, STEP_V, STEP_P) + rng.normal(0.0, 0.3, len(t))
+    def burst(v):  # rises 5 kPa/mL, bursts at 12 mL
+        return np.where(v < 12.0, 5.0 * v, 0.0) + rng.normal(0.0, 0.05, len(v))
 
-    assert infuse(response_for(STEP_V, STEP_P), specimen, rate, 24.0) is None
+    volume, reason = feed(interlocks.SpecimenPressure(), burst, [(INFUSING, 40.0, 30.0)])
+    assert 12.3 <= volume <= 12.6
+    assert reason.startswith("the specimen lost pressure: it fell from 59.9 kPa to ")
+    assert " kPa at 12.00 mL and stayed below 12.0 kPa over 0.3" in reason
 
+    def snap(v):  # at 12 mL the pressure falls to 40 % and rises again 2 kPa/mL
+        return np.where(v < 12.0, 5.0 * v, 24.0 + 2.0 * (v - 12.0))
 
-def test_a_flat_pressure_trips_where_the_model_expects_it_to_move_and_not_before():
-    rng = np.random.default_rng(4)
-    rate = 30.0
+    assert feed(interlocks.SpecimenPressure(), snap, [(INFUSING, 40.0, 30.0)]) is None
 
-    def floating(t):
-        return 26.6 + rng.normal(0.0, 0.18, len(t))
+    def deflating(v):  # withdrawn to nothing: the pressure falls to 0
+        return np.maximum(5.0 * v, 0.0)
 
-    volume, reason = infuse(response_for(STEP_V, STEP_P), floating, rate, 24.0)
-    # the first full millilitre judged: the model's change over [0, 1] mL is 10 kPa
-    assert 1.0 <= volume <= 1.3
-    assert reason.startswith("pressure did not respond to the volume infused: 1.")
-    assert "a cut sensor output wire floats" in reason
-    # a flat reading struck on the plateau (here: from 6 mL) is seen once the model
-    # leaves it (15 mL; shifted by the allowed 1 mL) and one millilitre more is infused
-    interlock = response_for(STEP_V, STEP_P)
-
-    def cut_at_6_ml(t):
-        live = np.interp(t * rate / 60, STEP_V, STEP_P) + rng.normal(0.0, 0.18, len(t))
-        return np.where(t * rate / 60 < 6.0, live, floating(t))
-
-    volume, _ = infuse(interlock, cut_at_6_ml, rate, 24.0)
-    assert 16.0 <= volume <= 17.3
+    legs = [(INFUSING, 20.0, 30.0), (WITHDRAWING, 20.0, -30.0)]
+    assert feed(interlocks.SpecimenPressure(), deflating, legs) is None
 
 
-def test_the_window_restarts_after_a_hold_or_a_withdrawal():
-    interlock = response_for(STEP_V, STEP_P)
-    flat = PressureBlock(np.arange(1, 1001) * 1e-3, np.full(1000, 20.0), np.zeros(1000, bool))
-    interlock.check_pressure(flat)
-    # 0.8 mL infused, a hold, then 0.8 mL more: no single infusion moved a full mL
-    assert interlock.check_pump(PumpStatus(0.0, PumpState.INFUSING, 0.0, 0.0), 0.0) is None
-    assert interlock.check_pump(PumpStatus(0.4, PumpState.INFUSING, 0.8, 0.0), 0.8) is None
-    assert interlock.check_pump(PumpStatus(0.5, PumpState.IDLE, 0.8, 0.0), 0.8) is None
-    assert interlock.check_pump(PumpStatus(0.6, PumpState.INFUSING, 0.8, 0.0), 0.8) is None
-    assert interlock.check_pump(PumpStatus(0.9, PumpState.INFUSING, 1.6, 0.0), 1.6) is None
+def test_a_leak_shows_as_suction_while_volume_is_still_counted():
+    """10 % of 10 mL lost: withdrawn, the specimen is empty with 1 mL still counted and
+    the pump draws on it (20 kPa/mL below empty); a closed one reads 0 at the end."""
+    legs = [(INFUSING, 20.0, 30.0), (WITHDRAWING, 20.0, -30.0)]
+
+    def leaking(share):
+        filled = []
+
+        def pressure(v):  # what the specimen holds: the share lost once it is filled
+            filled.append(bool(filled and filled[-1]) or v[-1] >= 9.99)
+            held = v - share * 10.0 * filled[-1]
+            return np.where(held > 0, 3.0 * held, 20.0 * held)
+
+        return pressure
+
+    volume, reason = feed(interlocks.SpecimenPressure(), leaking(0.1), legs)
+    assert reason.startswith("the specimen leaks: withdrawing, the pressure fell to -")
+    assert 0.8 <= volume <= 0.95
+    assert feed(interlocks.SpecimenPressure(), leaking(0.0), legs) is None
 
 
-def test_air_and_blocked_specimens_are_not_judged_on_the_free_model():
-    from labrig.config.protocol import load_protocol
+def test_no_module_of_a_run_imports_the_model():
+    """Nothing that runs or judges a run needs the specimen's model; only the dry run
+    prints the model's peak before it, where the specimen has one."""
+    import ast
+    from pathlib import Path
 
-    def built_for(name):
-        protocol = load_protocol(PROTOCOLS / f"{name}.yaml").protocol
-        return interlocks.PressureResponse.for_protocol(protocol)
-
-    for name in ("movie_s7_air", "movie_s7_air_reservoir", "blocked_force"):
-        assert built_for(name) is None, name
-    assert isinstance(built_for("demo"), interlocks.PressureResponse)
+    run_dir = Path(interlocks.__file__).parent
+    for path in sorted(run_dir.glob("*.py")):
+        if path.name == "dry_run.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                names = [node.module or ""]
+            else:
+                continue
+            assert not any(n.startswith("labrig.model") for n in names), (path.name, names)
 
 
 @pytest.mark.parametrize(
     "seed", [0, pytest.param(1, marks=pytest.mark.slow), pytest.param(2, marks=pytest.mark.slow)]
 )
-def test_the_shipped_protocols_never_trip_it_and_a_cut_wire_does(seed):
+def test_the_shipped_protocols_never_trip_the_run_interlocks_and_a_cut_wire_does(seed):
     infusions = shipped_infusions()
     assert {name for name, *_ in infusions} >= {"demo", "segment_characterization"}
     for name, protocol, step in infusions:
         assert infuse_judged(protocol, step, seed) is None, name
-        # cut in the first millilitre, where every specimen's pressure rises steeply
-        tripped_ml = infuse_judged(protocol, step, seed, floating_from_ml=0.3)
-        assert tripped_ml is not None and 1.3 <= tripped_ml <= 1.6, (name, tripped_ml)
+        # the wire cut at 3 mL: the pull-up holds the input above the band at once
+        tripped_ml = infuse_judged(protocol, step, seed, floating_from_ml=3.0)
+        assert tripped_ml is not None and 3.0 <= tripped_ml <= 3.0 + 0.4, (name, tripped_ml)
 
 
 def test_a_cut_wire_on_the_simulated_rig_faults_the_run_with_the_pump_stopped(tmp_path):
-    """The whole simulated rig: the runner's loops feed the interlock, the wire is cut
-    at 0.3 mL of the first infusion (the stiff first millilitres, 60 mL/min), the run
-    ends faulted about a millilitre later with the plunger standing still."""
+    """The whole simulated rig: the runner's loops feed the interlocks, the wire is cut
+    at 0.3 mL of the first infusion (60 mL/min), the run ends faulted as a wire fault
+    within the next read with the plunger standing still."""
     from support.simrig import short_protocol, when_volume_exceeds
 
     from labrig.config.protocol import load_protocol
@@ -242,7 +265,6 @@ def test_a_cut_wire_on_the_simulated_rig_faults_the_run_with_the_pump_stopped(tm
     loaded = load_protocol(path)
     rig = build_rig(loaded.protocol, sim_rig_config(None, 0))
     runner = Runner(loaded, rig, tmp_path / "run.h5")
-    assert any(isinstance(i, interlocks.PressureResponse) for i in runner.monitor.interlocks)
     emulator = rig.simulation.emulator
     cut_s = []
 
@@ -255,8 +277,8 @@ def test_a_cut_wire_on_the_simulated_rig_faults_the_run_with_the_pump_stopped(tm
         rig.clock.start_thread(cut_the_wire, "cut")
         result = runner.run()
     assert result.status == "faulted"
-    assert result.reason.startswith("pressure did not respond to the volume infused")
+    assert result.reason.startswith("pressure sensor wire open")
     end_s = rig.clock.now()
     stopped_ml = emulator.net_volume_ml(end_s)
     assert emulator.net_volume_ml(end_s + 30.0) == stopped_ml  # the plunger stands still
-    assert 1.0 <= stopped_ml - emulator.net_volume_ml(cut_s[0]) <= 1.5
+    assert stopped_ml - emulator.net_volume_ml(cut_s[0]) <= 0.5

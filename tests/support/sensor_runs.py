@@ -10,10 +10,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from labrig.config.protocol import InfuseStep, iter_plan, load_protocol
+from labrig.config.rig_file import DEFAULT_PULL_UP_KOHM
 from labrig.drivers.ni_daq import NiDaqPressure
 from labrig.model.segments.catalog import load_segment
 from labrig.rig.devices import PressureBlock, PumpState, PumpStatus
-from labrig.run.interlocks import PressureResponse
+from labrig.run.runner import run_interlocks
 from labrig.sim.daq import SimAnalogMultiChannelReader, SimDaqTask
 from labrig.sim.plant import Plant
 from labrig.time.virtual import VirtualClock
@@ -57,18 +58,27 @@ def acquire(
     seed: int,
     noise_kpa: float = 0.05,
     failure: tuple[str, float] | None = None,
+    pull_up_kohm: float | None = DEFAULT_PULL_UP_KOHM,
 ) -> tuple[float, float, str] | None:
     """Read the specimen through the driver every READ_PERIOD_S for the whole schedule,
     handing each block and the pump's status to ``on_reading``; the first reason it
     gives stops it: (time, volume, reason), or None. ``failure``: a SimDaqTask failure
-    and the volume infused when it strikes."""
+    and the volume infused when it strikes; ``pull_up_kohm``: the sensor's wiring."""
     pump_at = schedule(legs)
     clock = VirtualClock()
     plant = Plant(segments, lambda t: pump_at(t)[1], t0_s=0.0, seed=seed)
     tasks = []
 
     def new_task() -> SimDaqTask:
-        tasks.append(SimDaqTask(clock, plant.pressure_kpa_at, seed=seed, noise_kpa=noise_kpa))
+        tasks.append(
+            SimDaqTask(
+                clock,
+                plant.pressure_kpa_at,
+                seed=seed,
+                noise_kpa=noise_kpa,
+                pull_up_kohm=pull_up_kohm,
+            )
+        )
         return tasks[-1]
 
     daq = NiDaqPressure(clock, task_factory=new_task, reader_factory=SimAnalogMultiChannelReader)
@@ -95,8 +105,8 @@ def acquire(
 
 
 def shipped_infusions() -> list[tuple[str, object, InfuseStep]]:
-    """(name, protocol, first infusion) of each shipped protocol the pressure-response
-    interlock judges (water, free length)."""
+    """(name, protocol, first infusion) of each shipped protocol of water on a free
+    length (the quasi-static plant's)."""
     found = []
     for path in sorted(PROTOCOLS.glob("*.yaml")):
         protocol = load_protocol(path).protocol
@@ -108,16 +118,19 @@ def shipped_infusions() -> list[tuple[str, object, InfuseStep]]:
 
 
 def infuse_judged(protocol, step: InfuseStep, seed: int, floating_from_ml: float | None = None):
-    """The first infusion of ``protocol`` judged by its interlock, built as a run
-    builds it: the volume at the trip, or None. ``floating_from_ml``: the sensor's
-    output wire is cut there."""
+    """The first infusion of ``protocol`` judged by a run's interlocks: the volume at
+    the first trip, or None. ``floating_from_ml``: the sensor's output wire is cut there."""
     segments = [load_segment(name) for name in protocol.specimen.segments]
-    interlock = PressureResponse.for_protocol(protocol)
+    checks = run_interlocks(protocol)
     rate = step.infuse.rate_ml_min
     legs = [Leg(PumpState.INFUSING, step.infuse.volume_ml / rate * 60, rate)]
 
     def judge(block: PressureBlock, status: PumpStatus) -> str | None:
-        return interlock.check_pressure(block) or interlock.check_pump(status, status.net_volume_ml)
+        for check in checks:
+            reason = check.check_pressure(block) or check.check_pump(status, status.net_volume_ml)
+            if reason:
+                return reason
+        return None
 
     failure = None if floating_from_ml is None else ("vout-floating", floating_from_ml)
     tripped = acquire(segments, legs, judge, seed=seed, failure=failure)
