@@ -118,12 +118,11 @@ def test_the_simulated_rig_needs_the_truth_of_a_specimen_with_no_model(tmp_path,
 @pytest.fixture(scope="module")
 def no_model_run(tmp_path_factory):
     """A run of a specimen with no model on the simulated rig, through `labrig run`;
-    the rig file's sim.specimen says the specimen is B46-T20 (the label says so too, as
-    long as the pressure-response interlock judges a specimen by its model)."""
+    the rig file's sim.specimen says the specimen labelled LAB-S37 is B46-T20."""
     folder = tmp_path_factory.mktemp("no-model")
     (folder / "rigs").mkdir()
     (folder / "rigs" / "truth.yaml").write_text(TRUTH)
-    protocol = write(folder, "B46-T20", rig="rigs/truth.yaml")
+    protocol = write(folder, rig="rigs/truth.yaml")
     out = folder / "run.h5"
     with pytest.raises(SystemExit) as exited:
         main(["run", str(protocol), "--out", str(out)])
