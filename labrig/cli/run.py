@@ -10,10 +10,11 @@ from pathlib import Path
 
 import click
 
-# --speed: a stop takes about 2 s of rig time, paced like the rest: a SIGTERM ended
-# the demo 6.0 s later at 0.5 (20 s at 0.1; the 2-core machine at load 12). Above a
-# million times real time no host keeps pace anyway.
-MIN_SPEED, MAX_SPEED = 0.5, 1e6
+# --speed: a stop is not paced (a SIGTERM ends a run at 0.01 within seconds:
+# tests/run/test_signals_end_the_process.py); below a hundredth of real time a minute of
+# rig time takes more than 100 minutes, and 1e-300 would never end. Above a million
+# times real time no host keeps pace anyway.
+MIN_SPEED, MAX_SPEED = 0.01, 1e6
 MAX_LIVE_HOLD_S = 3600.0
 
 

@@ -215,7 +215,7 @@ class SimSpecimen(Strict):
 class SimConfig(Strict):
     speed: float | None = Field(
         None,
-        ge=0.5,
+        ge=0.01,
         le=1e6,
         description="Wall-clock pacing of the virtual timeline (1: real time); default: as "
         "fast as the host computes it. The recorded data are the same either way.",

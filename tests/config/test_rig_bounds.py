@@ -59,7 +59,7 @@ def refusal(tmp_path, rig: str) -> str:
         ),
         (
             "sim: {speed: 1.0e-300}",
-            "line 2: sim.speed: Input should be greater than or equal to 0.5",
+            "line 2: sim.speed: Input should be greater than or equal to 0.01",
         ),
         (
             "sim: {reply_timeout_s: 1.0e+300}",

@@ -29,10 +29,10 @@ PROMPT = textwrap.dedent(
     analysis: {average_last: 1, compare_model: false}
     """
 )
-# a technician who takes ten hours to answer, in real time
+# a technician who takes the longest a rig file allows (30 s), paced at half real time
 SLOW_TECHNICIAN = (
     "pump: {port: emulator, syringe: {diameter_mm: 27.6, volume_ml: 50}}\n"
-    "sim: {answer_s: 36000, speed: 1}\n"
+    "sim: {answer_s: 30, speed: 0.5}\n"
 )
 
 
