@@ -15,6 +15,7 @@ from rich.table import Table
 from rich.text import Text
 
 from labrig.analysis.curves import DEFLATE, INFLATE, PHASES
+from labrig.analysis.energy import cycle_energy, transition_energy
 from labrig.analysis.results import AnalysisResult
 from labrig.analysis.runfile import RunRecord
 from labrig.config.protocol import plan
@@ -237,7 +238,9 @@ def comparison_json(result: AnalysisResult) -> dict:
     it (null where none was): under ``transitions`` the path's events (every peak
     crossing and every snap), under ``paper_transitions`` the transitions as the paper
     counts them (the events at one supplied volume are one); measured transitions
-    that none of those predicts are listed under ``unpredicted``."""
+    that none of those predicts are listed under ``unpredicted``. Each predicted
+    transition carries its energies (``labrig.analysis.energy.transition_energy``) and
+    ``energy`` the cycle's (``cycle_energy``), in mJ."""
     comparison = result.comparison
     rmse = {}
     for phase, name in PHASES.items():
@@ -250,6 +253,7 @@ def comparison_json(result: AnalysisResult) -> dict:
         "transitions": transitions,
         "paper_transitions": paper,
         "unpredicted": unpredicted,
+        "energy": cycle_energy(result),
     }
 
 
@@ -282,6 +286,7 @@ def _matched(matches, result: AnalysisResult) -> tuple[list[dict], list[dict]]:
                 "dp_meas_kpa": _finite(m.dp_kpa) if m else None,
                 "dl_mm": _finite(p.dl_mm),
                 "dl_meas_mm": _finite(m.dl_mm) if m else None,
+                **transition_energy(result, p, m),
             }
         )
     return transitions, unpredicted

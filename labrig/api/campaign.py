@@ -3,7 +3,8 @@
 One row per run file: what was run (title, protocol, specimen, seed, date), how it
 ended (status, reason, the writer's flags), the RMSE against the model (kPa, mm) and,
 for each snap-through the model predicts, the measured volume (mL), pressure jump (kPa)
-and length jump (mm) beside the model's and the error (measured minus model).
+and length jump (mm) beside the model's and the error (measured minus model), and the
+energies of the cycle and of each snap, measured and model.
 
 The snaps are counted as the paper counts transitions: they are the
 ``paper_transitions`` of ``labrig compare --json`` whose ``type`` is ``snap`` (the
@@ -35,6 +36,9 @@ SNAP_FIELDS = {
     "dp_meas_kpa": ("dp_kpa", "dp", "kpa"),
     "dl_meas_mm": ("dl_mm", "dl", "mm"),
 }
+
+# the snap's energies of ``compare --json`` a row carries under their own names
+SNAP_ENERGY = ("dE_model", "cycle_dE_measured", "cycle_dE_model")
 
 
 def run_files(runs: str | Path | Iterable[str | Path]) -> list[Path]:
@@ -87,6 +91,8 @@ def run_row(path: Path) -> dict[str, Any]:
         return row
     for name, value in document["rmse"].items():
         row[f"rmse_{name}"] = value
+    for name, value in document["energy"].items():
+        row[f"energy_{name}"] = value
     snaps = [t for t in document["paper_transitions"] if t["type"] == "snap"]
     for k, snap in enumerate(snaps, 1):
         row[f"snap{k}_phase"] = snap["phase"]
@@ -96,6 +102,8 @@ def run_row(path: Path) -> dict[str, Any]:
             row[f"snap{k}_{short}_model_{unit}"] = predicted
             error = None if seen is None or predicted is None else seen - predicted
             row[f"snap{k}_{short}_error_{unit}"] = error
+        for name in SNAP_ENERGY:
+            row[f"snap{k}_{name}"] = snap[name]
     return row
 
 
@@ -124,7 +132,12 @@ def open_runs(runs: str | Path | Iterable[str | Path]) -> pd.DataFrame:
     peak crossing and the snap it sets off are one), ``snapk_phase`` and the measured
     ``snapk_v_ml`` (mL), ``snapk_dp_kpa`` (kPa), ``snapk_dl_mm`` (mm), each with its
     ``_model_`` and ``_error_`` (measured minus model) twin, e.g. ``snap1_v_model_ml``,
-    ``snap1_v_error_ml``; ``note`` (why a run has no comparison) and ``error`` (why a
+    ``snap1_v_error_ml``; the snap's ``snapk_dE_model`` (the model's dE) and its
+    ``snapk_cycle_dE_measured`` and ``snapk_cycle_dE_model`` (null for a deflation
+    snap); the cycle's energies (mJ) ``energy_stored_measured_mj``,
+    ``energy_released_measured_mj``, their ``_model_`` twins and
+    ``energy_released_by_snaps_model_mj`` (``compare --json``'s ``energy``; the python
+    API reference defines them); ``note`` (why a run has no comparison) and ``error`` (why a
     file could not be read). A missing value is NaN (None in a text column)."""
     import pandas as pd
 

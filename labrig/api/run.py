@@ -461,7 +461,8 @@ class Run:
         """What ``labrig compare RUN --json`` prints: ``rmse`` (kPa, mm),
         ``transitions`` (the model's path's events, each beside the measured one),
         ``paper_transitions`` (the same counted as the paper counts them),
-        ``unpredicted`` and, for step and blocked-force runs, ``steps`` and ``force``
+        ``unpredicted``, ``energy`` (the cycle's stored and dissipated energy, mJ,
+        measured and model) and, for step and blocked-force runs, ``steps`` and ``force``
         (those read the finished file: a file still open by its writer has none).
         ``InputError`` when the run has no comparison with the model."""
         from labrig.analysis.report import comparison_json
@@ -479,7 +480,11 @@ class Run:
     def comparison(self) -> pd.DataFrame:
         """Each predicted transition beside the measured one paired with it, the rows of
         ``labrig compare --json``'s ``transitions`` (phase, type, alpha, beta, v_ml,
-        v_meas_ml, dp_kpa, dp_meas_kpa, dl_mm, dl_meas_mm; NaN where nothing was seen)."""
+        v_meas_ml, dp_kpa, dp_meas_kpa, dl_mm, dl_meas_mm; NaN where nothing was seen)
+        and their energies: the model's ``energy_before_model_mj``,
+        ``energy_after_model_mj`` and ``dE_model``, and for an inflation transition the
+        one-cycle ``cycle_energy_before_*_mj``, ``cycle_energy_returned_*_mj`` and
+        ``cycle_dE_*`` of the measurement and of the model (see "Energy" above)."""
         import pandas as pd
 
         return pd.DataFrame(self.comparison_document["transitions"])
