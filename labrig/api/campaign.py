@@ -125,20 +125,24 @@ def open_runs(runs: str | Path | Iterable[str | Path]) -> pd.DataFrame:
     """A campaign as one DataFrame, one row a run (the table ``labrig runs`` prints):
     ``runs`` is a folder, a glob pattern (``"runs/*demo*.h5"``), a file or a list.
 
-    Columns: file, title, protocol, specimen, seed, date, status, reason, repetitions,
-    writer_open, live; ``rmse_<phase>_pressure_kpa`` (kPa) and ``rmse_<phase>_length_mm``
-    (mm); for the k-th snap-through the model predicts, counted as the paper counts
-    transitions (``labrig compare --json``'s ``paper_transitions`` of type ``snap``: a
-    peak crossing and the snap it sets off are one), ``snapk_phase`` and the measured
-    ``snapk_v_ml`` (mL), ``snapk_dp_kpa`` (kPa), ``snapk_dl_mm`` (mm), each with its
-    ``_model_`` and ``_error_`` (measured minus model) twin, e.g. ``snap1_v_model_ml``,
-    ``snap1_v_error_ml``; the snap's ``snapk_dE_model`` (the model's dE) and its
-    ``snapk_cycle_dE_measured`` and ``snapk_cycle_dE_model`` (null for a deflation
-    snap); the cycle's energies (mJ) ``energy_stored_measured_mj``,
-    ``energy_released_measured_mj``, their ``_model_`` twins and
-    ``energy_released_by_snaps_model_mj`` (``compare --json``'s ``energy``; the python
-    API reference defines them); ``note`` (why a run has no comparison) and ``error`` (why a
-    file could not be read). A missing value is NaN (None in a text column)."""
+    Columns: file, title, protocol, specimen, seed, date (a UTC datetime), status,
+    reason, repetitions, writer_open, live; ``rmse_<phase>_pressure_kpa`` (kPa) and
+    ``rmse_<phase>_length_mm`` (mm); for the k-th snap-through the model predicts,
+    counted as the paper counts transitions (``labrig compare --json``'s
+    ``paper_transitions`` of type ``snap``: a peak crossing and the snap it sets off are
+    one), ``snapk_phase`` and the measured ``snapk_v_ml`` (mL), ``snapk_dp_kpa`` (kPa),
+    ``snapk_dl_mm`` (mm), each with its ``_model_`` and ``_error_`` (measured minus
+    model) twin, e.g. ``snap1_v_model_ml``, ``snap1_v_error_ml``; the snap's
+    ``snapk_dE_model`` (the model's dE), ``snapk_cycle_dE_measured`` and
+    ``snapk_cycle_dE_model`` (null for a deflation snap); the cycle's energies (mJ)
+    ``energy_stored_measured_mj``, ``energy_released_measured_mj``, their ``_model_``
+    twins and ``energy_released_by_snaps_model_mj`` (``compare --json``'s ``energy``,
+    defined in the Python API reference); ``note`` (why a run has no comparison) and
+    ``error`` (why a file could not be read). A missing value is NaN (None in a text
+    column)."""
     import pandas as pd
 
-    return pd.DataFrame(campaign_rows(runs))
+    table = pd.DataFrame(campaign_rows(runs))
+    if "date" in table.columns:  # ISO 8601 text in the JSON, a datetime here
+        table["date"] = pd.to_datetime(table["date"], utc=True, errors="coerce")
+    return table

@@ -31,6 +31,7 @@ from labrig.recording.run_reader import decode
 from .axes import panel_axes
 from .reading import open_readonly, open_run_file, writer_state
 from .solver_mode import prefer_plain_python
+from .vocabulary import ALIASES, beside, with_direction_names
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -426,26 +427,27 @@ class Run:
     @property
     def transitions(self) -> pd.DataFrame:
         """Every transition measured in every repetition (``transitions.csv``):
-        repetition, direction (+1 inflate, -1 deflate), t_s, v_ml, v_start_ml, v_end_ml,
-        dp_kpa, dl_mm, by_pressure, by_length."""
+        repetition, direction ("inflate" or "deflate"; the file's +1/-1 as
+        ``direction_sign``), t_s, v_ml, v_start_ml, v_end_ml, dp_kpa, dl_mm, by_pressure,
+        by_length."""
         import pandas as pd
 
         from labrig.analysis.export import transition_columns
 
-        return pd.DataFrame(transition_columns(self.analysis))
+        return with_direction_names(pd.DataFrame(transition_columns(self.analysis)))
 
     @property
     def agreed_transitions(self) -> pd.DataFrame:
         """The transitions the averaged repetitions agree on (``/entry/analysis/
-        agreed_transitions``): direction, v_ml and its spread v_std_ml, dp_kpa, dl_mm,
-        seen of."""
+        agreed_transitions``): direction (and direction_sign), v_ml and its spread
+        v_std_ml, dp_kpa, dl_mm, seen of."""
         import pandas as pd
 
         from labrig.analysis.transitions import AgreedTransition
 
         names = [f.name for f in fields(AgreedTransition)]
         rows = [[getattr(t, n) for n in names] for t in self.analysis.transitions]
-        return pd.DataFrame(rows, columns=names)
+        return with_direction_names(pd.DataFrame(rows, columns=names))
 
     def _comparison(self):
         """The analysis's comparison with the model; InputError saying why there is none."""
@@ -484,10 +486,12 @@ class Run:
         and their energies: the model's ``energy_before_model_mj``,
         ``energy_after_model_mj`` and ``dE_model``, and for an inflation transition the
         one-cycle ``cycle_energy_before_*_mj``, ``cycle_energy_returned_*_mj`` and
-        ``cycle_dE_*`` of the measurement and of the model (see "Energy" above)."""
+        ``cycle_dE_*`` of the measurement and of the model (see "Energy" above); beside
+        the JSON's names, the vocabulary's: direction, v_model_ml, v_measured_ml,
+        dp_model_kpa, dp_measured_kpa, dl_model_mm, dl_measured_mm."""
         import pandas as pd
 
-        return pd.DataFrame(self.comparison_document["transitions"])
+        return beside(pd.DataFrame(self.comparison_document["transitions"]), ALIASES["comparison"])
 
     @property
     def paper_comparison(self) -> pd.DataFrame:
@@ -496,7 +500,9 @@ class Run:
         ``paper_transitions``."""
         import pandas as pd
 
-        return pd.DataFrame(self.comparison_document["paper_transitions"])
+        return beside(
+            pd.DataFrame(self.comparison_document["paper_transitions"]), ALIASES["comparison"]
+        )
 
     @property
     def rmse(self) -> pd.Series:
@@ -508,17 +514,20 @@ class Run:
     @property
     def model_path(self) -> pd.DataFrame:
         """The model's path the run is compared with: volume_ml, pressure_kpa, length_mm
-        and direction (+1 inflate, -1 deflate; a snap is two rows at one volume)."""
+        (with the specimen's fittings, as the markers measure it), direction ("inflate"
+        or "deflate") and direction_sign (+1, -1); a snap is two rows at one volume."""
         import pandas as pd
 
         prediction = self._comparison().prediction
-        return pd.DataFrame(
-            {
-                "volume_ml": prediction.v_ml,
-                "pressure_kpa": prediction.p_kpa,
-                "length_mm": prediction.l_mm,
-                "direction": prediction.direction,
-            }
+        return with_direction_names(
+            pd.DataFrame(
+                {
+                    "volume_ml": prediction.v_ml,
+                    "pressure_kpa": prediction.p_kpa,
+                    "length_mm": prediction.l_mm,
+                    "direction": prediction.direction,
+                }
+            )
         )
 
     # --- video ----------------------------------------------------------------------

@@ -11,6 +11,7 @@ import pytest
 from support.api_runs import cli
 
 import labrig
+from labrig.api.vocabulary import ALIASES
 
 
 def _nulls(records):
@@ -27,11 +28,16 @@ def test_comparison_is_compare_json(quick_run, capsys):
     printed = json.loads(out)
     run = labrig.open_run(quick_run)
     assert run.comparison_document == printed
+    # the JSON's fields, and beside them their names in the API's vocabulary
     table = run.comparison
-    assert list(table.columns) == list(printed["transitions"][0])
-    assert _nulls(table.to_dict("records")) == printed["transitions"]
+    printed_names = list(printed["transitions"][0])
+    assert [c for c in table.columns if c in printed_names] == printed_names
+    assert set(table.columns) - set(printed_names) == set(ALIASES["comparison"].values())
+    assert _nulls(table[printed_names].to_dict("records")) == printed["transitions"]
+    for old, new in ALIASES["comparison"].items():
+        assert table[new].equals(table[old])
     assert run.rmse.to_dict() == printed["rmse"]
-    paper = run.paper_comparison
+    paper = run.paper_comparison[printed_names]
     assert _nulls(paper.to_dict("records")) == printed["paper_transitions"]
     assert "snap" in set(table["type"])
 
@@ -96,7 +102,13 @@ def test_open_runs_is_runs_json_and_csv(campaign, tmp_path, capsys):
     printed = json.loads(out)["runs"]
     table = labrig.open_runs(campaign)
     assert list(table.columns) == list(printed[0])
-    assert _nulls(table.to_dict("records")) == printed
+    # the date: ISO 8601 text in the JSON, a datetime in the table
+    dates = pd.to_datetime([row["date"] for row in printed], utc=True)
+    assert list(table["date"].iloc[:2]) == list(dates[:2]) and pd.isna(table["date"].iloc[2])
+    printed_dates = [row.pop("date") for row in printed]
+    assert _nulls(table.drop(columns="date").to_dict("records")) == printed
+    for row, date in zip(printed, printed_dates, strict=True):
+        row["date"] = date
     from_csv = pd.read_csv(tmp_path / "runs.csv")
     assert list(from_csv.columns) == list(table.columns)
     np.testing.assert_allclose(from_csv["snap1_v_ml"], table["snap1_v_ml"].astype(float))
