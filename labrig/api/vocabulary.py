@@ -52,6 +52,9 @@ VOCABULARY: dict[str, str] = {
     "cycle_dE_measured": "(returned - before) / before, measured (see Energy)",
     "cycle_dE_model": "the same on the model's curves",
     "events": "the path's events a transition counted as the paper counts is made of",
+    "n_events": "how many of the path's events a transition is made of",
+    "actuator": "a scanned actuator's rank among the combinations",
+    "first": "the scan's row of a transition's first event",
     "repetition": "the repetition's number, from 1",
     "t_s": "time on the run's clock (s)",
     "v_start_ml": "where a measured transition starts (mL)",
@@ -71,6 +74,7 @@ VOCABULARY: dict[str, str] = {
 PATTERNS: dict[str, str] = {
     r"n_(pressure|pump|length|force)": "samples a log holds",
     r"v\d+_ml": "the i-th segment's volume (mL)",
+    r"segment\d+": "the i-th segment's name",
 }
 
 #: a table's name kept for the command line's JSON -> its vocabulary name, beside it
@@ -85,6 +89,7 @@ ALIASES: dict[str, dict[str, str]] = {
         "dl_meas_mm": "dl_measured_mm",
     },
     "model path": {"v_ml": "volume_ml", "p_kpa": "pressure_kpa", "l_mm": "segments_length_mm"},
+    "scan": {"events": "n_events"},
 }
 
 

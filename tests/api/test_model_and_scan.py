@@ -95,8 +95,12 @@ def test_a_scan_is_its_files_rows_with_names(gent_scan):
         rows = h5["transitions"]
         names = [n.decode() for n in h5["segments/name"][:]]
         assert len(table) == len(scan) == len(rows["v_ml"])
-        for field in ("actuator", "direction", "v_ml", "alpha", "beta", "stable", "dE", "dp"):
+        for field in ("actuator", "v_ml", "alpha", "beta", "stable", "dE", "dp"):
             np.testing.assert_array_equal(table[field].to_numpy(), rows[field][:])
+        # the file's +1/-1 is the table's direction_sign, named in direction
+        np.testing.assert_array_equal(table["direction_sign"], rows["direction"][:])
+        named = np.where(rows["direction"][:] > 0, "inflate", "deflate")
+        np.testing.assert_array_equal(table["direction"].to_numpy(), named)
         index = rows["segments"][:]
     assert list(table["segment1"]) == [names[i] for i in index[:, 0]]
     assert list(table["segment2"]) == [names[i] for i in index[:, 1]]
@@ -143,7 +147,7 @@ def test_a_scan_row_becomes_its_actuator_and_a_subset_is_drawn(gent_scan):
     for wrong, message in ((3, "ranks are 0 to 2"), (-1, "ranks are 0 to 2"), ("x", "a row")):
         with pytest.raises(InputError, match=message):
             scan.actuator(wrong)
-    subset = paper[paper["direction"] > 0].head(2)
+    subset = paper[paper["direction"] == "inflate"].head(2)
     axes = scan.plot(transitions=subset)
     drawn = sum(len(c.get_offsets()) for c in axes[0].collections)
     assert drawn == len(subset) == 2
