@@ -413,7 +413,8 @@ class Run:
     def curves_table(self, phase: str = "inflate") -> pd.DataFrame:
         """One phase's curves on the volume grid, as ``curves_<phase>.csv`` of
         ``labrig export --csv``: ``volume_ml``, each repetition's pressure and length,
-        ``mean_*``, ``std_*``, ``model_*``."""
+        ``mean_*``, ``std_*``, ``model_*``, and beside the mean and the model their
+        vocabulary names (``pressure_measured_kpa``, ``pressure_model_kpa``, ...)."""
         import pandas as pd
 
         from labrig.analysis.curves import PHASES
@@ -422,19 +423,20 @@ class Run:
         phases = {name: key for key, name in PHASES.items()}
         if phase not in phases:
             raise InputError(f"phase {phase!r}: one of {', '.join(phases)}")
-        return pd.DataFrame(curve_columns(self.analysis, phases[phase]))
+        return beside(pd.DataFrame(curve_columns(self.analysis, phases[phase])), ALIASES["curves"])
 
     @property
     def transitions(self) -> pd.DataFrame:
         """Every transition measured in every repetition (``transitions.csv``):
         repetition, direction ("inflate" or "deflate"; the file's +1/-1 as
-        ``direction_sign``), t_s, v_ml, v_start_ml, v_end_ml, dp_kpa, dl_mm, by_pressure,
-        by_length."""
+        ``direction_sign``), t_s (and time_s), v_ml, v_start_ml, v_end_ml, dp_kpa,
+        dl_mm, by_pressure, by_length."""
         import pandas as pd
 
         from labrig.analysis.export import transition_columns
 
-        return with_direction_names(pd.DataFrame(transition_columns(self.analysis)))
+        table = pd.DataFrame(transition_columns(self.analysis))
+        return beside(with_direction_names(table), ALIASES["transitions"])
 
     @property
     def agreed_transitions(self) -> pd.DataFrame:

@@ -56,7 +56,16 @@ VOCABULARY: dict[str, str] = {
     "actuator": "a scanned actuator's rank among the combinations",
     "first": "the scan's row of a transition's first event",
     "repetition": "the repetition's number, from 1",
-    "t_s": "time on the run's clock (s)",
+    "time_s": "time on the run's clock (s)",
+    "pressure_measured_kpa": "the averaged repetitions' pressure on the grid (kPa)",
+    "pressure_model_kpa": "the model's pressure on the grid (kPa)",
+    "length_measured_mm": "the averaged repetitions' length on the grid (mm)",
+    "length_model_mm": "the model's length on the grid (mm)",
+    "out_of_range": "the sensor's reading was outside its band",
+    "infused_ml": "volume the pump infused so far (mL)",
+    "withdrawn_ml": "volume the pump withdrew so far (mL)",
+    "state": "the pump's state",
+    "ok": "both markers were found in the frame",
     "v_start_ml": "where a measured transition starts (mL)",
     "v_end_ml": "where a measured transition ends (mL)",
     "v_std_ml": "the spread of a transition's volume over the repetitions (mL)",
@@ -70,11 +79,24 @@ VOCABULARY: dict[str, str] = {
     "t_end_s": "a repetition's end on the run's clock (s)",
 }
 
-#: numbered names, as patterns
+#: numbered names, and a campaign's columns, as patterns
 PATTERNS: dict[str, str] = {
+    r"file|title|protocol|specimen|seed|date|repetitions|writer_open|live|note|error": (
+        "a campaign's run: what ``Run.metadata`` holds (date a datetime)"
+    ),
+    r"rmse_(inflate|deflate)_(pressure_kpa|length_mm)": "RMSE of the mean against the model",
+    r"energy_(stored|released)_(measured|model)_mj|energy_released_by_snaps_model_mj": (
+        "the cycle's energies (see Energy)"
+    ),
+    r"snap\d+_(phase|(v|dp|dl)(_model|_error)?_(ml|kpa|mm)|dE_model|cycle_dE_(measured|model))": (
+        "the k-th snap's fields: compare --json's row names, measured plain"
+    ),
     r"n_(pressure|pump|length|force)": "samples a log holds",
     r"v\d+_ml": "the i-th segment's volume (mL)",
     r"segment\d+": "the i-th segment's name",
+    r"[xy][12]_px": "a marker's position in the frame (pixels)",
+    r"rep_\d+_(pressure_kpa|length_mm)": "one repetition's curve on the grid",
+    r"std_(pressure_kpa|length_mm)": "the averaged repetitions' spread on the grid",
 }
 
 #: a table's name kept for the command line's JSON -> its vocabulary name, beside it
@@ -90,6 +112,13 @@ ALIASES: dict[str, dict[str, str]] = {
     },
     "model path": {"v_ml": "volume_ml", "p_kpa": "pressure_kpa", "l_mm": "segments_length_mm"},
     "scan": {"events": "n_events"},
+    "transitions": {"t_s": "time_s"},
+    "curves": {
+        "mean_pressure_kpa": "pressure_measured_kpa",
+        "mean_length_mm": "length_measured_mm",
+        "model_pressure_kpa": "pressure_model_kpa",
+        "model_length_mm": "length_model_mm",
+    },
 }
 
 

@@ -1,8 +1,6 @@
 """``labrig.segment``, ``labrig.actuator`` and ``labrig.open_scan``: tables and plots."""
 
 import json
-import subprocess
-import sys
 
 import h5py
 import matplotlib
@@ -75,16 +73,6 @@ def test_a_measured_csv_segment(tmp_path, capsys):
     assert code == 0, err
     assert out == json.dumps(segment.document) + "\n"
     assert segment.document["measured"]["rows"] == 200
-
-
-@pytest.fixture(scope="module")
-def gent_scan(tmp_path_factory):
-    """Every pair of the three Gent membranes, by `labrig model scan` (one process)."""
-    out = tmp_path_factory.mktemp("scan") / "gent.h5"
-    command = [sys.executable, "-m", "labrig", "model", "scan", "--n", "2", "--library",
-               "gent", "--workers", "1", "--out", str(out)]  # fmt: skip
-    subprocess.run(command, check=True, capture_output=True)
-    return out
 
 
 def test_a_scan_is_its_files_rows_with_names(gent_scan):
