@@ -18,6 +18,7 @@ the rest.
 from __future__ import annotations
 
 import glob
+import math
 import warnings
 from collections.abc import Iterable
 from pathlib import Path
@@ -61,8 +62,9 @@ def run_files(runs: str | Path | Iterable[str | Path]) -> list[Path]:
     return found
 
 
-def run_row(path: Path) -> dict[str, Any]:
-    """One run's row of the campaign table (see the module docstring)."""
+def _opened(path: Path) -> tuple[dict[str, Any], Run | None]:
+    """The run's columns of its rows (its metadata), and the run; or the file's
+    ``error`` and None."""
     row: dict[str, Any] = {"file": str(path)}
     try:
         with warnings.catch_warnings():
@@ -71,7 +73,7 @@ def run_row(path: Path) -> dict[str, Any]:
         meta = run.metadata
     except LabrigError as exc:
         row["error"] = str(exc)
-        return row
+        return row, None
     row.update(
         title=meta["title"],
         protocol=meta["protocol"],
@@ -84,6 +86,14 @@ def run_row(path: Path) -> dict[str, Any]:
         writer_open=meta["writer_open"],
         live=meta["live"],
     )
+    return row, run
+
+
+def run_row(path: Path) -> dict[str, Any]:
+    """One run's row of the campaign table (see the module docstring)."""
+    row, run = _opened(path)
+    if run is None:
+        return row
     try:
         document = run.comparison_document
     except LabrigError as exc:  # no comparison (none asked for, no repetition done)
@@ -110,7 +120,57 @@ def run_row(path: Path) -> dict[str, Any]:
 def campaign_rows(runs: str | Path | Iterable[str | Path]) -> list[dict[str, Any]]:
     """Every run's row, each with every column of the table (null where it has none),
     so that the JSON, the CSV and the DataFrame are the same rectangle."""
-    rows = [run_row(path) for path in run_files(runs)]
+    return rectangle([run_row(path) for path in run_files(runs)])
+
+
+def protocol_columns(run: Run) -> dict[str, Any]:
+    """What a run's protocol asked for, to filter a campaign on: the infusions' and
+    withdrawals' rate (mL/min; NaN where the steps' rates differ), the largest volume
+    supplied (mL), the repetitions and the specimen's fittings (mm)."""
+    from labrig.config.protocol import InfuseStep, WithdrawStep, iter_steps, plan
+
+    protocol = run.protocol
+    steps = [step for _, step in iter_steps(protocol.steps)]
+    rates = {
+        "rate_ml_min": {s.infuse.rate_ml_min for s in steps if isinstance(s, InfuseStep)},
+        "withdraw_rate_ml_min": {
+            s.withdraw.rate_ml_min for s in steps if isinstance(s, WithdrawStep)
+        },
+    }
+    return {
+        **{name: values.pop() if len(values) == 1 else math.nan for name, values in rates.items()},
+        "max_volume_ml": plan(protocol).max_volume_ml,
+        "repetitions": run.n_repetitions,
+        "fittings_length_mm": protocol.specimen.fittings_length_mm,
+    }
+
+
+def transition_rows(path: Path) -> list[dict[str, Any]]:
+    """A run's rows of the long campaign table: one per transition of ``compare
+    --json``'s ``paper_transitions`` and ``unpredicted``, in the vocabulary's names,
+    each with the run's metadata and its protocol's parameters; a run without any is
+    one row with its ``note`` or ``error``."""
+    from .vocabulary import ALIASES
+
+    head, run = _opened(path)
+    if run is None:
+        return [head]
+    head.update(protocol_columns(run))
+    try:
+        document = run.comparison_document
+    except LabrigError as exc:
+        return [{**head, "note": str(exc)}]
+    rename = ALIASES["comparison"]
+    transitions = document["paper_transitions"] + [
+        {"type": "unpredicted", **t} for t in document["unpredicted"]
+    ]
+    rows = [{**head, **{rename.get(k, k): v for k, v in t.items()}} for t in transitions]
+    return rows or [{**head, "note": "the model predicts no transition and none was seen"}]
+
+
+def rectangle(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Every row with every column (null where it has none), ``note`` and ``error``
+    last: the JSON, the CSV and the DataFrame are the same rectangle."""
     columns: dict[str, None] = {}
     for row in rows:
         columns.update(dict.fromkeys(row))
@@ -121,7 +181,7 @@ def campaign_rows(runs: str | Path | Iterable[str | Path]) -> list[dict[str, Any
     return [{name: row.get(name) for name in columns} for row in rows]
 
 
-def open_runs(runs: str | Path | Iterable[str | Path]) -> pd.DataFrame:
+def open_runs(runs: str | Path | Iterable[str | Path], long: bool = False) -> pd.DataFrame:
     """A campaign as one DataFrame, one row a run (the table ``labrig runs`` prints):
     ``runs`` is a folder, a glob pattern (``"runs/*demo*.h5"``), a file or a list.
 
@@ -139,10 +199,22 @@ def open_runs(runs: str | Path | Iterable[str | Path]) -> pd.DataFrame:
     twins and ``energy_released_by_snaps_model_mj`` (``compare --json``'s ``energy``,
     defined in the Python API reference); ``note`` (why a run has no comparison) and
     ``error`` (why a file could not be read). A missing value is NaN (None in a text
-    column)."""
+    column).
+
+    ``long=True``: one row per transition of every run instead (``compare --json``'s
+    ``paper_transitions``, then its ``unpredicted`` with type ``unpredicted``), in the
+    vocabulary's names (direction, v_model_ml, v_measured_ml, dp_*, dl_*, dE_model, the
+    energies), each with the run's metadata and its protocol's ``rate_ml_min``,
+    ``withdraw_rate_ml_min``, ``max_volume_ml``, ``repetitions`` and
+    ``fittings_length_mm``, to filter and group on."""
     import pandas as pd
 
-    table = pd.DataFrame(campaign_rows(runs))
+    rows = (
+        rectangle([row for path in run_files(runs) for row in transition_rows(path)])
+        if long
+        else campaign_rows(runs)
+    )
+    table = pd.DataFrame(rows)
     if "date" in table.columns:  # ISO 8601 text in the JSON, a datetime here
         table["date"] = pd.to_datetime(table["date"], utc=True, errors="coerce")
     return table

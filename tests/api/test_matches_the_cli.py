@@ -171,3 +171,32 @@ def test_runs_prints_each_run_with_its_snaps_measured_and_predicted(campaign, ca
     assert "a_quick.h5" in out and "b_tiny.h5" in out and "c_broken" not in out
     assert f"v {row['snap1_v_ml']:.2f} ({row['snap1_v_model_ml']:.2f})" in out
     assert len(labrig.open_runs(str(campaign / "[ab]_*.h5"))) == 2
+
+
+def test_the_long_campaign_is_one_row_per_transition(campaign, capsys):
+    """One row per transition of compare --json (paper_transitions, then unpredicted),
+    in the vocabulary's names, with the protocol's parameters; a run without a
+    comparison and a broken file are one row each, saying why."""
+    code, out, err = cli(["compare", campaign / "a_quick.h5", "--json"], capsys)
+    assert code == 0, err
+    printed = json.loads(out)
+    table = labrig.open_runs(campaign, long=True)
+    quick = table[table["file"].str.endswith("a_quick.h5")]
+    expected = printed["paper_transitions"] + printed["unpredicted"]
+    assert len(quick) == len(expected)
+    assert list(quick["direction"]) == [t["phase"] for t in expected]
+    assert list(quick["type"]) == [t.get("type", "unpredicted") for t in expected]
+    seen = [None if v != v else v for v in quick["v_measured_ml"]]  # NaN is null
+    assert seen == [t["v_meas_ml"] for t in expected]
+    snaps = quick[quick["type"] == "snap"]
+    paper_snaps = [t for t in printed["paper_transitions"] if t["type"] == "snap"]
+    assert list(snaps["dE_model"]) == [t["dE_model"] for t in paper_snaps]
+    # the quick demo: 60 mL/min both ways to 30 mL, twice, 10 mm of fittings
+    assert set(quick["rate_ml_min"]) == set(quick["withdraw_rate_ml_min"]) == {60.0}
+    assert set(quick["max_volume_ml"]) == {30.0} and set(quick["repetitions"]) == {2}
+    assert set(quick["fittings_length_mm"]) == {10.0}
+    assert isinstance(quick["date"].iloc[0], pd.Timestamp)
+    tiny = table[table["file"].str.endswith("b_tiny.h5")]
+    broken = table[table["file"].str.endswith("c_broken.h5")]
+    assert len(tiny) == 1 and "no comparison with the model" in tiny["note"].iloc[0]
+    assert len(broken) == 1 and "not an HDF5 file" in broken["error"].iloc[0]

@@ -32,6 +32,7 @@ def tables(quick_run, gent_scan):
         ("Run.model_path", None, run.model_path),
         ("Run.repetitions", None, run.repetitions),
         ("open_runs", None, labrig.open_runs(quick_run)),
+        ("open_runs(long=True)", None, labrig.open_runs(quick_run, long=True)),
         ("ActuatorPath.path", "model path", path.path),
         ("ActuatorPath.transitions", None, path.transitions),
         ("ActuatorPath.paper_transitions", None, path.paper_transitions),
