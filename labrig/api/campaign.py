@@ -170,14 +170,14 @@ def transition_rows(path: Path) -> list[dict[str, Any]]:
 
 def rectangle(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Every row with every column (null where it has none), ``note`` and ``error``
-    last: the JSON, the CSV and the DataFrame are the same rectangle."""
+    last and always there: the JSON, the CSV and the DataFrame are the same rectangle,
+    whichever runs it holds."""
     columns: dict[str, None] = {}
     for row in rows:
         columns.update(dict.fromkeys(row))
     for rare in ("note", "error"):  # last: most rows have none
-        if rare in columns:
-            del columns[rare]
-            columns[rare] = None
+        columns.pop(rare, None)
+        columns[rare] = None
     return [{name: row.get(name) for name in columns} for row in rows]
 
 

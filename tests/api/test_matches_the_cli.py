@@ -200,3 +200,11 @@ def test_the_long_campaign_is_one_row_per_transition(campaign, capsys):
     broken = table[table["file"].str.endswith("c_broken.h5")]
     assert len(tiny) == 1 and "no comparison with the model" in tiny["note"].iloc[0]
     assert len(broken) == 1 and "not an HDF5 file" in broken["error"].iloc[0]
+
+
+def test_note_and_error_are_columns_whichever_runs(quick_run):
+    """A campaign of good runs has them too (null), so code reading them never breaks."""
+    for long in (False, True):
+        table = labrig.open_runs(quick_run, long=long)
+        assert list(table.columns[-2:]) == ["note", "error"]
+        assert table["note"].isna().all() and table["error"].isna().all()
