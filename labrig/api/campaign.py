@@ -150,7 +150,7 @@ def transition_rows(path: Path) -> list[dict[str, Any]]:
     --json``'s ``paper_transitions`` and ``unpredicted``, in the vocabulary's names,
     each with the run's metadata and its protocol's parameters; a run without any is
     one row with its ``note`` or ``error``."""
-    from .vocabulary import ALIASES
+    from labrig.vocabulary import ALIASES
 
     head, run = _opened(path)
     if run is None:
@@ -164,7 +164,8 @@ def transition_rows(path: Path) -> list[dict[str, Any]]:
     transitions = document["paper_transitions"] + [
         {"type": "unpredicted", **t} for t in document["unpredicted"]
     ]
-    rows = [{**head, **{rename.get(k, k): v for k, v in t.items()}} for t in transitions]
+    # compare's rows carry the vocabulary's names beside the JSON's: keep those alone
+    rows = [{**head, **{k: v for k, v in t.items() if k not in rename}} for t in transitions]
     return rows or [{**head, "note": "the model predicts no transition and none was seen"}]
 
 

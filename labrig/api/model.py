@@ -16,10 +16,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from labrig.errors import InputError
+from labrig.vocabulary import ALIASES, DEFLATE, INFLATE, beside
 
 from .axes import panel_axes
 from .solver_mode import prefer_plain_python
-from .vocabulary import ALIASES, DEFLATE, INFLATE, beside
 
 if TYPE_CHECKING:
     from collections.abc import Sequence

@@ -27,11 +27,11 @@ import numpy as np
 from labrig.errors import InputError
 from labrig.recording.run_layout import LOG_DESCRIPTION, LOG_FIELDS, repetition_name
 from labrig.recording.run_reader import decode
+from labrig.vocabulary import ALIASES, beside, with_direction_names
 
 from .axes import panel_axes
 from .reading import open_readonly, open_run_file, writer_state
 from .solver_mode import prefer_plain_python
-from .vocabulary import ALIASES, beside, with_direction_names
 
 if TYPE_CHECKING:
     import pandas as pd

@@ -12,11 +12,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from labrig.errors import InputError
+from labrig.vocabulary import ALIASES, beside, with_direction_names
 
 from .axes import panel_axes
 from .reading import open_readonly
 from .solver_mode import prefer_plain_python
-from .vocabulary import ALIASES, beside, with_direction_names
 
 if TYPE_CHECKING:
     from collections.abc import Sequence

@@ -1,4 +1,4 @@
-"""Every table the API returns speaks one vocabulary (``labrig.api.vocabulary``)."""
+"""Every table the API returns speaks one vocabulary (``labrig.vocabulary``)."""
 
 import re
 from pathlib import Path
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import labrig
-from labrig.api.vocabulary import ALIASES, PATTERNS, VOCABULARY, known
+from labrig.vocabulary import ALIASES, PATTERNS, VOCABULARY, known
 
 REPO = Path(__file__).resolve().parents[2]
 RAW_LOGS = ("pressure", "pump", "length")

@@ -1,10 +1,11 @@
-"""The Python API's column names: one name for one quantity in every table it returns.
+"""Column names: one name for one quantity in every table the Python API returns and in
+``labrig compare --json``'s rows.
 
-The command line's JSON and the run file keep the names their readers rely on
-(``phase``, ``v_meas_ml``, ``direction`` as +1/-1, ...); a DataFrame of the API carries
-those and, beside them, the names below, so a notebook can join and filter the tables
-of a run, a campaign and the model on the same columns. The API reference's table is
-this one.
+The command line's JSON, the CSV export and the run file keep the names their readers
+rely on (``phase``, ``v_meas_ml``, ``direction`` as +1/-1, ...); a table made of them
+carries those and, beside them, the names below, so a notebook can join and filter the
+tables of a run, a campaign and the model on the same columns. The Python API
+reference's table is this one. A leaf module: the analysis and the API both read it.
 """
 
 from __future__ import annotations
@@ -138,6 +139,16 @@ def beside(table: pd.DataFrame, aliases: dict[str, str]) -> pd.DataFrame:
         if old in table.columns and new not in table.columns:
             table.insert(table.columns.get_loc(old) + 1, new, table[old])
     return table
+
+
+def beside_fields(row: dict, aliases: dict[str, str]) -> dict:
+    """A JSON row with each aliased field's vocabulary name right after it."""
+    out = {}
+    for name, value in row.items():
+        out[name] = value
+        if name in aliases:
+            out[aliases[name]] = value
+    return out
 
 
 def with_direction_names(table: pd.DataFrame) -> pd.DataFrame:
