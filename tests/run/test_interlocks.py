@@ -214,7 +214,7 @@ def test_air_and_blocked_specimens_are_not_judged_on_the_free_model():
 
 
 @pytest.mark.parametrize(
-    "seed", [0, pytest.param(1, marks=pytest.mark.slow), pytest.param(2, marks=pytest.mark.slow)]
+    "seed", [0, pytest.param(1, marks=pytest.mark.soak), pytest.param(2, marks=pytest.mark.soak)]
 )
 def test_the_shipped_protocols_never_trip_it_and_a_cut_wire_does(seed):
     infusions = shipped_infusions()
