@@ -44,7 +44,7 @@ os.environ.setdefault("LABRIG_BACKGROUND_COMPILE", "0")
 # (--no-loadscope-reorder: xdist would order by test count)
 LONG_FIRST = (
     "tests/model/actuator/test_jit.py::",  # the compiled path's group: ~400, +250 cold
-    "tests/cli/test_model_paper.py::",  # 360: four libraries' 36 segments and pairs
+    "tests/cli/test_model_paper.py::",  # the libraries' group: 360, four libraries' pairs
     "tests/model/segments/test_paper_braided.py::",  # 110: the paper library, built once
     "tests/rig/test_demo_run.py::",  # the demo's group: ~90
     "tests/rig/test_video_and_frames.py::",  # 90
@@ -89,6 +89,10 @@ GROUPS = {
     "tests/cli/test_review.py::": "simulated_runs",
     "tests/cli/test_library_add.py::": "simulated_runs",
     "tests/docs/test_run_file_doc.py::": "simulated_runs",
+    # the paper's statements and the catalog's check of every library segment build the
+    # same libraries' 36 segments (labrig.model.segments.catalog keeps them per process)
+    "tests/cli/test_model_paper.py::": "libraries",
+    "tests/model/segments/test_catalog.py::test_every_library_segment": "libraries",
     "tests/api/test_run.py::": "api_quick_run",
     "tests/api/test_matches_the_cli.py::": "api_quick_run",
 }
