@@ -5,7 +5,9 @@ calls after finalising a run.
 result in the run file (replacing any earlier analysis, so it can be re-run). The
 settings come from the protocol stored in the file (``analysis: {average_last,
 compare_model}``); the model's segments from its specimen, unless the caller names
-others (``labrig compare --segments``). A model that cannot be built (a segment that is
+others (``labrig compare --segments``); a specimen with no model (``specimen.model:
+none``) is compared with nothing unless the caller names segments, and a note says so.
+A model that cannot be built (a segment that is
 not in the library, a path the solver cannot follow) does not stop the analysis of the
 measurement: the comparison is left out and a note says why.
 """
@@ -34,11 +36,17 @@ from labrig.analysis.runfile import Repetition, RunRecord, load_run
 from labrig.analysis.transitions import agreed_transitions, detect_transitions
 from labrig.errors import LabrigError
 
+NO_MODEL_NOTE = (
+    "no model to compare with: the specimen has no model (specimen.model: none); "
+    "labrig compare RUN --segments SEG compares it with segments you name"
+)
+
 
 def settings_for(record: RunRecord) -> AnalysisSettings:
     analysis = record.protocol.analysis
     return AnalysisSettings(
-        average_last=analysis.average_last, compare_model=analysis.compare_model
+        average_last=analysis.average_last,
+        compare_model=analysis.compare_model and record.protocol.specimen.has_model,
     )
 
 
@@ -161,6 +169,8 @@ def analyse(
             notes.append(note)
     elif wanted:
         notes.append("no comparison with the model: no repetition completed")
+    elif not record.protocol.specimen.has_model:
+        notes.append(NO_MODEL_NOTE)
     created, version = stamp()
     return AnalysisResult(
         source=record.path,

@@ -218,7 +218,8 @@ def _measured_jump(t_s, v_ml, f_n, model, i_snap: int) -> float | None:
 
 
 def force_for_run(path: str | Path) -> ForceResult | None:
-    """``blocked_force`` for the specimen the run file's protocol names."""
+    """``blocked_force`` for the specimen the run file's protocol names (None for a run
+    without a load cell, or a specimen with no model)."""
     from labrig.config.protocol import parse_protocol
     from labrig.model.segments.catalog import load_segment
 
@@ -227,6 +228,8 @@ def force_for_run(path: str | Path) -> ForceResult | None:
             return None
         protocol = parse_protocol(decode(run["entry/protocol"][()]), f"{path}:/entry/protocol")
     specimen = protocol.specimen
+    if not specimen.has_model:  # its segments are labels: no blocked actuator to compare
+        return None
     segments = [load_segment(name) for name in specimen.segments]
     return blocked_force(path, segments, specimen.fittings_length_mm)
 

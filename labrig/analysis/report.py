@@ -73,14 +73,15 @@ def run_table(record: RunRecord) -> Table:
         ("protocol", f"{protocol.name}: {summary.repetitions} repetitions, "
          f"{summary.duration_s / 60:.1f} min, up to {summary.max_volume_ml:g} mL"),
         ("specimen", " + ".join(protocol.specimen.segments)
-         + f" (fittings {protocol.specimen.fittings_length_mm:g} mm)"),
+         + f" (fittings {protocol.specimen.fittings_length_mm:g} mm"
+         + ("" if protocol.specimen.has_model else "; labels, no model") + ")"),
         ("limits", f"{protocol.limits.max_pressure_kpa:g} kPa, "
          f"{protocol.limits.max_volume_ml:g} mL"),
         ("acquisition", f"pressure {protocol.acquisition.pressure_rate_hz:g} Hz, camera "
          + (f"{protocol.acquisition.camera_fps:g} fps" if protocol.acquisition.camera_fps
             else "none") + (", video" if protocol.acquisition.video else "")),
         ("analysis", f"mean of the last {protocol.analysis.average_last}, compare with the "
-         f"model: {'yes' if protocol.analysis.compare_model else 'no'}"),
+         f"model: {_compared(protocol)}"),
         ("zero offset", _num(record.zero_offset_kpa, ".3f", " kPa")),
         ("labrig", f"{record.versions.get('labrig', '?')} "
          f"(commit {record.versions.get('git_commit', '?')[:12]})"),
@@ -88,6 +89,12 @@ def run_table(record: RunRecord) -> Table:
     for name, value in rows:
         table.add_row(name, value)
     return table
+
+
+def _compared(protocol) -> str:
+    if not protocol.specimen.has_model:
+        return "no (the specimen has no model: specimen.model: none)"
+    return "yes" if protocol.analysis.compare_model else "no"
 
 
 def steps_table(record: RunRecord) -> Table:
@@ -256,6 +263,24 @@ def comparison_json(result: AnalysisResult) -> dict:
         "paper_transitions": paper,
         "unpredicted": unpredicted,
         "energy": cycle_energy(result),
+    }
+
+
+def no_model_json(reason: str) -> dict:
+    """``labrig compare --json`` for a run with nothing to compare with (a specimen with
+    no model): ``no_model``, the reason, before the comparison's fields, empty (every
+    RMSE null), so a script reads it as it reads any comparison."""
+    rmse = {
+        f"{name}_{quantity}": None
+        for name in PHASES.values()
+        for quantity in ("pressure_kpa", "length_mm")
+    }
+    return {
+        "no_model": reason,
+        "rmse": rmse,
+        "transitions": [],
+        "paper_transitions": [],
+        "unpredicted": [],
     }
 
 

@@ -195,19 +195,24 @@ def export(file: Path, directory: Path, overwrite: bool) -> None:
     is_flag=True,
     help='Print the comparison as one JSON object: {"rmse": {...}, "transitions": [...], '
     '"paper_transitions": [...], "unpredicted": [...]} (the model\'s events, and its '
-    "transitions as the paper counts them: the events at one supplied volume are one).",
+    "transitions as the paper counts them: the events at one supplied volume are one). "
+    'A specimen with no model: "no_model" (the reason) and the rest empty.',
 )
 def compare_command(
     file: Path, segments: tuple[str, ...], library: Path | None, store: bool, as_json: bool
 ) -> None:
     """Compare a run with the stability model: RMSE of pressure and length against the
-    mean, and predicted against measured transitions."""
+    mean, and predicted against measured transitions. A run whose specimen has no model
+    (specimen.model: none) is compared only with segments named by --segments."""
     from labrig.analysis import report
     from labrig.analysis.analyse import analyse
     from labrig.analysis.results import write_analysis
 
     console = _console()
     record, result, stored = load(file)
+    if not segments and not record.protocol.specimen.has_model:
+        _no_model(file, record, result, store, as_json)
+        return
     if segments or library is not None or store or result.comparison is None:
         # the specimen's own segments unless others are named; a segment that cannot be
         # loaded is an error here, not a note
@@ -234,6 +239,28 @@ def compare_command(
     if store:
         click.echo(f"stored in {file} (/entry/analysis)")
     _computed_note(stored)
+
+
+def _no_model(file: Path, record, result, store: bool, as_json: bool) -> None:
+    """``compare`` of a run whose specimen has no model (``specimen.model: none``): one
+    line saying so (exit 0: nothing is wrong), or the JSON with ``no_model``."""
+    from labrig.analysis import report
+    from labrig.analysis.analyse import NO_MODEL_NOTE
+    from labrig.analysis.results import write_analysis
+
+    if store:
+        write_analysis(file, result)
+    if as_json:
+        import json
+
+        from labrig.analysis.experiments import experiment_fields
+
+        click.echo(json.dumps(experiment_fields(file, report.no_model_json(NO_MODEL_NOTE))))
+        return
+    _warn_open(record)
+    click.echo(f"{file}: {NO_MODEL_NOTE}")
+    if store:
+        click.echo(f"stored in {file} (/entry/analysis)")
 
 
 @click.command()

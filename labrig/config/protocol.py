@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Discriminator, Field, Tag, model_validator
+from pydantic import BaseModel, Discriminator, Field, Tag, field_validator, model_validator
 
 from labrig.config.yaml_schema import Line, Strict, Text, parse_yaml_model
 from labrig.user_files import MAX_CONFIG_BYTES, read_text_file
@@ -44,11 +44,45 @@ MAX_NAME_CHARS = 200
 MAX_PATH_CHARS = 1000
 MAX_TEXT_CHARS = 10_000
 
+# Bounds a rig can honour, so that a protocol that validates can start, be recorded,
+# read back and analysed (each is checked again against the rig by the dry run).
+# The PHD ULTRA's rates over the syringes a rig file accepts (0.1 to 50 mm inner
+# diameter: 1.6e-9 to 423 mL/min); the dry run checks the rig's own syringe.
+MIN_RATE_ML_MIN = 1e-9
+MAX_RATE_ML_MIN = 500.0
+# the largest syringe a PHD ULTRA holds (pump.syringe.volume_ml)
+MAX_VOLUME_ML = 140.0
+# a hold of a week at most: a longer one is no step of a run a person watches
+MAX_HOLD_S = 7 * 24 * 3600.0
+# The pressure is read every 0.2 s and a signal with no sample for 0.5 s
+# (signal_timeout_s) is a dead device: 10 Hz gives every read two samples.
+MIN_PRESSURE_RATE_HZ = 10.0
+# A camera's first frame must come within 3 s of its start and the markers-lost
+# interlock allows 10 s: below 1 frame per second a healthy camera faults the run.
+MIN_CAMERA_FPS = 1.0
+# The run's pressure samples (duration x rate): nine tenths of what a reader reads
+# whole (labrig.recording.run_reader.MAX_DATASET_VALUES, 250 million), the tenth left
+# for what a run adds to its plan (waiting for the first readings, a pump's start).
+MAX_PRESSURE_SAMPLES = 225_000_000
+# The run file lays out every repetition before the first sample: 1000 take about
+# 13 s on a busy 2-core machine (10,000: two minutes).
+MAX_REPETITIONS = 1000
+
+
+NO_MODEL = "none"
+
 
 class Specimen(Strict):
     segments: list[Annotated[Line, Field(max_length=MAX_PATH_CHARS)]] = Field(
         min_length=1,
-        description="Segments in the actuator: library names (B46-T20) or CSV paths",
+        description="Segments in the actuator: library names (B46-T20), measured segments "
+        "or CSV paths; with model: none, the lab's own labels (LAB-S37)",
+    )
+    model: Literal["segments", "none"] = Field(
+        "segments",
+        description="segments: the model is built from the segments' names (each must "
+        "name one); none: the specimen has no model yet, its segments are labels "
+        "(no predicted peak, no comparison)",
     )
     fittings_length_mm: float = Field(
         0.0, ge=0, description="Length added by couplings between the markers, in mm"
@@ -69,6 +103,11 @@ class Specimen(Strict):
         "unpressurised distance and a load cell reads the reaction force",
     )
 
+    @property
+    def has_model(self) -> bool:
+        """Whether the model is built from the segments (``model: segments``)."""
+        return self.model != NO_MODEL
+
     @model_validator(mode="after")
     def _reservoir_holds_air(self) -> Specimen:
         if self.air_reservoir_ml > 0 and self.fluid != "air":
@@ -84,20 +123,35 @@ class Limits(Strict):
         gt=0, le=100, description="Interlock: stop the pump above this pressure (kPa)"
     )
     max_volume_ml: float = Field(
-        gt=0, description="Interlock: stop the pump above this volume in the specimen (mL)"
+        gt=0,
+        le=MAX_VOLUME_ML,
+        description="Interlock: stop the pump above this volume in the specimen (mL)",
     )
 
 
 class Acquisition(Strict):
     pressure_rate_hz: float = Field(
-        1000.0, gt=0, le=48000, description="DAQ sample rate; the USB-6009 allows 48 kS/s"
+        1000.0,
+        ge=MIN_PRESSURE_RATE_HZ,
+        le=48000,
+        description="DAQ sample rate; the USB-6009 allows 48 kS/s in total",
     )
     camera_fps: float = Field(
-        0.0, ge=0, le=60, description="Camera frames per second; 0 means no camera"
+        0.0, ge=0, le=60, description="Camera frames per second, 1 to 60; 0 means no camera"
     )
     video: bool = Field(
         False, description="Record the camera's frames to RUN.avi beside the run file"
     )
+
+    @field_validator("camera_fps")
+    @classmethod
+    def _camera_fast_enough(cls, fps: float) -> float:
+        if 0 < fps < MIN_CAMERA_FPS:
+            raise ValueError(
+                f"{fps:g} frames per second is too few: a camera's first frame must come "
+                f"within 3 s of its start; 0 (no camera) or {MIN_CAMERA_FPS:g} to 60"
+            )
+        return fps
 
     @model_validator(mode="after")
     def _video_needs_camera(self) -> Acquisition:
@@ -119,12 +173,18 @@ class ZeroPressureParams(Strict):
 
 
 class FlowParams(Strict):
-    rate_ml_min: float = Field(gt=0, description="Flow rate in mL/min")
-    volume_ml: float = Field(gt=0, description="Volume this step moves, in mL")
+    rate_ml_min: float = Field(
+        ge=MIN_RATE_ML_MIN,
+        le=MAX_RATE_ML_MIN,
+        description="Flow rate in mL/min (the dry run checks the rig's syringe)",
+    )
+    volume_ml: float = Field(gt=0, le=MAX_VOLUME_ML, description="Volume this step moves, in mL")
 
 
 class HoldParams(Strict):
-    seconds: float = Field(ge=0, description="Time to hold at constant volume")
+    seconds: float = Field(
+        ge=0, le=MAX_HOLD_S, description="Time to hold at constant volume (a week at most)"
+    )
 
 
 class PromptParams(Strict):
@@ -237,6 +297,42 @@ class Protocol(Strict):
     acquisition: Acquisition = Field(Acquisition(), description="What is recorded, how often")
     steps: list[Step] = Field(min_length=1, description="What the pump does, in order")
     analysis: Analysis = Field(Analysis(), description="What the analysis after the run does")
+
+    @model_validator(mode="after")
+    def _recordable(self) -> Protocol:
+        """The run's repetitions and its pressure samples (duration x
+        `pressure_rate_hz`) fit in a run file that can be read back and analysed."""
+        summary = plan(self)
+        if summary.repetitions > MAX_REPETITIONS:
+            raise ValueError(
+                f"the steps make {summary.repetitions} repetitions, more than "
+                f"{MAX_REPETITIONS}: the run file lays out each before the first sample"
+            )
+        rate_hz = self.acquisition.pressure_rate_hz
+        samples = summary.duration_s * rate_hz
+        if samples > MAX_PRESSURE_SAMPLES:
+            raise ValueError(
+                f"the run takes {summary.duration_s / 3600:.4g} h at "
+                f"acquisition.pressure_rate_hz {rate_hz:g}: {samples:.3g} pressure samples, "
+                f"more than the {MAX_PRESSURE_SAMPLES:,} a run file is read back with; at "
+                f"{rate_hz:g} Hz a run lasts at most {MAX_PRESSURE_SAMPLES / rate_hz / 3600:.4g} h"
+            )
+        return self
+
+    @model_validator(mode="after")
+    def _comparison_needs_a_model(self) -> Protocol:
+        """`analysis.compare_model: true` written out contradicts `specimen.model:
+        none` (left out, the comparison is simply not made)."""
+        if (
+            self.specimen.model == NO_MODEL
+            and self.analysis.compare_model
+            and "compare_model" in self.analysis.model_fields_set
+        ):
+            raise ValueError(
+                "analysis.compare_model: true asks for a comparison with the model, but "
+                "specimen.model: none says the specimen has none; drop one of them"
+            )
+        return self
 
     @model_validator(mode="after")
     def _flows_from_what_is_connected(self) -> Protocol:

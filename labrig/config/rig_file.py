@@ -111,10 +111,14 @@ class CameraConfig(Strict):
         None, gt=0, description="Or: the markers' distance in the first frame, for the scale"
     )
     # set on the camera and read back; a camera that cannot do them is refused
-    width: int | None = Field(1280, gt=0, description="Frame width (px); V4L2 opens at 640")
-    height: int | None = Field(720, gt=0, description="Frame height (px); V4L2 opens at 480")
+    width: int | None = Field(
+        1280, gt=0, le=8192, description="Frame width (px); V4L2 opens at 640"
+    )
+    height: int | None = Field(
+        720, gt=0, le=8192, description="Frame height (px); V4L2 opens at 480"
+    )
     fps: float | None = Field(
-        None, gt=0, le=240, description="Streaming rate; default the protocol's camera_fps"
+        None, ge=1, le=240, description="Streaming rate; default the protocol's camera_fps"
     )
     exposure: float | None = Field(
         None, description="Manual exposure in the backend's units (V4L2: 100 us); default auto"
@@ -211,13 +215,18 @@ class SimSpecimen(Strict):
 class SimConfig(Strict):
     speed: float | None = Field(
         None,
-        gt=0,
+        ge=0.5,
+        le=1e6,
         description="Wall-clock pacing of the virtual timeline (1: real time); default: as "
         "fast as the host computes it. The recorded data are the same either way.",
     )
     seed: int = Field(0, ge=0, description="Seeds every random part of the simulation")
     resistance_kpa_s_per_ml: float = Field(
-        0.1, gt=0, description="Flow resistance between segments (sets the snap time)"
+        0.1,
+        ge=1e-3,
+        le=1e3,
+        description="Flow resistance between segments (sets the snap time; below 1e-3 the "
+        "plant's time steps get too small to finish)",
     )
     noise_kpa: float = Field(0.05, ge=0, description="Pressure sensor white noise")
     offset_error_kpa: float = Field(0.8, description="Sensor zero offset (removed by zeroing)")
@@ -227,17 +236,26 @@ class SimConfig(Strict):
     reply_timeout_s: float = Field(
         SIM_REPLY_TIMEOUT_S,
         gt=0,
+        le=60,
         description="Host seconds the simulated pump's replies are awaited (virtual time "
         "stands still meanwhile)",
     )
     # the plumbing of the step experiments' plant (labrig.sim.dynamic_plant); the bore
     # is fitted so that the paper's water step (Movie S7) takes 1.4 s
     coupling_bore_mm: float = Field(
-        0.76, gt=0, description="Bore of each segment's coupling (sets the snap time)"
+        0.76, ge=0.1, le=5, description="Bore of each segment's coupling (sets the snap time)"
     )
-    coupling_length_mm: float = Field(20.0, gt=0, description="Length of each coupling")
-    dead_volume_ml: float = Field(2.0, gt=0, description="Fluid in the lines and the tee")
-    answer_s: float = Field(2.0, ge=0, description="How long the technician takes a prompt")
+    coupling_length_mm: float = Field(20.0, ge=1, le=1000, description="Length of each coupling")
+    dead_volume_ml: float = Field(
+        2.0, ge=0.01, le=100, description="Fluid in the lines and the tee"
+    )
+    answer_s: float = Field(
+        2.0,
+        ge=0,
+        le=30,
+        description="How long the technician takes a prompt (the simulation computes the "
+        "plant all that time: half a minute at most)",
+    )
     specimen: SimSpecimen | None = Field(
         None,
         description="The specimen's truth and behaviour; default: exactly the protocol's "
@@ -259,7 +277,7 @@ class RigConfig(Strict):
     sim: SimConfig | None = Field(None, description="Present only on the simulated rig")
     signal_timeout_s: float = Field(
         0.5,
-        gt=0,
+        ge=0.2,
         le=5,
         description="A pressure signal with no sample this long, or a camera "
         "with no frame this long or three frame periods, is a dead device: the run faults",

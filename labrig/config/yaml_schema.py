@@ -1,7 +1,7 @@
 """Validated YAML files: safe loading, strict schemas, and errors a person can act on.
 
 Protocols and rig configurations are data, never code: they are read as
-``yaml.safe_load`` reads them, with bounds and no duplicate keys
+``yaml.safe_load`` reads them, with bounds, no duplicate keys and YAML 1.2's numbers
 (``labrig.config.bounded_yaml``), and validated by a strict pydantic model (unknown keys,
 strings where numbers belong, and infinite or NaN numbers are errors). A validation
 error names the file, the line (from the YAML node tree) and the key path, and says
@@ -17,7 +17,7 @@ from typing import Annotated, TypeVar
 import yaml
 from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError
 
-from labrig.config.bounded_yaml import load_with_nodes
+from labrig.config.bounded_yaml import NumberError, load_with_nodes
 from labrig.errors import InputError
 
 Model = TypeVar("Model", bound=BaseModel)
@@ -73,6 +73,10 @@ def parse_yaml_model(
     """
     try:
         data, root = load_with_nodes(text)
+    except NumberError as exc:
+        line = exc.problem_mark.line + 1
+        where = exc.path or "(top level)"
+        raise InputError(f"{filename}: line {line}: {where}: {exc.problem}") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = f" line {mark.line + 1}:" if mark is not None else ""

@@ -29,6 +29,12 @@ def prediction_json(protocol: Protocol) -> dict:
 
     the_plan = plan(protocol)
     segments = list(protocol.specimen.segments)
+    if not protocol.specimen.has_model:
+        return {
+            "ready": True,
+            "segments": segments,
+            "error": "the specimen has no model (specimen.model: none): its segments are labels",
+        }
     try:
         curves = [load_segment(name) for name in segments]
         prediction = predict(

@@ -62,6 +62,12 @@ CAMERA_FIELDS = {
     "(NaN: fewer than two frames)",
 }
 
+# /entry/specimen_model: the protocol's specimen.model as run (absent in older files)
+SPECIMEN_MODEL_DESCRIPTION = (
+    "the protocol's specimen.model: 'segments' (the model is built from the specimen's "
+    "segments) or 'none' (the specimen had no model; its segments are labels)"
+)
+
 RUN_STATUSES = ("running", "complete", "aborted", "faulted")
 REPETITION_STATUSES = ("pending", "running", "complete", "aborted", "faulted")
 

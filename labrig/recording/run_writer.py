@@ -49,6 +49,7 @@ from labrig.recording.run_layout import (
     REASON_SIZE,
     REPETITION_STATUSES,
     RUN_STATUSES,
+    SPECIMEN_MODEL_DESCRIPTION,
     STATUS_SIZE,
     TIME_SIZE,
     VIDEO_FIELDS,
@@ -130,6 +131,7 @@ class RunWriter:
         with_force: bool = False,
         with_events: bool = False,
         simulated_segments: int = 0,
+        specimen_model: str = "segments",
         video_file: str | None = None,
         flush_interval_s: float = 0.5,
         tap: Callable[[int, str, dict[str, np.ndarray]], None] | None = None,
@@ -150,6 +152,7 @@ class RunWriter:
         self.with_force = with_force
         self.with_events = with_events
         self.simulated_segments = simulated_segments
+        self.specimen_model = specimen_model
         self.video_file = video_file
         # who the pump is, as connect read it (``/entry/pump_identity``); empty: none
         self.pump_identity = dict(pump_identity or {})
@@ -225,6 +228,10 @@ class RunWriter:
         protocol = entry.create_dataset("protocol", data=protocol_text)
         protocol.attrs["source_file"] = _storable(protocol_path)
         entry["rig_config"] = rig_config_text
+        # the protocol's specimen.model, for any HDF5 tool: "none" when the run had no
+        # model (its segments are labels, nothing was predicted)
+        model = entry.create_dataset("specimen_model", data=self.specimen_model)
+        model.attrs["description"] = SPECIMEN_MODEL_DESCRIPTION
         version_group = entry.create_group("versions")
         version_group.attrs["NX_class"] = "NXcollection"
         for name, value in versions().items():

@@ -199,12 +199,19 @@ def needs_dynamic_plant(protocol: Protocol) -> bool:
 def specimen_truth(protocol: Protocol, sim: SimConfig) -> SimSpecimen:
     """The simulated specimen: the rig file's ``sim.specimen`` with its segments given
     (the protocol's by default). InputError, in one line, for a protocol whose segments
-    no library holds and a rig file that does not say what the specimen really is."""
+    no library holds, or that has no model, and a rig file that does not say what the
+    specimen really is."""
     from labrig.model.segments.catalog import load_segment
 
     truth = sim.specimen or SimSpecimen()
     if truth.segments is not None:
         return truth
+    if not protocol.specimen.has_model:
+        raise InputError(
+            "the simulated rig cannot know what the specimen is: specimen.model: none makes "
+            "its segments labels; give the rig file's sim.specimen.segments, the segments "
+            "the simulated specimen really is (library names or CSV paths)"
+        )
     for spec in protocol.specimen.segments:
         try:
             load_segment(spec)

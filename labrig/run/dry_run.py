@@ -3,7 +3,8 @@
 ``labrig run`` prints it before every run and refuses to start on a problem;
 ``labrig run --dry-run`` stops after it. It checks what needs the rig as well as the
 protocol (the syringe's rate range and capacity) and predicts, from the stability
-model, the peak pressure the specimen will reach against the pressure limit.
+model, the peak pressure the specimen will reach against the pressure limit (a
+specimen with no model, ``specimen.model: none``, gets none and says so).
 """
 
 from __future__ import annotations
@@ -41,7 +42,8 @@ def dry_run_report(protocol: Protocol, rig: RigConfig) -> DryRunReport:
     where = "simulated rig" if rig.sim is not None else f"pump on {rig.pump.port}"
     report.lines += [
         f"protocol {protocol.name!r} on the {where}",
-        f"  specimen    {' + '.join(protocol.specimen.segments)}",
+        f"  specimen    {' + '.join(protocol.specimen.segments)}"
+        + ("" if protocol.specimen.has_model else " (labels: no model)"),
         f"  duration    {summary.duration_s / 60:.1f} min ({summary.repetitions} repetitions)",
         f"  volume      {summary.infused_ml:g} mL infused, {summary.withdrawn_ml:g} mL "
         f"withdrawn, at most {summary.max_volume_ml:g} mL in the specimen "
@@ -67,6 +69,7 @@ def dry_run_report(protocol: Protocol, rig: RigConfig) -> DryRunReport:
                     f"{location}.{kind}.rate_ml_min = {rate:g}: a {syringe.diameter_mm:g} mm "
                     f"syringe on a PHD ULTRA runs at {low:.3g} to {high:.4g} mL/min"
                 )
+    _aggregate_rate(protocol, rig, report)
     if summary.max_volume_ml > syringe.volume_ml:
         report.problems.append(
             f"the specimen needs {summary.max_volume_ml:g} mL but the syringe holds "
@@ -74,6 +77,29 @@ def dry_run_report(protocol: Protocol, rig: RigConfig) -> DryRunReport:
         )
     _predict_pressure(protocol, summary.max_volume_ml, report)
     return report
+
+
+# The USB-6009 samples its analog inputs in turn, at most this many samples a second
+# over all of them.
+DAQ_AGGREGATE_RATE_HZ = 48_000.0
+
+
+def _aggregate_rate(protocol: Protocol, rig: RigConfig, report: DryRunReport) -> None:
+    """The pressure rate on every input the DAQ reads (the sensor's supply, a load
+    cell), within what the USB-6009 samples in total: else the run faults at start."""
+    inputs = ["the sensor"]
+    if rig.pressure.supply_channel is not None:
+        inputs.append("its supply (pressure.supply_channel)")
+    if protocol.specimen.length == "blocked":
+        inputs.append("the load cell (specimen.length: blocked)")
+    rate_hz = protocol.acquisition.pressure_rate_hz
+    if rate_hz * len(inputs) > DAQ_AGGREGATE_RATE_HZ:
+        report.problems.append(
+            f"acquisition.pressure_rate_hz = {rate_hz:g} on {len(inputs)} inputs "
+            f"({', '.join(inputs)}) is {rate_hz * len(inputs):g} S/s; the USB-6009 samples "
+            f"at most {DAQ_AGGREGATE_RATE_HZ:g} S/s in total: at most "
+            f"{DAQ_AGGREGATE_RATE_HZ / len(inputs):g} Hz"
+        )
 
 
 # A backstop above this many times the pressure limit protects nothing the specimen
@@ -107,13 +133,34 @@ def _backstop(protocol: Protocol, rig: RigConfig, report: DryRunReport) -> None:
 
 
 def _predict_pressure(protocol: Protocol, volume_ml: float, report: DryRunReport) -> None:
-    """The model's peak pressure up to the largest volume, against the limit."""
+    """The model's peak pressure up to the largest volume, against the limit; for a
+    specimen with no model, that there is none (and any label that looks like a
+    model's name misspelt)."""
+    from labrig.config.segment_names import label_warnings, unknown_segment_hint
+    from labrig.errors import InputError
     from labrig.model.actuator.prediction import predicted_peak_pressure_kpa
     from labrig.model.segments.catalog import load_segment
 
-    segments = [load_segment(spec) for spec in protocol.specimen.segments]
+    specimen, limit = protocol.specimen, protocol.limits.max_pressure_kpa
+    if not specimen.has_model:
+        report.lines.append(
+            f"  pressure    no model peak: the specimen has no model (specimen.model: none); "
+            f"the pressure limit {limit:g} kPa and the interlocks guard the run"
+        )
+        report.warnings += label_warnings(specimen.segments)
+        return
+    segments = []
+    for index, spec in enumerate(specimen.segments):
+        try:
+            segments.append(load_segment(spec))
+        except InputError as exc:
+            problem = f"specimen.segments[{index}]: {exc}"
+            if str(exc).startswith(f"unknown segment {spec!r}"):
+                problem += f"; {unknown_segment_hint(spec)}"
+            report.problems.append(problem)
+    if len(segments) < len(specimen.segments):
+        return
     peak_kpa, at_ml = predicted_peak_pressure_kpa(segments, volume_ml)
-    limit = protocol.limits.max_pressure_kpa
     report.lines.append(
         f"  pressure    model peak {peak_kpa:.1f} kPa at {at_ml:.2f} mL (limit {limit:g} kPa)"
     )

@@ -221,6 +221,7 @@ class Runner:
             with_force=getattr(self.rig.pressure, "measures_force", False),
             with_events=self.rig.technician is not None,
             simulated_segments=self._simulated_segments(),
+            specimen_model=self.protocol.specimen.model,
             tap=self.data_tap,
             video_file=self._video_path().name if self._video_path() else None,
             pump_identity=getattr(self.rig.pump, "run_record", None),

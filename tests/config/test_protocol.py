@@ -55,7 +55,8 @@ def test_defaults_fill_optional_sections():
         (
             "rate_ml_min: 20, volume_ml: 45}\n        - hold",
             "rate_ml_min: -20, volume_ml: 45}\n        - hold",
-            "line 11: steps[1].repeat.steps[0].infuse.rate_ml_min: Input should be greater than 0",
+            "line 11: steps[1].repeat.steps[0].infuse.rate_ml_min: Input should be greater than or "
+            "equal to 0.000000001",
         ),
         (
             "seconds: 5",

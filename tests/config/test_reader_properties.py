@@ -1,6 +1,7 @@
 """Properties of the readers of what people write: whatever the text, a protocol and a
 measured-curve CSV are either read or refused with an InputError, never anything else;
-YAML within the bounds reads exactly as ``yaml.safe_load`` reads it."""
+YAML within the bounds reads exactly as ``yaml.safe_load`` reads it, but for numbers
+(YAML 1.2's: tests/config/test_yaml_numbers.py)."""
 
 import math
 import tempfile
@@ -38,7 +39,11 @@ scalars = st.one_of(
     st.booleans(),
     st.integers(-(10**6), 10**6),
     st.floats(allow_nan=False, width=32),
-    st.text(st.characters(codec="utf-8", exclude_categories=("Cs", "Cc")), max_size=8),
+    # text that starts as no number can: where YAML 1.1 writes 1e5 or 089 as text,
+    # YAML 1.2 reads a number, or the loader refuses the value
+    st.text(st.characters(codec="utf-8", exclude_categories=("Cs", "Cc")), max_size=8).filter(
+        lambda text: text[:1] not in set("+-.0123456789")
+    ),
 )
 documents = st.recursive(
     scalars,

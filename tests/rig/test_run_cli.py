@@ -46,7 +46,7 @@ def run_cli(args, capsys):
         (
             "rate_ml_min: 40, volume_ml: 10}\n  - withdraw",
             "rate_ml_min: -4, volume_ml: 10}\n  - withdraw",
-            "rate_ml_min: Input should be greater than 0",
+            "rate_ml_min: Input should be greater than or equal to 0.000000001",
         ),
         (
             "rate_ml_min: 40, volume_ml: 10}\n  - withdraw",
