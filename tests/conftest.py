@@ -23,10 +23,13 @@ as each finishes, on the host's speed. Seen: test_stress found two failing examp
 only when it ran after the compiled path's tests in their worker.
 """
 
+import functools
 import importlib
 import os
 import pkgutil
+import re
 import shutil
+from pathlib import Path
 
 import pytest
 from hypothesis import settings
@@ -36,30 +39,38 @@ from hypothesis import settings
 os.environ.setdefault("LABRIG_BACKGROUND_COMPILE", "0")
 
 # node ids (prefixes) of the longest work units, longest first (a group's tests count
-# together; seconds on the idle 2-core machine, warm numba cache, one process): these
-# start first, in this order (--no-loadscope-reorder: xdist would order by test count)
+# together; seconds of wall time at load 9 on the 2-core machine, warm numba cache, from
+# --durations: about a quarter of that idle): these start first, in this order
+# (--no-loadscope-reorder: xdist would order by test count)
 LONG_FIRST = (
-    "tests/cli/test_benchmark.py::",  # the compiled path's group: ~60, +60-95 cold
-    "tests/rig/test_determinism.py::test_same_seed_same_data_beside_two_cpu_burners",
-    "tests/rig/test_demo_run.py::",  # the demo's group: ~30 with the one above
-    "tests/live/test_watch.py::",  # 19
-    "tests/live/test_api_state.py::",  # 15
+    "tests/model/actuator/test_jit.py::",  # the compiled path's group: ~400, +250 cold
+    "tests/cli/test_model_paper.py::",  # the libraries' group: 360, four libraries' pairs
+    "tests/model/segments/test_paper_braided.py::",  # 110: the paper library, built once
+    "tests/rig/test_demo_run.py::",  # the demo's group: ~90
+    "tests/rig/test_video_and_frames.py::",  # 90
+    "tests/rig/test_soak.py::test_a_short_soak",  # 70: fifteen runs, one per fault kind
+    "tests/analysis/test_compare.py::",  # the simulated runs' group: ~70
+    "tests/api/test_tutorial.py::test_the_tutorial_runs_top_to_bottom",  # 55: 3 runs
+    "tests/rig/test_faults.py::",  # 55
+    "tests/model/segments/test_measured_curves.py::",  # 55
+    "tests/live/test_api_state.py::",  # 45
+    "tests/cli/test_model_scan.py::test_ctrl_c_keeps",  # 45
+    "tests/rig/test_experiments_run.py::",  # 40
+    "tests/run/test_endings.py::",  # 40
+    "tests/rig/test_device_deaths.py::",  # 40
+    "tests/model/baselines/test_nelder_mead.py::test_the_papers_named_combinations",  # 50
+    "tests/analysis/test_plot_marks.py::",  # 33: one simulated run for both tests
+    "tests/api/test_run.py::",  # the API's run: ~40 with test_matches_the_cli
+    "tests/model/segments/test_gent.py::",  # 29
+    "tests/live/test_watch.py::",  # 21
     "tests/live/test_live_page.py::",  # 16
-    "tests/analysis/test_compare.py::",  # the simulated runs' group: ~25
-    "tests/api/test_tutorial.py::test_the_tutorial_runs_top_to_bottom",  # 15-35: 3 runs
-    "tests/model/baselines/test_nelder_mead.py::test_the_papers_named_combinations",  # 12
-    "tests/cli/test_model_scan.py::test_ctrl_c_keeps",  # 8
-    "tests/rig/test_video_and_frames.py::",  # 10
-    "tests/rig/test_soak.py::test_a_short_soak",  # 10-15: eight runs, one per fault
-    "tests/rig/test_device_deaths.py::",  # 14
-    "tests/rig/test_faults.py::",
     "tests/model/baselines/test_nelder_mead.py::",
 )
 # tests that share something costly, each group run by one worker: the compiled path
 # (see the module docstring), the demo's run (a session fixture, rig/conftest.py), the
-# browser and the demo with video (module fixtures) and the simulated runs of this file
-# (session fixtures); a fixture's scope is per process, so a module's tests spread over
-# two workers made its fixture twice (seen: the video run, 3 s of CPU each)
+# simulated runs of this file and the API's run (session fixtures); a fixture's scope is
+# per process, so tests spread over two workers made it twice (seen: the video run, 3 s
+# of CPU each). A module with a module-scoped fixture is a group of its own (``_group``).
 COMPILED_GROUP = "compiled_path"
 GROUPS = {
     "tests/cli/test_benchmark.py::": COMPILED_GROUP,
@@ -72,17 +83,18 @@ GROUPS = {
     "tests/model/scan/test_scan_failures.py::": COMPILED_GROUP,
     "tests/rig/test_demo_run.py::": "demo_run",
     "tests/rig/test_determinism.py::": "demo_run",
-    "tests/live/test_live_page.py::": "browser",
-    "tests/rig/test_video_and_frames.py::": "video_run",
     "tests/analysis/test_compare.py::": "simulated_runs",
     "tests/analysis/test_results.py::": "simulated_runs",
     "tests/analysis/test_transitions.py::": "simulated_runs",
     "tests/cli/test_review.py::": "simulated_runs",
     "tests/cli/test_library_add.py::": "simulated_runs",
     "tests/docs/test_run_file_doc.py::": "simulated_runs",
+    # the paper's statements and the catalog's check of every library segment build the
+    # same libraries' 36 segments (labrig.model.segments.catalog keeps them per process)
+    "tests/cli/test_model_paper.py::": "libraries",
+    "tests/model/segments/test_catalog.py::test_every_library_segment": "libraries",
     "tests/api/test_run.py::": "api_quick_run",
     "tests/api/test_matches_the_cli.py::": "api_quick_run",
-    "tests/api/test_frames.py::": "api_video_run",
 }
 
 
@@ -124,8 +136,28 @@ def _rank(nodeid: str) -> int:
     return next((i for i, p in enumerate(LONG_FIRST) if nodeid.startswith(p)), len(LONG_FIRST))
 
 
+ROOT = Path(__file__).resolve().parents[1]  # pytest's rootdir: node ids are relative to it
+# a fixture made once per module (or class) of tests
+_SHARED_FIXTURE = re.compile(r"@pytest\.fixture\([^)]*scope\s*=\s*[\"'](module|class)[\"']")
+
+
+@functools.cache
+def _shares_a_fixture(path: str) -> bool:
+    """Whether the test module at ``path`` makes a module- or class-scoped fixture: its
+    tests then run on one worker, which makes the fixture once (spread over three
+    workers, a module's fixture was made up to three times: seen, the paper library's
+    36 segments in test_paper_braided, the simulated run of test_plot_marks)."""
+    try:
+        return _SHARED_FIXTURE.search((ROOT / path).read_text()) is not None
+    except OSError:
+        return False
+
+
 def _group(nodeid: str) -> str | None:
-    return next((g for p, g in GROUPS.items() if nodeid.startswith(p)), None)
+    """The tests' group (``GROUPS``), else the module's when it shares a fixture."""
+    group = next((g for p, g in GROUPS.items() if nodeid.startswith(p)), None)
+    module = nodeid.split("::", 1)[0]
+    return group or (module if _shares_a_fixture(module) else None)
 
 
 def pytest_collection_modifyitems(items):

@@ -45,7 +45,8 @@ ON_CURVE_WINDOW_ML = 1.0
 @dataclass(frozen=True)
 class PredictedTransition:
     """A transition on the model's path: the model's own numbers (v_ml, alpha, beta,
-    stable, the normalised dE, dv, dl, dp) and the jump in physical units."""
+    stable, the normalised dE, dv, dl, dp), the jump in physical units and the stored
+    energy on both sides of it (mJ; NaN in a run file analysed before they were kept)."""
 
     direction: int
     v_ml: float
@@ -58,6 +59,8 @@ class PredictedTransition:
     dp: float
     dp_kpa: float
     dl_mm: float
+    energy_before_mj: float = math.nan
+    energy_after_mj: float = math.nan
 
     @property
     def type(self) -> str:
@@ -73,6 +76,8 @@ def paper_counted(predicted: Sequence[PredictedTransition]) -> tuple[PredictedTr
             **{name: getattr(t, name) for name in EVENT_FIELDS},
             dp_kpa=math.fsum(e.dp_kpa for e in t.events),
             dl_mm=math.fsum(e.dl_mm for e in t.events),
+            energy_before_mj=t.events[0].energy_before_mj,
+            energy_after_mj=t.events[-1].energy_after_mj,
         )
         for t in paper_transitions(predicted)
     )
@@ -90,6 +95,13 @@ class Prediction:
     l_mm: np.ndarray
     direction: np.ndarray
     transitions: tuple[PredictedTransition, ...]
+
+    def phase_curve(self, phase: int) -> tuple[np.ndarray, np.ndarray]:
+        """The path's (volume, pressure) of ``phase`` with the volume increasing (a
+        snap's two points kept in the order they happen on the way up)."""
+        chosen = self.direction == phase
+        v, p = self.v_ml[chosen], self.p_kpa[chosen]
+        return (v, p) if phase == INFLATE else (v[::-1], p[::-1])
 
     def on_grid(self, grid_ml: np.ndarray, phase: int, quantity: str) -> np.ndarray:
         """``quantity`` ("p" or "l") of the path's ``phase`` on the grid; NaN outside
@@ -142,6 +154,8 @@ def predict(
             dp=float(t.dp),
             dp_kpa=float(t.post.p_kpa - t.pre.p_kpa),
             dl_mm=float(actuator.length_mm(t.post.v_i_ml) - actuator.length_mm(t.pre.v_i_ml)),
+            energy_before_mj=float(actuator.energy_mj(t.pre.v_i_ml)),
+            energy_after_mj=float(actuator.energy_mj(t.post.v_i_ml)),
         )
         for t in transitions(path)
     )

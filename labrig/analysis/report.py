@@ -15,9 +15,11 @@ from rich.table import Table
 from rich.text import Text
 
 from labrig.analysis.curves import DEFLATE, INFLATE, PHASES
+from labrig.analysis.energy import cycle_energy, transition_energy
 from labrig.analysis.results import AnalysisResult
 from labrig.analysis.runfile import RunRecord
 from labrig.config.protocol import plan
+from labrig.vocabulary import ALIASES, beside_fields
 
 DIRECTION = {INFLATE: "inflate", DEFLATE: "deflate"}
 
@@ -244,7 +246,10 @@ def comparison_json(result: AnalysisResult) -> dict:
     it (null where none was): under ``transitions`` the path's events (every peak
     crossing and every snap), under ``paper_transitions`` the transitions as the paper
     counts them (the events at one supplied volume are one); measured transitions
-    that none of those predicts are listed under ``unpredicted``."""
+    that none of those predicts are listed under ``unpredicted``. Each predicted
+    transition carries its energies (``labrig.analysis.energy.transition_energy``) and
+    ``energy`` the cycle's (``cycle_energy``), in mJ. Each row's names are followed by
+    their names in ``labrig.vocabulary`` (``direction`` after ``phase``, ...)."""
     comparison = result.comparison
     rmse = {}
     for phase, name in PHASES.items():
@@ -257,6 +262,7 @@ def comparison_json(result: AnalysisResult) -> dict:
         "transitions": transitions,
         "paper_transitions": paper,
         "unpredicted": unpredicted,
+        "energy": cycle_energy(result),
     }
 
 
@@ -286,29 +292,32 @@ def _matched(matches, result: AnalysisResult) -> tuple[list[dict], list[dict]]:
         p, m = match.predicted, match.measured
         if p is None:
             unpredicted.append(
-                {
-                    "phase": DIRECTION[match.direction],
-                    "v_meas_ml": _finite(m.v_ml),
-                    "dp_meas_kpa": _finite(m.dp_kpa),
-                    "dl_meas_mm": _finite(m.dl_mm),
-                    "on_model_curve": result.on_the_models_curve(m),
-                }
+                beside_fields(
+                    {
+                        "phase": DIRECTION[match.direction],
+                        "v_meas_ml": _finite(m.v_ml),
+                        "dp_meas_kpa": _finite(m.dp_kpa),
+                        "dl_meas_mm": _finite(m.dl_mm),
+                        "on_model_curve": result.on_the_models_curve(m),
+                    },
+                    ALIASES["comparison"],
+                )
             )
             continue
-        transitions.append(
-            {
-                "phase": DIRECTION[match.direction],
-                "type": "stable" if p.stable else "snap",
-                "alpha": p.alpha,
-                "beta": p.beta,
-                "v_ml": _finite(p.v_ml),
-                "v_meas_ml": _finite(m.v_ml) if m else None,
-                "dp_kpa": _finite(p.dp_kpa),
-                "dp_meas_kpa": _finite(m.dp_kpa) if m else None,
-                "dl_mm": _finite(p.dl_mm),
-                "dl_meas_mm": _finite(m.dl_mm) if m else None,
-            }
-        )
+        row = {
+            "phase": DIRECTION[match.direction],
+            "type": "stable" if p.stable else "snap",
+            "alpha": p.alpha,
+            "beta": p.beta,
+            "v_ml": _finite(p.v_ml),
+            "v_meas_ml": _finite(m.v_ml) if m else None,
+            "dp_kpa": _finite(p.dp_kpa),
+            "dp_meas_kpa": _finite(m.dp_kpa) if m else None,
+            "dl_mm": _finite(p.dl_mm),
+            "dl_meas_mm": _finite(m.dl_mm) if m else None,
+            **transition_energy(result, p, m),
+        }
+        transitions.append(beside_fields(row, ALIASES["comparison"]))
     return transitions, unpredicted
 
 

@@ -330,7 +330,9 @@ def _value(dataset: h5py.Dataset):
 
 
 def _read_table(group: h5py.Group, cls) -> list:
-    columns = {f.name: group[f.name][()] for f in dataclasses.fields(cls)}
+    """The rows of ``cls`` stored by ``_table``; a field with a default may be missing
+    (a file written before the field was kept) and takes its default."""
+    columns = {f.name: group[f.name][()] for f in dataclasses.fields(cls) if f.name in group}
     count = len(next(iter(columns.values()))) if columns else 0
     return [
         cls(**{name: values[k].item() for name, values in columns.items()}) for k in range(count)

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from labrig.errors import InputError
+from labrig.vocabulary import ALIASES, DEFLATE, INFLATE, beside
 
 from .axes import panel_axes
 from .solver_mode import prefer_plain_python
@@ -108,16 +109,30 @@ class Segment:
         return f"<labrig.Segment {self.name}: {self.model.source}>"
 
 
-def actuator(*segments: str | Path | Segment | Sequence[str | Path | Segment]) -> Actuator:
+def actuator(
+    *segments: str | Path | Segment | Sequence[str | Path | Segment],
+    fittings_length_mm: float = 0.0,
+) -> Actuator:
     """An actuator of two or more segments sharing one pressure (names, CSV paths or
     ``Segment`` objects), given one by one or as one list:
-    ``actuator("B48-T30", "B50-T20")`` or ``actuator(["B48-T30", "B50-T20"])``."""
+    ``actuator("B48-T30", "B50-T20")`` or ``actuator(["B48-T30", "B50-T20"])``;
+    ``fittings_length_mm`` (mm, the protocol's ``specimen.fittings_length_mm``) is
+    what its ``length_mm`` adds to the segments' lengths, as a run's markers see it."""
+    if not (
+        isinstance(fittings_length_mm, numbers.Real)
+        and not isinstance(fittings_length_mm, bool)
+        and math.isfinite(fittings_length_mm)
+        and fittings_length_mm >= 0
+    ):
+        raise InputError(
+            f"fittings_length_mm={fittings_length_mm!r}: the fittings' length, mm, >= 0"
+        )
     if len(segments) == 1 and isinstance(segments[0], list | tuple):
         segments = tuple(segments[0])
     if len(segments) < 2:
         raise InputError(f"an actuator needs at least two segments, got {len(segments)}")
     chosen = [s if isinstance(s, Segment) else segment(s) for s in segments]
-    return Actuator(tuple(chosen))
+    return Actuator(tuple(chosen), float(fittings_length_mm))
 
 
 @dataclass(frozen=True)
@@ -125,6 +140,7 @@ class Actuator:
     """Segments in series, one pressure: the model's combined actuator."""
 
     segments: tuple[Segment, ...]
+    fittings_length_mm: float = 0.0
 
     @property
     def names(self) -> list[str]:
@@ -143,7 +159,8 @@ class Actuator:
         from labrig.model.path_document import solve_path
 
         return ActuatorPath(
-            *solve_path([s.model for s in self.segments], v_end_ml, deflate=deflate)
+            *solve_path([s.model for s in self.segments], v_end_ml, deflate=deflate),
+            self.fittings_length_mm,
         )
 
     def __repr__(self) -> str:
@@ -158,6 +175,7 @@ class ActuatorPath:
     solved: SolvedPath
     sampled: SampledPath
     found: tuple[Transition, ...]
+    fittings_length_mm: float = 0.0
 
     @property
     def document(self) -> dict[str, Any]:
@@ -168,13 +186,20 @@ class ActuatorPath:
 
     @property
     def path(self) -> pd.DataFrame:
-        """The path sampled in volume: v_ml, p_kpa, l_mm and each segment's volume
-        ``v1_ml``, ``v2_ml``, ... (the JSON's ``v_i_ml``), all in mL, kPa, mm."""
+        """The path sampled in volume: the JSON's v_ml, p_kpa, l_mm (the segments'
+        lengths alone), each with its vocabulary name beside it (``volume_ml``,
+        ``pressure_kpa``, ``segments_length_mm``), each segment's volume ``v1_ml``,
+        ``v2_ml``, ... (the JSON's ``v_i_ml``), ``length_mm`` (with the actuator's
+        fittings, as ``Run.model_path``) and ``direction``."""
+        import numpy as np
         import pandas as pd
 
         fields = dict(self.document["path"])
         per_segment = fields.pop("v_i_ml")
-        table = pd.DataFrame(fields)
+        table = beside(pd.DataFrame(fields), ALIASES["model path"])
+        table["length_mm"] = table["l_mm"] + self.fittings_length_mm
+        direction = np.asarray(self.sampled.direction)
+        table["direction"] = np.where(direction > 0, INFLATE, DEFLATE)
         for i, values in enumerate(per_segment, 1):
             table[f"v{i}_ml"] = values
         return table

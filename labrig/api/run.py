@@ -27,6 +27,7 @@ import numpy as np
 from labrig.errors import InputError
 from labrig.recording.run_layout import LOG_DESCRIPTION, LOG_FIELDS, repetition_name
 from labrig.recording.run_reader import decode, read_rows
+from labrig.vocabulary import ALIASES, beside, with_direction_names
 
 from .axes import panel_axes
 from .reading import open_readonly, open_run_file, writer_state
@@ -412,7 +413,8 @@ class Run:
     def curves_table(self, phase: str = "inflate") -> pd.DataFrame:
         """One phase's curves on the volume grid, as ``curves_<phase>.csv`` of
         ``labrig export --csv``: ``volume_ml``, each repetition's pressure and length,
-        ``mean_*``, ``std_*``, ``model_*``."""
+        ``mean_*``, ``std_*``, ``model_*``, and beside the mean and the model their
+        vocabulary names (``pressure_measured_kpa``, ``pressure_model_kpa``, ...)."""
         import pandas as pd
 
         from labrig.analysis.curves import PHASES
@@ -421,31 +423,33 @@ class Run:
         phases = {name: key for key, name in PHASES.items()}
         if phase not in phases:
             raise InputError(f"phase {phase!r}: one of {', '.join(phases)}")
-        return pd.DataFrame(curve_columns(self.analysis, phases[phase]))
+        return beside(pd.DataFrame(curve_columns(self.analysis, phases[phase])), ALIASES["curves"])
 
     @property
     def transitions(self) -> pd.DataFrame:
         """Every transition measured in every repetition (``transitions.csv``):
-        repetition, direction (+1 inflate, -1 deflate), t_s, v_ml, v_start_ml, v_end_ml,
-        dp_kpa, dl_mm, by_pressure, by_length."""
+        repetition, direction ("inflate" or "deflate"; the file's +1/-1 as
+        ``direction_sign``), t_s (and time_s), v_ml, v_start_ml, v_end_ml, dp_kpa,
+        dl_mm, by_pressure, by_length."""
         import pandas as pd
 
         from labrig.analysis.export import transition_columns
 
-        return pd.DataFrame(transition_columns(self.analysis))
+        table = pd.DataFrame(transition_columns(self.analysis))
+        return beside(with_direction_names(table), ALIASES["transitions"])
 
     @property
     def agreed_transitions(self) -> pd.DataFrame:
         """The transitions the averaged repetitions agree on (``/entry/analysis/
-        agreed_transitions``): direction, v_ml and its spread v_std_ml, dp_kpa, dl_mm,
-        seen of."""
+        agreed_transitions``): direction (and direction_sign), v_ml and its spread
+        v_std_ml, dp_kpa, dl_mm, seen of."""
         import pandas as pd
 
         from labrig.analysis.transitions import AgreedTransition
 
         names = [f.name for f in fields(AgreedTransition)]
         rows = [[getattr(t, n) for n in names] for t in self.analysis.transitions]
-        return pd.DataFrame(rows, columns=names)
+        return with_direction_names(pd.DataFrame(rows, columns=names))
 
     def _comparison(self):
         """The analysis's comparison with the model; InputError saying why there is none."""
@@ -461,7 +465,8 @@ class Run:
         """What ``labrig compare RUN --json`` prints: ``rmse`` (kPa, mm),
         ``transitions`` (the model's path's events, each beside the measured one),
         ``paper_transitions`` (the same counted as the paper counts them),
-        ``unpredicted`` and, for step and blocked-force runs, ``steps`` and ``force``
+        ``unpredicted``, ``energy`` (the cycle's stored and dissipated energy, mJ,
+        measured and model) and, for step and blocked-force runs, ``steps`` and ``force``
         (those read the finished file: a file still open by its writer has none).
         ``InputError`` when the run has no comparison with the model."""
         from labrig.analysis.report import comparison_json
@@ -479,10 +484,16 @@ class Run:
     def comparison(self) -> pd.DataFrame:
         """Each predicted transition beside the measured one paired with it, the rows of
         ``labrig compare --json``'s ``transitions`` (phase, type, alpha, beta, v_ml,
-        v_meas_ml, dp_kpa, dp_meas_kpa, dl_mm, dl_meas_mm; NaN where nothing was seen)."""
+        v_meas_ml, dp_kpa, dp_meas_kpa, dl_mm, dl_meas_mm; NaN where nothing was seen)
+        and their energies: the model's ``energy_before_model_mj``,
+        ``energy_after_model_mj`` and ``dE_model``, and for an inflation transition the
+        one-cycle ``cycle_energy_before_*_mj``, ``cycle_energy_returned_*_mj`` and
+        ``cycle_dE_*`` of the measurement and of the model (see "Energy" above); beside
+        the JSON's names, the vocabulary's: direction, v_model_ml, v_measured_ml,
+        dp_model_kpa, dp_measured_kpa, dl_model_mm, dl_measured_mm."""
         import pandas as pd
 
-        return pd.DataFrame(self.comparison_document["transitions"])
+        return beside(pd.DataFrame(self.comparison_document["transitions"]), ALIASES["comparison"])
 
     @property
     def paper_comparison(self) -> pd.DataFrame:
@@ -491,7 +502,9 @@ class Run:
         ``paper_transitions``."""
         import pandas as pd
 
-        return pd.DataFrame(self.comparison_document["paper_transitions"])
+        return beside(
+            pd.DataFrame(self.comparison_document["paper_transitions"]), ALIASES["comparison"]
+        )
 
     @property
     def rmse(self) -> pd.Series:
@@ -503,17 +516,20 @@ class Run:
     @property
     def model_path(self) -> pd.DataFrame:
         """The model's path the run is compared with: volume_ml, pressure_kpa, length_mm
-        and direction (+1 inflate, -1 deflate; a snap is two rows at one volume)."""
+        (with the specimen's fittings, as the markers measure it), direction ("inflate"
+        or "deflate") and direction_sign (+1, -1); a snap is two rows at one volume."""
         import pandas as pd
 
         prediction = self._comparison().prediction
-        return pd.DataFrame(
-            {
-                "volume_ml": prediction.v_ml,
-                "pressure_kpa": prediction.p_kpa,
-                "length_mm": prediction.l_mm,
-                "direction": prediction.direction,
-            }
+        return with_direction_names(
+            pd.DataFrame(
+                {
+                    "volume_ml": prediction.v_ml,
+                    "pressure_kpa": prediction.p_kpa,
+                    "length_mm": prediction.l_mm,
+                    "direction": prediction.direction,
+                }
+            )
         )
 
     # --- video ----------------------------------------------------------------------

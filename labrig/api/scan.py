@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from labrig.errors import InputError
+from labrig.vocabulary import ALIASES, beside, with_direction_names
 
 from .axes import panel_axes
 from .reading import open_readonly
@@ -67,8 +68,9 @@ class Scan:
     def table(self, start: int = 0, stop: int | None = None) -> pd.DataFrame:
         """Transition rows ``start`` to ``stop`` (all by default): ``actuator`` (the
         combination's rank), ``segment1`` ... ``segmentN`` (names), and the fields of
-        ``labrig model path --json``: direction (+1 inflate, -1 deflate), v_ml (mL),
-        alpha, beta, stable, dE, dv, dl, dp (normalised)."""
+        ``labrig model path --json``: direction ("inflate" or "deflate"; the file's
+        +1/-1 as direction_sign), v_ml (mL), alpha, beta, stable, dE, dv, dl, dp
+        (normalised)."""
         import pandas as pd
 
         from labrig.model.scan.scan import TRANSITION_FIELDS
@@ -80,7 +82,7 @@ class Scan:
             table.update(self._segment_columns(rows["segments"][start:stop]))
             for name in TRANSITION_FIELDS:
                 table[name] = rows[name][start:stop]
-        return pd.DataFrame(table)
+        return with_direction_names(pd.DataFrame(table))
 
     @property
     def transitions(self) -> pd.DataFrame:
@@ -92,7 +94,8 @@ class Scan:
         """The transitions as the paper counts them (a peak crossing and the snap it
         sets off are one; what ``labrig model scan-summary`` counts and Fig. 4 draws):
         ``actuator``, ``segment1`` ... ``segmentN``, the event fields (dE, dv, dl, dp
-        summed over the events) and ``first``, the row of its first event in
+        summed over the events), ``events`` and its vocabulary name ``n_events`` (how
+        many events it is made of) and ``first``, the row of its first event in
         ``transitions``."""
         import pandas as pd
 
@@ -103,7 +106,7 @@ class Scan:
         with open_readonly(self.path) as h5:
             indices = h5["transitions/segments"][:][columns["first"]]
         table.update(self._segment_columns(indices))
-        return pd.DataFrame({**table, **columns})
+        return beside(with_direction_names(pd.DataFrame({**table, **columns})), ALIASES["scan"])
 
     def _segment_columns(self, indices: np.ndarray) -> dict[str, np.ndarray]:
         """``segment1`` ... ``segmentN``: the names of the segments whose library
@@ -131,6 +134,10 @@ class Scan:
                     "scan.paper_transitions (or of scan.transitions)"
                 )
             columns = {name: transitions[name].to_numpy() for name in FIG4_COLUMNS}
+            # the figure's colours read the sign; the table's direction is named
+            columns["direction"] = np.where(
+                np.isin(columns["direction"], ("inflate", 1)), 1, -1
+            ).astype(np.int8)
         axes, shown = panel_axes(ax, 3)
         draw_fig4(axes, columns)
         return shown

@@ -162,7 +162,7 @@ def test_library_actuator_run_matches_the_model(library_run):
     assert paired == {m.measured for m in snaps}
     # compare --json: the events as before, the paper's counting beside them
     doc = comparison_json(result)
-    assert list(doc) == ["rmse", "transitions", "paper_transitions", "unpredicted"]
+    assert list(doc) == ["rmse", "transitions", "paper_transitions", "unpredicted", "energy"]
     assert len(doc["transitions"]) == len(comparison.prediction.transitions)
     assert len(doc["paper_transitions"]) == len(counted)
     assert all(list(t) == list(doc["transitions"][0]) for t in doc["paper_transitions"])

@@ -11,6 +11,7 @@ import pytest
 from support.api_runs import cli
 
 import labrig
+from labrig.vocabulary import ALIASES
 
 
 def _nulls(records):
@@ -30,6 +31,12 @@ def test_comparison_is_compare_json(quick_run, capsys):
     table = run.comparison
     assert list(table.columns) == list(printed["transitions"][0])
     assert _nulls(table.to_dict("records")) == printed["transitions"]
+    # each of the JSON's names is followed by its vocabulary name, with its value
+    for row in printed["transitions"] + printed["paper_transitions"] + printed["unpredicted"]:
+        names = list(row)
+        for old, new in ALIASES["comparison"].items():
+            if old in row:
+                assert names[names.index(old) + 1] == new and row[new] == row[old]
     assert run.rmse.to_dict() == printed["rmse"]
     paper = run.paper_comparison
     assert _nulls(paper.to_dict("records")) == printed["paper_transitions"]
@@ -96,7 +103,13 @@ def test_open_runs_is_runs_json_and_csv(campaign, tmp_path, capsys):
     printed = json.loads(out)["runs"]
     table = labrig.open_runs(campaign)
     assert list(table.columns) == list(printed[0])
-    assert _nulls(table.to_dict("records")) == printed
+    # the date: ISO 8601 text in the JSON, a datetime in the table
+    dates = pd.to_datetime([row["date"] for row in printed], utc=True)
+    assert list(table["date"].iloc[:2]) == list(dates[:2]) and pd.isna(table["date"].iloc[2])
+    printed_dates = [row.pop("date") for row in printed]
+    assert _nulls(table.drop(columns="date").to_dict("records")) == printed
+    for row, date in zip(printed, printed_dates, strict=True):
+        row["date"] = date
     from_csv = pd.read_csv(tmp_path / "runs.csv")
     assert list(from_csv.columns) == list(table.columns)
     np.testing.assert_allclose(from_csv["snap1_v_ml"], table["snap1_v_ml"].astype(float))
@@ -159,3 +172,40 @@ def test_runs_prints_each_run_with_its_snaps_measured_and_predicted(campaign, ca
     assert "a_quick.h5" in out and "b_tiny.h5" in out and "c_broken" not in out
     assert f"v {row['snap1_v_ml']:.2f} ({row['snap1_v_model_ml']:.2f})" in out
     assert len(labrig.open_runs(str(campaign / "[ab]_*.h5"))) == 2
+
+
+def test_the_long_campaign_is_one_row_per_transition(campaign, capsys):
+    """One row per transition of compare --json (paper_transitions, then unpredicted),
+    in the vocabulary's names, with the protocol's parameters; a run without a
+    comparison and a broken file are one row each, saying why."""
+    code, out, err = cli(["compare", campaign / "a_quick.h5", "--json"], capsys)
+    assert code == 0, err
+    printed = json.loads(out)
+    table = labrig.open_runs(campaign, long=True)
+    quick = table[table["file"].str.endswith("a_quick.h5")]
+    expected = printed["paper_transitions"] + printed["unpredicted"]
+    assert len(quick) == len(expected)
+    assert list(quick["direction"]) == [t["phase"] for t in expected]
+    assert list(quick["type"]) == [t.get("type", "unpredicted") for t in expected]
+    seen = [None if v != v else v for v in quick["v_measured_ml"]]  # NaN is null
+    assert seen == [t["v_meas_ml"] for t in expected]
+    snaps = quick[quick["type"] == "snap"]
+    paper_snaps = [t for t in printed["paper_transitions"] if t["type"] == "snap"]
+    assert list(snaps["dE_model"]) == [t["dE_model"] for t in paper_snaps]
+    # the quick demo: 60 mL/min both ways to 30 mL, twice, 10 mm of fittings
+    assert set(quick["rate_ml_min"]) == set(quick["withdraw_rate_ml_min"]) == {60.0}
+    assert set(quick["max_volume_ml"]) == {30.0} and set(quick["repetitions"]) == {2}
+    assert set(quick["fittings_length_mm"]) == {10.0}
+    assert isinstance(quick["date"].iloc[0], pd.Timestamp)
+    tiny = table[table["file"].str.endswith("b_tiny.h5")]
+    broken = table[table["file"].str.endswith("c_broken.h5")]
+    assert len(tiny) == 1 and "no comparison with the model" in tiny["note"].iloc[0]
+    assert len(broken) == 1 and "not an HDF5 file" in broken["error"].iloc[0]
+
+
+def test_note_and_error_are_columns_whichever_runs(quick_run):
+    """A campaign of good runs has them too (null), so code reading them never breaks."""
+    for long in (False, True):
+        table = labrig.open_runs(quick_run, long=long)
+        assert list(table.columns[-2:]) == ["note", "error"]
+        assert table["note"].isna().all() and table["error"].isna().all()

@@ -1,8 +1,6 @@
 """``labrig.segment``, ``labrig.actuator`` and ``labrig.open_scan``: tables and plots."""
 
 import json
-import subprocess
-import sys
 
 import h5py
 import matplotlib
@@ -77,16 +75,6 @@ def test_a_measured_csv_segment(tmp_path, capsys):
     assert segment.document["measured"]["rows"] == 200
 
 
-@pytest.fixture(scope="module")
-def gent_scan(tmp_path_factory):
-    """Every pair of the three Gent membranes, by `labrig model scan` (one process)."""
-    out = tmp_path_factory.mktemp("scan") / "gent.h5"
-    command = [sys.executable, "-m", "labrig", "model", "scan", "--n", "2", "--library",
-               "gent", "--workers", "1", "--out", str(out)]  # fmt: skip
-    subprocess.run(command, check=True, capture_output=True)
-    return out
-
-
 def test_a_scan_is_its_files_rows_with_names(gent_scan):
     scan = labrig.open_scan(gent_scan)
     assert scan.complete and scan.n == 2 and scan.actuators_done == 3
@@ -95,8 +83,12 @@ def test_a_scan_is_its_files_rows_with_names(gent_scan):
         rows = h5["transitions"]
         names = [n.decode() for n in h5["segments/name"][:]]
         assert len(table) == len(scan) == len(rows["v_ml"])
-        for field in ("actuator", "direction", "v_ml", "alpha", "beta", "stable", "dE", "dp"):
+        for field in ("actuator", "v_ml", "alpha", "beta", "stable", "dE", "dp"):
             np.testing.assert_array_equal(table[field].to_numpy(), rows[field][:])
+        # the file's +1/-1 is the table's direction_sign, named in direction
+        np.testing.assert_array_equal(table["direction_sign"], rows["direction"][:])
+        named = np.where(rows["direction"][:] > 0, "inflate", "deflate")
+        np.testing.assert_array_equal(table["direction"].to_numpy(), named)
         index = rows["segments"][:]
     assert list(table["segment1"]) == [names[i] for i in index[:, 0]]
     assert list(table["segment2"]) == [names[i] for i in index[:, 1]]
@@ -122,6 +114,9 @@ def test_an_actuator_from_a_list_and_a_clear_end_volume():
     assert labrig.actuator(("B48-T30", "B50-T20")).names == ["B48-T30", "B50-T20"]
     with pytest.raises(InputError, match="at least two segments, got 1"):
         labrig.actuator(["B48-T30"])
+    for wrong in (-1, float("nan"), True, "10"):
+        with pytest.raises(InputError, match=r"fittings_length_mm=.*: the fittings' length, mm"):
+            labrig.actuator("B48-T30", "B50-T20", fittings_length_mm=wrong)
     pair = labrig.actuator("B48-T30", "B50-T20")
     for wrong in (-1, 0, float("nan"), float("inf"), "3"):
         with pytest.raises(InputError, match=r"v_end_ml=.*: the end volume of inflation, mL, > 0"):
@@ -143,7 +138,7 @@ def test_a_scan_row_becomes_its_actuator_and_a_subset_is_drawn(gent_scan):
     for wrong, message in ((3, "ranks are 0 to 2"), (-1, "ranks are 0 to 2"), ("x", "a row")):
         with pytest.raises(InputError, match=message):
             scan.actuator(wrong)
-    subset = paper[paper["direction"] > 0].head(2)
+    subset = paper[paper["direction"] == "inflate"].head(2)
     axes = scan.plot(transitions=subset)
     drawn = sum(len(c.get_offsets()) for c in axes[0].collections)
     assert drawn == len(subset) == 2

@@ -102,8 +102,15 @@ def test_tables_are_what_export_writes(quick_run, tmp_path, capsys):
     run = labrig.open_run(quick_run)
     for log in ("pressure", "pump", "length"):
         _assert_same(run.raw_table(2, log), _csv(tmp_path / f"rep_02_{log}.csv"))
-    _assert_same(run.curves_table("deflate"), _csv(tmp_path / "curves_deflate.csv"))
-    _assert_same(run.transitions, _csv(tmp_path / "transitions.csv"))
+    written = _csv(tmp_path / "curves_deflate.csv")
+    _assert_same(run.curves_table("deflate")[list(written)], written)
+    # the file's direction (+1/-1) is the table's direction_sign, named beside it
+    transitions = run.transitions
+    assert set(transitions["direction"]) <= {"inflate", "deflate"}
+    assert list(transitions["direction"] == "inflate") == list(transitions["direction_sign"] > 0)
+    as_file = transitions.drop(columns=["direction", "time_s"])
+    as_file = as_file.rename(columns={"direction_sign": "direction"})
+    _assert_same(as_file, _csv(tmp_path / "transitions.csv"))
 
 
 def test_the_curves_dataset_holds_the_analysis(quick_run):

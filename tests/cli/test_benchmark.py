@@ -10,7 +10,7 @@ from labrig.cli import main
 from labrig.model.scan.scan_file import read_scan
 
 
-@pytest.mark.slow
+@pytest.mark.benchmark
 def test_bench_model_quick_runs_end_to_end(tmp_path, capsys):
     out = tmp_path / "bench.md"
     kept = tmp_path / "scans"

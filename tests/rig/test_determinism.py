@@ -20,6 +20,7 @@ def recorded(path):
         return {(rep, name): read_log(run, rep, name) for rep in (1, 2, 3) for name in SERIES}
 
 
+@pytest.mark.soak  # the default run: test_speed_paces_the_run_without_changing_its_data
 def test_same_seed_same_data_beside_two_cpu_burners(demo, tmp_path):
     # each burns a core until killed, or until this process is gone (a killed pytest
     # must not leave them burning)

@@ -237,7 +237,7 @@ def test_no_module_of_a_run_imports_the_model():
 
 
 @pytest.mark.parametrize(
-    "seed", [0, pytest.param(1, marks=pytest.mark.slow), pytest.param(2, marks=pytest.mark.slow)]
+    "seed", [0, pytest.param(1, marks=pytest.mark.soak), pytest.param(2, marks=pytest.mark.soak)]
 )
 def test_the_shipped_protocols_never_trip_the_run_interlocks_and_a_cut_wire_does(seed):
     infusions = shipped_infusions()

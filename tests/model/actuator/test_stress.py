@@ -212,7 +212,7 @@ def test_a_scan_is_the_same_with_one_or_two_workers(knots):
     results = {}
     for workers in (1, 2):
         found = []
-        run_chunks(library, chunks, found.append, workers=workers)
+        run_chunks(library, chunks, found.extend, workers=workers)
         results[workers] = found
     assert [r.index for r in results[2]] == [c.index for c in chunks]
     for one, two in zip(results[1], results[2], strict=True):
