@@ -177,7 +177,8 @@ def test_compare_json_is_the_contract_and_the_snap_length_change_is_measured(vid
     assert set(data["rmse"]) >= {"inflate_pressure_kpa", "deflate_pressure_kpa"}
     keys = {"phase", "type", "alpha", "beta", "v_ml", "v_meas_ml", "dp_kpa", "dp_meas_kpa",
             "dl_mm", "dl_meas_mm"}  # fmt: skip
-    assert all(set(t) == keys for t in data["transitions"])
+    # the contract's fields in every row (fields added beside them are allowed)
+    assert all(set(t) >= keys for t in data["transitions"])
     snaps = [t for t in data["transitions"] if (t["type"], t["phase"]) == ("snap", "inflate")]
     snap = max(snaps, key=lambda t: abs(t["dl_mm"]))
     assert snap["v_meas_ml"] is not None
