@@ -8,8 +8,8 @@ energies of the cycle and of each snap, measured and model.
 
 The snaps are counted as the paper counts transitions: they are the
 ``paper_transitions`` of ``labrig compare --json`` whose ``type`` is ``snap`` (the
-unstable ones; a peak crossing and the snap it sets off are one, at the crossing's
-volume, with the jumps summed), in its order, numbered ``snap1_...``, ``snap2_...``; a
+unstable ones; the events at one supplied volume are one, with their relative jumps
+compounded), in its order, numbered ``snap1_...``, ``snap2_...``; a
 run with fewer snaps has nulls there. A run without a comparison says why in ``note``;
 a file that cannot be read is a row with its ``error``, so one bad file does not hide
 the rest.
@@ -192,7 +192,7 @@ def open_runs(runs: str | Path | Iterable[str | Path], long: bool = False) -> pd
     reason, repetitions, writer_open, live; ``rmse_<phase>_pressure_kpa`` (kPa) and
     ``rmse_<phase>_length_mm`` (mm); for the k-th snap-through the model predicts,
     counted as the paper counts transitions (``labrig compare --json``'s
-    ``paper_transitions`` of type ``snap``: a peak crossing and the snap it sets off are
+    ``paper_transitions`` of type ``snap``: the events at one supplied volume are
     one), ``snapk_phase`` and the measured ``snapk_v_ml`` (mL), ``snapk_dp_kpa`` (kPa),
     ``snapk_dl_mm`` (mm), each with its ``_model_`` and ``_error_`` (measured minus
     model) twin, e.g. ``snap1_v_model_ml``, ``snap1_v_error_ml``; the snap's

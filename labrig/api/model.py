@@ -216,8 +216,8 @@ class ActuatorPath:
 
     @property
     def paper_transitions(self) -> pd.DataFrame:
-        """The transitions as the paper counts them (a peak crossing and the snap it
-        sets off are one): the JSON's ``paper_transitions``, each with ``events``, the
+        """The transitions as the paper counts them (the events at one
+        supplied volume are one): the JSON's ``paper_transitions``, each with ``events``, the
         rows of ``transitions`` it is made of."""
         import pandas as pd
 

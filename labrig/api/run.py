@@ -498,7 +498,7 @@ class Run:
     @property
     def paper_comparison(self) -> pd.DataFrame:
         """``comparison`` with the model's transitions counted as the paper counts them
-        (a peak crossing and the snap it sets off are one): ``labrig compare --json``'s
+        (the events at one supplied volume are one): ``labrig compare --json``'s
         ``paper_transitions``."""
         import pandas as pd
 

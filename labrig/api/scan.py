@@ -91,10 +91,10 @@ class Scan:
 
     @property
     def paper_transitions(self) -> pd.DataFrame:
-        """The transitions as the paper counts them (a peak crossing and the snap it
-        sets off are one; what ``labrig model scan-summary`` counts and Fig. 4 draws):
-        ``actuator``, ``segment1`` ... ``segmentN``, the event fields (dE, dv, dl, dp
-        summed over the events), ``events`` and its vocabulary name ``n_events`` (how
+        """The transitions as the paper counts them (the events at one supplied
+        volume are one; what ``labrig model scan-summary`` counts and Fig. 4 draws):
+        ``actuator``, ``segment1`` ... ``segmentN``, the event fields (dv summed over the
+        events, dE, dl, dp compounded), ``events`` and its vocabulary name ``n_events`` (how
         many events it is made of) and ``first``, the row of its first event in
         ``transitions``."""
         import pandas as pd

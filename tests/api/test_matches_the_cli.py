@@ -123,8 +123,8 @@ def test_open_runs_is_runs_json_and_csv(campaign, tmp_path, capsys):
 
 
 def test_a_campaigns_snaps_are_compares_paper_transitions(campaign, capsys):
-    """The snap columns are the snaps of ``compare --json``'s ``paper_transitions`` (a
-    peak crossing and the snap it sets off counted as one, as the paper counts them),
+    """The snap columns are the snaps of ``compare --json``'s ``paper_transitions`` (the
+    events at one supplied volume counted as one, as the paper counts them),
     in order and no more; the error is measured minus model."""
     run_file = campaign / "a_quick.h5"
     code, out, err = cli(["compare", run_file, "--json"], capsys)
