@@ -57,6 +57,7 @@ VOCABULARY: dict[str, str] = {
     "cycle_energy_returned_model_mj": "the same on the model's curve (mJ)",
     "cycle_dE_measured": "(returned - before) / before, measured (see Energy)",
     "cycle_dE_model": "the same on the model's curves",
+    "v_i_ml": "the segments' volumes along a path, one list per segment (mL): a table's v1_ml, ...",
     "events": "the path's events a transition counted as the paper counts is made of",
     "n_events": "how many of the path's events a transition is made of",
     "actuator": "a scanned actuator's rank among the combinations",
@@ -117,6 +118,7 @@ ALIASES: dict[str, dict[str, str]] = {
         "dl_meas_mm": "dl_measured_mm",
     },
     "model path": {"v_ml": "volume_ml", "p_kpa": "pressure_kpa", "l_mm": "segments_length_mm"},
+    "model curve": {"v_ml": "volume_ml", "p_kpa": "pressure_kpa", "l_mm": "segments_length_mm"},
     "scan": {"events": "n_events"},
     "transitions": {"t_s": "time_s"},
     "curves": {

@@ -80,8 +80,8 @@ class Segment:
     @property
     def document(self) -> dict[str, Any]:
         """Exactly what ``labrig model curve SEG --json`` prints: name, V0_ml, peak,
-        valley, the arrays v_ml, p_kpa, l_mm and, for a measured table, ``measured``
-        (what was done to it)."""
+        valley, the arrays v_ml, p_kpa, l_mm (each followed by its vocabulary name) and,
+        for a measured table, ``measured`` (what was done to it)."""
         from labrig.model.curve_document import curve_document
 
         return curve_document(self.model)
@@ -89,12 +89,12 @@ class Segment:
     @property
     def curve(self) -> pd.DataFrame:
         """The table: v_ml (supplied volume, mL), p_kpa (gauge, kPa), l_mm (mm), the
-        arrays ``labrig model curve --json`` prints."""
+        arrays ``labrig model curve --json`` prints, each with its vocabulary name beside
+        it (``volume_ml``, ``pressure_kpa``, ``segments_length_mm``)."""
         import pandas as pd
 
-        return pd.DataFrame(
-            {"v_ml": self.model.v_ml, "p_kpa": self.model.p_kpa, "l_mm": self.model.l_mm}
-        )
+        table = {"v_ml": self.model.v_ml, "p_kpa": self.model.p_kpa, "l_mm": self.model.l_mm}
+        return beside(pd.DataFrame(table), ALIASES["model curve"])
 
     def plot(self, ax: Axes | Sequence[Axes] | None = None) -> Axes | list[Axes]:
         """Draw what ``labrig model curve --plot`` draws (p-v and l-v, peak and valley

@@ -10,6 +10,7 @@ says what was done to it (``measured``).
 from __future__ import annotations
 
 from labrig.model.segments.curve import Extremum, SegmentCurve
+from labrig.vocabulary import ALIASES, beside_fields
 
 
 def extremum_document(extremum: Extremum | None) -> dict[str, float] | None:
@@ -40,9 +41,10 @@ def measured_document(curve: SegmentCurve) -> dict:
 
 def curve_document(curve: SegmentCurve) -> dict:
     """``labrig model curve --json``'s object: name, V0_ml (mL enclosed at p = 0),
-    peak and valley, the arrays v_ml, p_kpa, l_mm and, for a measured table,
-    ``measured``."""
-    document = {
+    peak and valley, the arrays v_ml, p_kpa, l_mm (each with its vocabulary name right
+    after it: ``volume_ml``, ``pressure_kpa``, ``segments_length_mm``) and, for a
+    measured table, ``measured``."""
+    fields = {
         "name": curve.name,
         "V0_ml": curve.V0_ml,
         "peak": extremum_document(curve.peak),
@@ -51,6 +53,7 @@ def curve_document(curve: SegmentCurve) -> dict:
         "p_kpa": curve.p_kpa.tolist(),
         "l_mm": curve.l_mm.tolist(),
     }
+    document = beside_fields(fields, ALIASES["model curve"])
     if curve.measured is not None:
         document["measured"] = measured_document(curve)
     return document

@@ -15,6 +15,7 @@ from labrig.model.actuator.paper_counting import paper_transitions
 from labrig.model.actuator.path import Path, SampledPath, quasi_static_path, sample_path
 from labrig.model.actuator.transitions import Transition, transitions
 from labrig.model.segments.curve import SegmentCurve
+from labrig.vocabulary import ALIASES, beside_fields
 
 
 class SolvedPath(NamedTuple):
@@ -66,16 +67,21 @@ def path_document(names: Sequence[str], sampled: SampledPath, found: Sequence[Tr
     ``paper_transitions`` (those counted as the paper counts them, each with
     ``events``, the indices into ``transitions`` it is made of), each with its
     ``direction`` ("inflate" or "deflate"). ``v_i_ml`` holds one list per segment,
-    parallel to ``v_ml``."""
+    parallel to ``v_ml``. Each path array also appears under its vocabulary name right
+    after it (``volume_ml``, ``pressure_kpa``, ``segments_length_mm``), so a script can
+    use the names the Python API's tables use."""
     index = {id(t): k for k, t in enumerate(found)}
     return {
         "segments": list(names),
-        "path": {
-            "v_ml": _round(sampled.v_ml),
-            "p_kpa": _round(sampled.p_kpa),
-            "l_mm": _round(sampled.l_mm),
-            "v_i_ml": [_round(v) for v in sampled.v_i_ml],
-        },
+        "path": beside_fields(
+            {
+                "v_ml": _round(sampled.v_ml),
+                "p_kpa": _round(sampled.p_kpa),
+                "l_mm": _round(sampled.l_mm),
+                "v_i_ml": [_round(v) for v in sampled.v_i_ml],
+            },
+            ALIASES["model path"],
+        ),
         "transitions": [_numbers(t) for t in found],
         "paper_transitions": [
             {**_numbers(t), "events": [index[id(e)] for e in t.events]}

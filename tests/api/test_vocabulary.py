@@ -1,10 +1,12 @@
 """Every table the API returns speaks one vocabulary (``labrig.vocabulary``)."""
 
+import json
 import re
 from pathlib import Path
 
 import numpy as np
 import pytest
+from support.api_runs import cli
 
 import labrig
 from labrig.vocabulary import ALIASES, PATTERNS, VOCABULARY, known
@@ -33,6 +35,7 @@ def tables(quick_run, gent_scan):
         ("Run.repetitions", None, run.repetitions),
         ("open_runs", None, labrig.open_runs(quick_run)),
         ("open_runs(long=True)", None, labrig.open_runs(quick_run, long=True)),
+        ("Segment.curve", "model curve", labrig.segment("B46-T20").curve),
         ("ActuatorPath.path", "model path", path.path),
         ("ActuatorPath.transitions", None, path.transitions),
         ("ActuatorPath.paper_transitions", None, path.paper_transitions),
@@ -73,6 +76,57 @@ def test_each_quantity_has_one_name(tables):
     # the comparison's phase is its direction
     comparison = by_name["Run.comparison"]
     assert list(comparison["direction"]) == list(comparison["phase"])
+
+
+def _json_tables(document: dict, where: dict[str, str | None]) -> list:
+    """(label, alias group, field names in order) of each table in a command's JSON:
+    ``where`` maps a key of ``document`` to its alias group; "" stands for the document
+    itself (the fields of one object), a list value is a table of rows."""
+    found = []
+    for key, group in where.items():
+        value = document if key == "" else document[key]
+        rows = value if isinstance(value, list) else [value]
+        assert rows, f"{key}: an empty table checks nothing"
+        found += [(key, group, list(row)) for row in rows]
+    return found
+
+
+def test_every_field_of_the_commands_json_is_the_vocabularys_or_beside_its_own(quick_run, capsys):
+    """The command line's JSON speaks the vocabulary too: each quantity under a
+    vocabulary name, or under the name its scripts rely on with the vocabulary's right
+    after it."""
+    documents = {
+        ("compare", quick_run, "--json"): {
+            "transitions": "comparison",
+            "paper_transitions": "comparison",
+            "unpredicted": "comparison",
+        },
+        ("model", "path", "B46-T20", "B46-T22", "--json"): {
+            "path": "model path",
+            "transitions": None,
+            "paper_transitions": None,
+        },
+        ("runs", quick_run, "--json"): {"runs": None},
+    }
+    checked = 0
+    for argv, where in documents.items():
+        code, out, err = cli(list(argv), capsys)
+        assert code == 0, err
+        for key, group, names in _json_tables(json.loads(out), where):
+            aliases = ALIASES.get(group, {})
+            for k, name in enumerate(names):
+                if name in aliases:
+                    assert names[k + 1] == aliases[name], (argv, key, name)
+                else:
+                    assert known(name), f"{' '.join(argv[:2])} {key}: {name!r}"
+                checked += 1
+    code, out, err = cli(["model", "curve", "B46-T20", "--json"], capsys)
+    assert code == 0, err
+    curve = json.loads(out)
+    names = [n for n in curve if isinstance(curve[n], list)]  # the table's columns
+    assert names == ["v_ml", "volume_ml", "p_kpa", "pressure_kpa", "l_mm", "segments_length_mm"]
+    assert curve["volume_ml"] == curve["v_ml"] and curve["pressure_kpa"] == curve["p_kpa"]
+    assert checked > 50
 
 
 def test_the_reference_states_the_vocabulary_as_the_code_does():

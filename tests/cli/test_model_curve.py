@@ -30,7 +30,9 @@ def test_json_is_the_table_with_its_extrema(capsys):
     code, out, _ = run(["model", "curve", "si-b46-t22", "--json"], capsys)
     assert code == 0
     doc = json.loads(out)
-    assert list(doc) == ["name", "V0_ml", "peak", "valley", "v_ml", "p_kpa", "l_mm"]
+    # the contract's fields in order, each array with its vocabulary name right after it
+    assert list(doc) == ["name", "V0_ml", "peak", "valley", "v_ml", "volume_ml", "p_kpa",
+                         "pressure_kpa", "l_mm", "segments_length_mm"]  # fmt: skip
     assert doc["name"] == "SI-B46-T22"
     curve = analytical_segment("SI-B46-T22")
     np.testing.assert_array_equal(doc["p_kpa"], curve.p_kpa)

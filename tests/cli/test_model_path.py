@@ -26,7 +26,10 @@ def test_json_follows_the_design_contract(capsys):
     assert list(doc) == ["segments", "path", "transitions", "paper_transitions"]
     assert doc["segments"] == ["SI-B48-T30", "SI-B50-T20"]
     path = doc["path"]
-    assert list(path) == ["v_ml", "p_kpa", "l_mm", "v_i_ml"]
+    # the contract's arrays in order, each with its vocabulary name right after it
+    assert list(path) == ["v_ml", "volume_ml", "p_kpa", "pressure_kpa", "l_mm",
+                          "segments_length_mm", "v_i_ml"]  # fmt: skip
+    assert path["volume_ml"] == path["v_ml"] and path["segments_length_mm"] == path["l_mm"]
     n_points = len(path["v_ml"])
     assert len(path["v_i_ml"]) == 2 and all(len(v) == n_points for v in path["v_i_ml"])
     v_i = np.array(path["v_i_ml"])
