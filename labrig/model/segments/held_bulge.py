@@ -114,13 +114,31 @@ class HeldBulgePath:
 class HeldBulge:
     """The two-phase tube of ``segment`` (a ``PaperBraidedSegment`` with a bulge)."""
 
-    def __init__(self, segment: PaperBraidedSegment):
+    def __init__(self, segment: PaperBraidedSegment, limiting_invariant: float | None = None):
         self.segment = segment
+        self.limiting_invariant = limiting_invariant
         r, h = segment.radius_mm, segment.thickness_mm
         self.membrane_n = 2 * np.pi * r * h * segment.shear_modulus_mpa  # 2 pi R H mu
         self.f = segment.axial_force_n / self.membrane_n
         self.cross_mm2 = np.pi * r**2
         self.wall_mm2 = np.pi * ((r + h) ** 2 - r**2)
+
+    def _energy(self, a, b):
+        """The latex's energy per reference volume over mu: ``energy_density``, or with a
+        limiting first invariant J_m Gent's -(J_m/2) ln(1 - (I1 - 3)/J_m) of the same
+        (relaxed) I1 - 3 = 2 w (a measuring option of docs/decisions/0011's
+        Consequences; the record's form is neo-Hookean)."""
+        w = energy_density(a, b)
+        if self.limiting_invariant is None:
+            return w
+        return -0.5 * self.limiting_invariant * np.log1p(-2 * w / self.limiting_invariant)
+
+    def _gradient(self, a, b):
+        w_a, w_b = energy_gradient(a, b)
+        if self.limiting_invariant is None:
+            return w_a, w_b
+        stiffening = 1 / (1 - 2 * energy_density(a, b) / self.limiting_invariant)
+        return w_a * stiffening, w_b * stiffening
 
     def _bulged(self, share: float, b_u: float, theta: float, span_shift: float = 0.0):
         """(a_b, b_b, V_b mm^3, D mm^2, l mm, l_b mm) of the bulged phase."""
@@ -144,7 +162,16 @@ class HeldBulge:
         if not (0 < share <= 1 and b_u > 0 and a_u > 0 and 0 < theta < _LARGEST_ANGLE):
             return False
         length = seg.l_braid_mm * np.cos(theta)
-        return 0 < length - (1 - share) * b_u * seg.l_tube_mm <= length
+        span = length - (1 - share) * b_u * seg.l_tube_mm
+        if not 0 < span <= length:
+            return False
+        if self.limiting_invariant is None:
+            return True
+        a_b, b_b = self._bulged(share, b_u, theta)[:2]
+        limit = 0.5 * self.limiting_invariant
+        return bool(
+            energy_density(a_u, b_u) < limit and a_b > 0 and energy_density(a_b, b_b) < limit
+        )
 
     def _volume_slope(self, share, b_u, theta, span):
         """dV_b/dtheta at a fixed span (mm^3/rad)."""
@@ -174,8 +201,8 @@ class HeldBulge:
         if not self._inside(share, b_u, a_u, theta):
             return np.full(3, _OUTSIDE)
         a_b, b_b, _, dv_dl, _, span = self._bulged(share, b_u, theta)
-        pu_a, pu_b = energy_gradient(a_u, b_u)
-        pb_a, pb_b = energy_gradient(a_b, b_b)
+        pu_a, pu_b = self._gradient(a_u, b_u)
+        pb_a, pb_b = self._gradient(a_b, b_b)
         dl_dtheta = -self.segment.l_braid_mm * np.sin(theta)
         dv_dtheta = self._volume_slope(share, b_u, theta, span)
         excess = pb_a - pu_a  # w_a(b) - P
@@ -183,8 +210,8 @@ class HeldBulge:
         strips = excess * (dv_dtheta + dv_dl * dl_dtheta) / self.cross_mm2
         strips = (strips + (pb_b - self.f) * dl_dtheta) / self.segment.l_braid_mm
         front = (
-            energy_density(a_b, b_b)
-            - energy_density(a_u, b_u)
+            self._energy(a_b, b_b)
+            - self._energy(a_u, b_u)
             + excess * ((dv_dl * b_u - self.wall_mm2) / self.cross_mm2 - a_b)
             + pb_b * (b_u - b_b)
             + pu_a * (a_u - a_b)
@@ -199,8 +226,8 @@ class HeldBulge:
         enclosed = (1 - share) * a_u + share * a_b  # over pi R^2 L_tube
         v_ml = seg.V0_ml * (enclosed - 1)
         scale = 2 * seg.shear_modulus_mpa * seg.thickness_mm / seg.radius_mm * KPA_PER_MPA
-        p_u, p_b = energy_gradient(a_u, b_u)[0], energy_gradient(a_b, b_b)[0]
-        w = (1 - share) * energy_density(a_u, b_u) + share * energy_density(a_b, b_b)
+        p_u, p_b = self._gradient(a_u, b_u)[0], self._gradient(a_b, b_b)[0]
+        w = (1 - share) * self._energy(a_u, b_u) + share * self._energy(a_b, b_b)
         energy = self.membrane_n * seg.l_tube_mm * w - seg.axial_force_n * length
         return v_ml, p_u * scale, length, (p_u - p_b) * scale, energy
 
@@ -302,14 +329,19 @@ class HeldBulgeSegment(PaperBraidedSegment):
     (docs/decisions/0011): the fall from the peak onto the two-phase path (0007's half
     cosine over DROP_SHARE of the volume to the fill), the path to the fill, then 0008's
     lobes from the path's angle and pressure. Where 0007 has no bulge, or the tube
-    already fills the strips where the bulge would start, it is 0008's segment."""
+    already fills the strips where the bulge would start, it is 0008's segment.
+    ``limiting_invariant`` (J_m) makes the two phases Gent's latex instead of the
+    neo-Hookean one (a measuring option; everything before the peak and the lobes stay
+    neo-Hookean)."""
+
+    limiting_invariant: float | None = None
 
     @cached_property
     def held_path(self) -> HeldBulgePath | None:
         if self.bulge is None:
             return None
         try:
-            return HeldBulge(self).path()
+            return HeldBulge(self, self.limiting_invariant).path()
         except NoRoom:
             return None
 

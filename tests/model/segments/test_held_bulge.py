@@ -146,3 +146,22 @@ def test_without_a_bulge_to_hold_the_segment_is_0008s(braid, tube):
     held, plain = HeldBulgeSegment(braid, tube).curve(), PaperBraidedSegment(braid, tube).curve()
     assert np.array_equal(held.v_ml, plain.v_ml)
     assert np.array_equal(held.p_kpa, plain.p_kpa)
+
+
+def test_gent_phases_reduce_to_neo_hookean_and_match_their_derivative():
+    # the measuring option of record 0011's Consequences: Gent's latex in the two phases
+    segment = PaperBraidedSegment(46.0, 20.0)
+    plain, far, gent = (HeldBulge(segment, j) for j in (None, 1e12, 100.0))
+    a, b = 30.0, 5.0  # a bulged phase: lambda_theta^2 = 6, lambda_z = 5
+    assert far._energy(a, b) == pytest.approx(float(plain._energy(a, b)), rel=1e-9)
+    # -(J/2) ln(1 - (I1 - 3)/J) of the first invariant, computed from the stretches
+    invariant = a / b + b**2 + 1 / (a * b)
+    assert gent._energy(a, b) == pytest.approx(-50 * np.log(1 - (invariant - 3) / 100), rel=1e-12)
+    h = 1e-6
+    w_a, w_b = gent._gradient(a, b)
+    assert w_a == pytest.approx(
+        (gent._energy(a + h, b) - gent._energy(a - h, b)) / (2 * h), rel=1e-6
+    )
+    assert w_b == pytest.approx(
+        (gent._energy(a, b + h) - gent._energy(a, b - h)) / (2 * h), rel=1e-6
+    )
