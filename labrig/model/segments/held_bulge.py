@@ -8,7 +8,7 @@ the strips instead:
 - a share s of the tube's reference length is bulged, 1 - s is not; each phase is
   uniform, with a = lambda_theta^2 lambda_z (volume per reference volume pi R^2) and
   b = lambda_z, and the neo-Hookean energy per reference length (S14 over the wall
-  2 pi R H) w(a, b) = (a/b + b^2 + 1/(ab) - 3)/2;
+  2 pi R H) w(a, b) = (a/b + b^2 + 1/(ab) - 3)/2 (relaxed where slack, below);
 - the bulged part lies along the middle of the strips (``elastica.middle_part``): over
   an axial span l_b its outer volume is the strips' solid between two sections l_b apart,
   so b_b = l_b/(s L_tube) and a_b = (V_b - wall)/(pi R^2 s L_tube);
@@ -28,9 +28,14 @@ of the unbulged phase (the pressure, pR/(mu H) = 2 P: S23), are
   + P (a_u - a_b) = 0, c = pi((R + H)^2 - R^2) (the front moves where the energies
   balance),
 
-with s the path's parameter: nothing is divided by 1 - s, so the path reaches s = 1,
-where the whole tube is 0008's cylinder on the strips. P - w_a(b) is the bulged phase's
-contact pressure on the strips (in units of 2 mu H/R): it must not go negative.
+with nothing divided by 1 - s. The path is followed in (b_u, a_u, theta, s) by
+pseudo-arclength continuation from a bulge of START_SHARE until the unbulged rest fills
+the strips' end parts (the fill: the tube's outer volume is the strips' whole solid, at
+the latest at s = 1); from there 0008's cylinder and lobes take over. On the way the
+unbulged phase goes slack axially: a membrane wrinkles rather than carry compression, so
+``energy_density`` is the relaxed energy of tension-field theory there. P - w_a(b) is
+the bulged phase's contact pressure on the strips (in units of 2 mu H/R): it must not go
+negative.
 """
 
 from __future__ import annotations
@@ -96,7 +101,7 @@ class NoRoom(ValueError):
 
 @dataclass(frozen=True)
 class HeldBulgePath:
-    """The path from s = START_SHARE to 1: per sample the share s, the unbulged phase
+    """The path from s = START_SHARE to the fill: per sample the share s, the unbulged phase
     (a_u, b_u), the braid angle, supplied volume, pressure, length and the bulged phase's
     contact pressure on the strips (kPa, >= 0 where the form holds)."""
 
@@ -372,16 +377,10 @@ class HeldBulgeSegment(PaperBraidedSegment):
         blend = 0.5 * (1 + np.cos(np.pi * (v_drop - v_pk) / width))
         p_drop = np.interp(v_drop, path.v_ml, path.p_kpa) + p_gap * blend
         l_drop = np.interp(v_drop, path.v_ml, path.l_mm) + l_gap * blend
-        after = v_path > v_drop[-1]
-        v = np.concatenate(
-            [v_free, v_drop, v_path[after], v_c[1:] if v_c[0] <= v_drop[-1] else v_c]
-        )
-        p = np.concatenate(
-            [p_free, p_drop, p_path[after], p_c[1:] if v_c[0] <= v_drop[-1] else p_c]
-        )
-        length = np.concatenate(
-            [l_free, l_drop, l_path[after], l_c[1:] if v_c[0] <= v_drop[-1] else l_c]
-        )
+        after = v_path > v_drop[-1]  # the drop ends half-way to the lobes' start
+        v = np.concatenate([v_free, v_drop, v_path[after], v_c])
+        p = np.concatenate([p_free, p_drop, p_path[after], p_c])
+        length = np.concatenate([l_free, l_drop, l_path[after], l_c])
         return v, p, length
 
     def describe(self) -> str:
