@@ -294,6 +294,14 @@ def profile_main(args) -> None:
             doc.publish("sim-rig-before-after", before_after_table(speeds, checkouts))
 
 
+def commit_of(checkout: Path) -> str:
+    """The checkout's commit, short (with + when its files differ from it)."""
+    git = ["git", "-C", str(checkout)]
+    commit = subprocess.run([*git, "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    changed = subprocess.run([*git, "diff", "--quiet", "HEAD"], capture_output=True).returncode
+    return commit.stdout.strip() + ("+" if changed else "")
+
+
 def python_of(checkout: Path) -> str:
     venv = checkout / ".venv" / "bin" / "python"
     return str(venv) if checkout != ROOT and venv.exists() else sys.executable
@@ -364,7 +372,10 @@ def profile_table(profiles: dict, checkouts: list[Path]) -> str:
     total += [f"{total_after:.2f}", "100 %", "", ""]
     rows.append(total)
     header = ["part of the demo (CPU of its threads)"]
-    header += ["before (s)", "after (s)"] if len(checkouts) > 1 else ["CPU (s)"]
+    if len(checkouts) > 1:
+        header += [f"before: {commit_of(checkouts[0])} (s)", f"{commit_of(ROOT)} (s)"]
+    else:
+        header += ["CPU (s)"]
     header += ["share", "calls", "per call (us)"]
     return markdown_table(header, rows, right=set(range(1, len(header))))
 
@@ -408,8 +419,8 @@ def before_after_table(speeds: dict, checkouts: list[Path]) -> str:
     rows.append(("range", "", "", "", "", *(f"{lo[i]:.2f}-{hi[i]:.2f}" for i in range(2)), ""))
     header = (
         "pair",
-        "before: process (s)",
-        "after: process (s)",
+        f"before: {commit_of(checkouts[0])}, process (s)",
+        f"{commit_of(checkouts[1])}, process (s)",
         "run (s)",
         "CPU (s)",
         "x process",
