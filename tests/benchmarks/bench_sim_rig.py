@@ -277,6 +277,7 @@ def profile_main(args) -> None:
     sections = ["sim-rig-profile"] + (["sim-rig-before-after"] if args.before else [])
     doc = script_doc(sections, args.write_docs)
     checkouts = ([args.before] if args.before else []) + [ROOT]
+    names = {checkout: commit_of(checkout) for checkout in checkouts}  # before any write
     pairs = max(args.pairs, 1)
     with tempfile.TemporaryDirectory() as tmp:
         profiles = {checkout: [] for checkout in checkouts}
@@ -289,9 +290,9 @@ def profile_main(args) -> None:
                 for checkout in checkouts:
                     out = Path(tmp) / f"s{k}_{len(speeds[checkout])}.h5"
                     speeds[checkout].append(demo_speed(checkout, out))
-        doc.publish("sim-rig-profile", profile_table(profiles, checkouts))
+        doc.publish("sim-rig-profile", profile_table(profiles, checkouts, names))
         if args.before:
-            doc.publish("sim-rig-before-after", before_after_table(speeds, checkouts))
+            doc.publish("sim-rig-before-after", before_after_table(speeds, checkouts, names))
 
 
 def commit_of(checkout: Path) -> str:
@@ -337,7 +338,7 @@ def profile_demo(checkout: Path, out: Path) -> dict:
     return {"parts": parts, "calls": data["calls"], "wall_s": wall_s, "cpu_s": total_cpu_s}
 
 
-def profile_table(profiles: dict, checkouts: list[Path]) -> str:
+def profile_table(profiles: dict, checkouts: list[Path], names: dict) -> str:
     """Median CPU seconds per part over the runs of each checkout."""
     after = profiles[ROOT]
     names = sorted(
@@ -373,7 +374,7 @@ def profile_table(profiles: dict, checkouts: list[Path]) -> str:
     rows.append(total)
     header = ["part of the demo (CPU of its threads)"]
     if len(checkouts) > 1:
-        header += [f"before: {commit_of(checkouts[0])} (s)", f"{commit_of(ROOT)} (s)"]
+        header += [f"before: {names[checkouts[0]]} (s)", f"{names[ROOT]} (s)"]
     else:
         header += ["CPU (s)"]
     header += ["share", "calls", "per call (us)"]
@@ -397,7 +398,7 @@ def demo_speed(checkout: Path, out: Path) -> tuple[float, float, float, float]:
     return wall_s, run_s, cpu_s, os.getloadavg()[0]
 
 
-def before_after_table(speeds: dict, checkouts: list[Path]) -> str:
+def before_after_table(speeds: dict, checkouts: list[Path], names: dict) -> str:
     """Each interleaved pair: the demo's whole process before and after."""
     before, after = (speeds[c] for c in checkouts)
     rows, ratios = [], []
@@ -419,8 +420,8 @@ def before_after_table(speeds: dict, checkouts: list[Path]) -> str:
     rows.append(("range", "", "", "", "", *(f"{lo[i]:.2f}-{hi[i]:.2f}" for i in range(2)), ""))
     header = (
         "pair",
-        f"before: {commit_of(checkouts[0])}, process (s)",
-        f"{commit_of(checkouts[1])}, process (s)",
+        f"before: {names[checkouts[0]]}, process (s)",
+        f"{names[checkouts[1]]}, process (s)",
         "run (s)",
         "CPU (s)",
         "x process",
