@@ -523,6 +523,8 @@ class SimCamera:
     def get(self, prop_id: int) -> float:
         if prop_id == cv2.CAP_PROP_POS_MSEC:  # asked after every frame's grab
             return self._pos_msec
+        if prop_id == cv2.CAP_PROP_FPS:  # and the rate, to judge the frame's stamp
+            return self.fps
         return {
             cv2.CAP_PROP_FRAME_WIDTH: float(self.stream_size[0]),
             cv2.CAP_PROP_FRAME_HEIGHT: float(self.stream_size[1]),

@@ -251,11 +251,20 @@ class SpecimenPressure(Interlock):
     def _suction(self, t: np.ndarray, p: np.ndarray) -> str | None:
         """Samples below atmosphere while withdrawing with volume still counted."""
         withdrawing = self._withdrawing
-        if withdrawing is None or withdrawing[1] <= LEAK_COUNTED_ML:
+        counted = withdrawing is not None and withdrawing[1] > LEAK_COUNTED_ML
+        if counted and len(p) == 0:
+            return None  # nothing to judge: a run below atmosphere goes on
+        # a sample at or above -LEAK_SUCTION_KPA only ends a run: the samples before the
+        # first one below it (all of them, in almost every block) are judged at once
+        below = np.flatnonzero(p < -LEAK_SUCTION_KPA) if counted else []
+        if len(below) == 0:
             self._suction_run = 0
             self._last_kpa = float(p[-1]) if len(p) else self._last_kpa
             return None
-        for t_s, p_kpa in zip(t.tolist(), p.tolist(), strict=True):
+        first = int(below[0])
+        if first > 0:
+            self._suction_run, self._last_kpa = 0, float(p[first - 1])
+        for t_s, p_kpa in zip(t[first:].tolist(), p[first:].tolist(), strict=True):
             previous, self._last_kpa = self._last_kpa, p_kpa
             if p_kpa >= -LEAK_SUCTION_KPA:
                 self._suction_run = 0

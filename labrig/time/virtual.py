@@ -235,6 +235,8 @@ class VirtualClock:
 
     def _await_turn(self, member: _Member) -> None:
         """Block until the dispatcher hands this member the baton."""
+        if member.turn.acquire(False):
+            return  # handed already (to the thread that dispatched: a third of them)
         try:
             handovers, waited_s = self._handovers, 0.0
             while not member.turn.acquire(timeout=min(WAKE_S, self.stall_timeout_s)):
@@ -279,7 +281,8 @@ class VirtualClock:
                 self._running += 1  # the timer's callback, or the woken member
                 self._handovers += 1
                 self._now_ns = max(self._now_ns, t_ns)
-            self._pace(t_ns)
+            if self.speed is not None:
+                self._pace(t_ns)
             if member is not None:
                 member.turn.release()
                 return
@@ -295,15 +298,22 @@ class VirtualClock:
         """The next thing due (under the lock): a waiter whose condition holds now, or
         else the earliest of timers and wake-ups (timers first at equal times). With
         nobody waiting nothing is due: timers alone never move time."""
-        ready = [m for m in self._waiting if m.predicate is not None and _holds(m.predicate)]
-        if ready:
-            member = min(ready, key=lambda m: m.seq)
-            self._waiting.remove(member)
-            member.result = True
-            return member, None, self._now_ns
+        # one pass (every dispatch makes it): the earliest-queued waiter whose condition
+        # holds, and the earliest wake-up (every condition evaluated, as each may be
+        # what a waiter is waiting for)
+        ready = member = None
+        for m in self._waiting:
+            if m.predicate is not None and _holds(m.predicate):
+                if ready is None or m.seq < ready.seq:
+                    ready = m
+            elif member is None or (m.wake_ns, m.seq) < (member.wake_ns, member.seq):
+                member = m
+        if ready is not None:
+            self._waiting.remove(ready)
+            ready.result = True
+            return ready, None, self._now_ns
         while self._timers and self._timers[0][2].cancelled:
             heapq.heappop(self._timers)
-        member = min(self._waiting, key=lambda m: (m.wake_ns, m.seq), default=None)
         if member is None:
             return None, None, self._now_ns  # time moves only towards a waiting participant
         if self._timers and self._timers[0][0] <= member.wake_ns:

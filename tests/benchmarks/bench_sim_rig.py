@@ -15,8 +15,16 @@ average, and the video's frames.
 Then the ratio whose target is 1.5: 30 fps with video over 2 fps without, in
 interleaved pairs (A/B/A/B), each pair's ratio and their range.
 
+Where the demo's CPU time goes (``--profile``): the demo run in a process whose parts
+(the start-up, the plant, the DAQ, the interlocks, the pump's exchanges, the camera, the
+writer thread, the virtual clock's hand-overs, the analysis, the interpreter's exit)
+are timed on their threads' CPU clocks (``sim_rig_profile.py``), beside the marker
+tracker's process. With ``--before CHECKOUT`` (a checkout of an earlier commit with its
+own ``.venv``) the same is measured there, in interleaved pairs, and the whole process's
+speed-up before and after.
+
 Run: python tests/benchmarks/bench_sim_rig.py [--burners N] [--camera-only] [--pairs N]
-     [--write-docs]
+     [--profile [--before CHECKOUT]] [--write-docs]
 (--burners 2 runs two CPU-burning processes alongside, as on a busy CI machine.)
 """
 
@@ -192,8 +200,20 @@ def main() -> None:
     parser.add_argument(
         "--pairs", type=int, default=3, help="A/B pairs of 2 fps against 30 fps with video"
     )
+    parser.add_argument(
+        "--profile", action="store_true", help="only where the demo's CPU time goes"
+    )
+    parser.add_argument(
+        "--before",
+        type=Path,
+        help="with --profile: a checkout of an earlier commit (with its own .venv) to "
+        "measure against, in interleaved pairs",
+    )
     add_write_docs_argument(parser)
     args = parser.parse_args()
+    if args.profile:
+        profile_main(args)
+        return
     sections = ["sim-rig-camera"]
     if not args.no_video and args.pairs > 0:
         sections.append("sim-rig-video")
@@ -251,6 +271,167 @@ def protocols(tmp: Path) -> str:
         "frames",
     )
     return markdown_table(header, rows, right={1, 2, 3, 4, 5, 6})
+
+
+def profile_main(args) -> None:
+    sections = ["sim-rig-profile"] + (["sim-rig-before-after"] if args.before else [])
+    doc = script_doc(sections, args.write_docs)
+    checkouts = ([args.before] if args.before else []) + [ROOT]
+    names = {checkout: commit_of(checkout) for checkout in checkouts}  # before any write
+    pairs = max(args.pairs, 1)
+    with tempfile.TemporaryDirectory() as tmp:
+        profiles = {checkout: [] for checkout in checkouts}
+        speeds = {checkout: [] for checkout in checkouts}
+        for k in range(pairs):
+            for checkout in checkouts:  # A/B/A/B: the load falls on both
+                profiles[checkout].append(profile_demo(checkout, Path(tmp) / f"p{k}.h5"))
+                print(f"profiled {checkout} ({k + 1} of {pairs})", file=sys.stderr)
+            if args.before:
+                for checkout in checkouts:
+                    out = Path(tmp) / f"s{k}_{len(speeds[checkout])}.h5"
+                    speeds[checkout].append(demo_speed(checkout, out))
+        doc.publish("sim-rig-profile", profile_table(profiles, checkouts, names))
+        if args.before:
+            doc.publish("sim-rig-before-after", before_after_table(speeds, checkouts, names))
+
+
+def commit_of(checkout: Path) -> str:
+    """The checkout's commit, short (with + when its files differ from it)."""
+    git = ["git", "-C", str(checkout)]
+    commit = subprocess.run([*git, "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    changed = subprocess.run([*git, "diff", "--quiet", "HEAD"], capture_output=True).returncode
+    return commit.stdout.strip() + ("+" if changed else "")
+
+
+def python_of(checkout: Path) -> str:
+    venv = checkout / ".venv" / "bin" / "python"
+    return str(venv) if checkout != ROOT and venv.exists() else sys.executable
+
+
+def profile_demo(checkout: Path, out: Path) -> dict:
+    """The demo run under sim_rig_profile.py with ``checkout``'s labrig: CPU seconds
+    per part, the tracker's process and the interpreter's exit included."""
+    report = out.with_suffix(".json")
+    cpu0 = _children_cpu_s()
+    wall0 = time.monotonic()
+    subprocess.run(
+        [
+            python_of(checkout),
+            str(Path(__file__).with_name("sim_rig_profile.py")),
+            str(checkout / "protocols" / "demo.yaml"),
+            str(out),
+            str(report),
+        ],
+        check=True,
+        capture_output=True,
+        cwd=checkout,
+    )
+    wall_s, total_cpu_s = time.monotonic() - wall0, _children_cpu_s() - cpu0
+    data = json.loads(report.read_text())
+    parts = data["cpu_s"]
+    # what the parts leave of the process's CPU at its last atexit hook: the timing
+    # itself; after it, the interpreter's end
+    parts["timing the parts (its own cost)"] = data["process_cpu_s"] - sum(parts.values())
+    parts["marker tracker's process"] = data["children_cpu_s"]
+    parts["the interpreter's end"] = total_cpu_s - data["process_cpu_s"] - data["children_cpu_s"]
+    out.unlink()
+    return {"parts": parts, "calls": data["calls"], "wall_s": wall_s, "cpu_s": total_cpu_s}
+
+
+def profile_table(profiles: dict, checkouts: list[Path], names: dict) -> str:
+    """Median CPU seconds per part over the runs of each checkout."""
+    after = profiles[ROOT]
+    names = sorted(
+        {name for run in after for name in run["parts"]},
+        key=lambda name: -np.median([run["parts"].get(name, 0.0) for run in after]),
+    )
+
+    def median(runs, name):
+        return float(np.median([run["parts"].get(name, 0.0) for run in runs]))
+
+    rows = []
+    total_after = float(np.median([run["cpu_s"] for run in after]))
+    for name in names:
+        cpu_s = median(after, name)
+        if cpu_s < 0.005 and all(median(profiles[c], name) < 0.005 for c in checkouts):
+            continue  # a thread that only waits
+        calls = after[-1]["calls"].get(name, 0)
+        calls = calls if calls > 1 else None  # a thread's whole life: no per-call figure
+        row = [name]
+        if len(checkouts) > 1:
+            row.append(f"{median(profiles[checkouts[0]], name):.2f}")
+        row += [
+            f"{cpu_s:.2f}",
+            f"{100 * cpu_s / total_after:.0f} %",
+            f"{calls:,}" if calls else "",
+            f"{1e6 * cpu_s / calls:.0f}" if calls else "",
+        ]
+        rows.append(row)
+    total = ["whole run, all processes"]
+    if len(checkouts) > 1:
+        total.append(f"{np.median([run['cpu_s'] for run in profiles[checkouts[0]]]):.2f}")
+    total += [f"{total_after:.2f}", "100 %", "", ""]
+    rows.append(total)
+    header = ["part of the demo (CPU of its threads)"]
+    if len(checkouts) > 1:
+        header += [f"before: {names[checkouts[0]]} (s)", f"{names[ROOT]} (s)"]
+    else:
+        header += ["CPU (s)"]
+    header += ["share", "calls", "per call (us)"]
+    return markdown_table(header, rows, right=set(range(1, len(header))))
+
+
+def demo_speed(checkout: Path, out: Path) -> tuple[float, float, float, float]:
+    """(process wall s, run wall s, CPU s, load) of the demo with ``checkout``'s labrig."""
+    cpu0 = _children_cpu_s()
+    wall0 = time.monotonic()
+    done = subprocess.run(
+        [python_of(checkout), "-m", "labrig", "run", "protocols/demo.yaml", "--sim", "--out", out],
+        check=True,
+        capture_output=True,
+        text=True,
+        cwd=checkout,
+    )
+    wall_s, cpu_s = time.monotonic() - wall0, _children_cpu_s() - cpu0
+    run_s = float(re.search(r"rig\s+time\s+in\s+([0-9.]+)\s+s", done.stdout + done.stderr)[1])
+    out.unlink()
+    return wall_s, run_s, cpu_s, os.getloadavg()[0]
+
+
+def before_after_table(speeds: dict, checkouts: list[Path], names: dict) -> str:
+    """Each interleaved pair: the demo's whole process before and after."""
+    before, after = (speeds[c] for c in checkouts)
+    rows, ratios = [], []
+    for k, (b, a) in enumerate(zip(before, after, strict=True)):
+        ratios.append((a[0] / b[0], a[2] / b[2]))
+        rows.append(
+            (
+                k + 1,
+                f"{b[0]:.1f} (x{DEMO_RIG_S / b[0]:.0f})",
+                f"{a[0]:.1f} (x{DEMO_RIG_S / a[0]:.0f})",
+                f"{b[1]:.1f} / {a[1]:.1f}",
+                f"{b[2]:.1f} / {a[2]:.1f}",
+                f"{a[0] / b[0]:.2f}",
+                f"{a[2] / b[2]:.2f}",
+                f"{a[3]:.1f}",
+            )
+        )
+    lo, hi = np.min(ratios, axis=0), np.max(ratios, axis=0)
+    rows.append(("range", "", "", "", "", *(f"{lo[i]:.2f}-{hi[i]:.2f}" for i in range(2)), ""))
+    header = (
+        "pair",
+        f"before: {names[checkouts[0]]}, process (s)",
+        f"{names[checkouts[1]]}, process (s)",
+        "run (s)",
+        "CPU (s)",
+        "x process",
+        "x CPU",
+        "load",
+    )
+    return markdown_table(header, rows, right=set(range(1, 8)))
+
+
+DEMO_RIG_S = 372.0  # the demo's rig time (its repetitions' spans, ``completeness``)
 
 
 if __name__ == "__main__":

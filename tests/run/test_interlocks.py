@@ -5,6 +5,8 @@ import threading
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from support.sensor_runs import infuse_judged, shipped_infusions
 
 from labrig.rig.devices import PressureBlock, PumpState, PumpStatus
@@ -282,3 +284,56 @@ def test_a_cut_wire_on_the_simulated_rig_faults_the_run_with_the_pump_stopped(tm
     stopped_ml = emulator.net_volume_ml(end_s)
     assert emulator.net_volume_ml(end_s + 30.0) == stopped_ml  # the plunger stands still
     assert stopped_ml - emulator.net_volume_ml(cut_s[0]) <= 0.5
+
+
+def suction_reference(blocks, counted_ml):
+    """The leak's rule sample by sample, as written down: while withdrawing with more than
+    LEAK_COUNTED_ML counted, LEAK_SUCTION_SAMPLES samples in a row below
+    -LEAK_SUCTION_KPA, the first of them come down from atmosphere without a leap. The
+    index (block, sample) of the sample that completes the run, or None."""
+    if counted_ml <= interlocks.LEAK_COUNTED_ML:
+        return None
+    run, previous = 0, 0.0
+    for b, p in enumerate(blocks):
+        for i, p_kpa in enumerate(p):
+            low = p_kpa < -interlocks.LEAK_SUCTION_KPA
+            crossing = (
+                previous >= -interlocks.LEAK_SUCTION_KPA
+                and previous - p_kpa < interlocks.LEAK_MAX_STEP_KPA
+            )
+            run = 0 if not low else run + 1 if run or crossing else 0
+            previous = p_kpa
+            if run >= interlocks.LEAK_SUCTION_SAMPLES:
+                return b, i
+    return None
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    blocks=st.lists(
+        st.lists(
+            # mostly below the threshold, in small steps and in leaps: runs of every length
+            st.sampled_from([0.5, -0.99, -1.0, -1.01, -1.2, -1.5, -2.0, -2.9, -3.2, -4.4]),
+            min_size=0,
+            max_size=24,
+        ),
+        min_size=1,
+        max_size=8,
+    ),
+    counted_ml=st.sampled_from([0.1, 0.2, 0.21, 3.0]),
+)
+def test_the_leak_trips_on_the_same_sample_as_judged_one_sample_at_a_time(blocks, counted_ml):
+    """The suction rule, judged a block at a time (the samples before a block's first
+    one below the threshold at once), trips at the sample the rule taken one sample at a
+    time names, or not at all with it, across blocks of any length (empty ones too)."""
+    interlock = interlocks.SpecimenPressure()
+    interlock.check_pump(PumpStatus(0.0, WITHDRAWING, 0.0, 0.0), counted_ml)
+    expected = suction_reference(blocks, counted_ml)
+    tripped = None
+    for b, p in enumerate(blocks):
+        t_s = (b + np.arange(len(p)) / 100) * 1000  # names block and sample in the reason
+        reason = interlock.check_pressure(PressureBlock(t_s, np.array(p), np.zeros(len(p), bool)))
+        if reason is not None:
+            tripped = divmod(round(float(reason.split("at t = ")[1].split(" s")[0]) / 10), 100)
+            break
+    assert tripped == expected
