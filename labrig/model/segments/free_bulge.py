@@ -112,9 +112,11 @@ class FreeOrHeldBulge(HeldBulge):
 
         low = max(pressure[valley], pressure[0])
         high = min(pressure[peak], pressure[-1])
-        if not low < high:
+        low, high = low * (1 + 1e-12), high * (1 - 1e-12)
+        # no equal areas before the latex stops carrying F: no free coexistence
+        if not (low < high and area(low) * area(high) < 0):
             return None
-        p_m = brentq(area, low * (1 + 1e-12), high * (1 - 1e-12), xtol=1e-14)
+        p_m = brentq(area, low, high, xtol=1e-14)
         a_u, b_u, _, _ = self.branch(at(p_m, 0, peak))
         a_b, b_b, _, _ = self.branch(at(p_m, valley, len(hoops) - 1))
         return Coexistence(a_u, b_u, a_b, b_b, p_m)
