@@ -96,14 +96,21 @@ def test_path_is_free_inside_the_strips_then_presses_on_them(free):
 
 
 def test_path_pressure_is_the_energys_derivative_and_its_quadrature(free):
-    bulge, _, path = free
-    k = len(path.share) - 5  # a held point
-    x = np.array([path.b_u[k], path.a_u[k], path.theta[k]])
-    states = []
-    for share in (path.share[k] - 1e-5, path.share[k] + 1e-5):
-        found = root(lambda y, s=share: bulge.residual(s, y), x, tol=1e-13)
-        states.append(bulge.state(share, found.x))
-    (v0, p0, *_, e0), (v1, p1, *_, e1) = states
-    assert (e1 - e0) / (v1 - v0) == pytest.approx(0.5 * (p0 + p1), rel=1e-6)
+    # a held point (Gent's latex in 0011's equations) and a free one: dE/dv = p, with the
+    # held neighbours solved at shares 1e-5 either side
+    bulge, c, path = free
+    k = len(path.share) - 5
+    guess = np.array([path.b_u[k], path.a_u[k], path.theta[k]])
+    shares = path.share[k] + np.array([-1e-5, 1e-5])
+    held = np.array(
+        [
+            bulge.state(s, root(lambda y, s=s: bulge.residual(s, y), guess, tol=1e-13).x)
+            for s in shares
+        ]
+    )
+    free_rows = np.array([bulge.free_row(s, c) for s in (0.01, 0.02)])
+    for rows in (held, free_rows):
+        v, p, e = rows[:, 0], rows[:, 1], rows[:, 4]
+        assert np.diff(e)[0] / np.diff(v)[0] == pytest.approx(p.mean(), rel=1e-6)
     work = np.sum(np.diff(path.v_ml) * 0.5 * (path.p_kpa[1:] + path.p_kpa[:-1]))
     assert work == pytest.approx(path.energy_mj[-1] - path.energy_mj[0], rel=2e-3)
