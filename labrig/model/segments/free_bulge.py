@@ -220,6 +220,10 @@ class GentBulgeSegment(HeldBulgeSegment):
     gent_lobes: ClassVar[bool] = True
 
     def describe(self) -> str:
-        return (
+        text = (
             f"{super().describe()}; Gent's latex past the peak, J_m = {self.limiting_invariant:g}"
         )
+        path = self.held_path
+        if path is not None and path.contact_kpa[0] == 0.0:
+            text += f", the bulge free of the strips at Maxwell's {path.p_kpa[0]:.1f} kPa first"
+        return text

@@ -139,7 +139,10 @@ class LobeBranch:
         v_lo, e_lo, _ = self.terms(self.envelope(theta - ANGLE_STEP), phi)
         v_hi, e_hi, _ = self.terms(self.envelope(theta + ANGLE_STEP), phi)
         p_mpa = self.terms(self.envelope(theta), phi)[2] / KPA_PER_MPA
-        return (e_hi - e_lo - p_mpa * (v_hi - v_lo)) / (2 * ANGLE_STEP)
+        # past Gent's lock both energies are infinite: G is undefined (NaN), which
+        # ``end_half_angle`` reads as the latex rigid
+        with np.errstate(invalid="ignore"):
+            return (e_hi - e_lo - p_mpa * (v_hi - v_lo)) / (2 * ANGLE_STEP)
 
     def state(self, theta, phi):
         """(supplied v_ml, p_kpa, l_mm) at (theta, phi)."""
