@@ -1,7 +1,7 @@
 """The paper's statements on every library: the table of docs/explanation/calibration.md.
 
 Run: python tests/benchmarks/bench_paper_statements.py [--libraries paper calibrated]
-[--write-docs]
+[--write-docs] [--json-dir DIR]
 
 Each library is ``labrig model paper --library NAME --json`` in a process of its own;
 the table has one row a statement (its key, what the paper says and the tolerance) and
@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from labrig.cli.performance_doc import PerformanceDoc, add_write_docs_argument, markdown_table
 
 CALIBRATION_DOC = Path(__file__).resolve().parents[2] / "docs" / "explanation" / "calibration.md"
-LIBRARIES = ("paper", "paper-r", "calibrated", "si")
+LIBRARIES = ("paper", "paper-r", "paper-gent", "calibrated", "si")
 
 
 def statements(library: str) -> tuple[dict, float]:
@@ -84,6 +84,7 @@ def table(documents: dict[str, dict]) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--libraries", nargs="+", default=list(LIBRARIES))
+    parser.add_argument("--json-dir", type=Path, help="also keep each library's JSON there")
     add_write_docs_argument(parser)
     args = parser.parse_args()
     doc = PerformanceDoc(["statements"], args.write_docs, path=CALIBRATION_DOC)
@@ -91,6 +92,9 @@ def main() -> None:
     for library in args.libraries:
         documents[library], seconds = statements(library)
         print(f"{library}: {documents[library]['holding']} hold, {seconds:.0f} s", file=sys.stderr)
+        if args.json_dir is not None:
+            args.json_dir.mkdir(parents=True, exist_ok=True)
+            (args.json_dir / f"{library}.json").write_text(json.dumps(documents[library]))
     doc.publish("statements", table(documents))
 
 

@@ -10,6 +10,9 @@ library as a prefix (docs/reference/segments.md):
 - ``paper-r:B46-T20``: the same segment with the braid tubing's inner radius read as
   the paper prints it, a radius (7.94 mm), the latex tube still read as diameters
   (docs/decisions/0009);
+- ``paper-gent:B46-T20``: the paper's numbers with Gent's latex past the peak (J_m =
+  97.2 from Gent 1996, not fitted) and the bulge held by the strips or free of them
+  (docs/decisions/0011, 0012; ``labrig.model.segments.free_bulge``);
 - ``calibrated:B46-T20``: the calibrated form, eight fitted constants
   (``labrig.model.segments.calibrated``);
 - ``si:B46-T20`` (also ``SI-B46-T20``): the SI as printed, R = 6.35 mm
@@ -37,26 +40,29 @@ LIBRARY_NAMES: tuple[str, ...] = tuple(
     f"B{braid}-T{tube}" for braid in BRAID_LENGTHS_MM for tube in TUBE_LENGTHS_MM
 )
 PAPER, PAPER_RADIUS, CALIBRATED, SI = "paper", "paper-r", "calibrated", "si"
-LIBRARIES = (PAPER, PAPER_RADIUS, CALIBRATED, SI)
+PAPER_GENT = "paper-gent"
+LIBRARIES = (PAPER, PAPER_RADIUS, CALIBRATED, SI, PAPER_GENT)
 # The library bare names resolve to, and so the simulated rig's and the demo's: the one
 # that holds more of the paper's statements with fewer fitted constants
 # (docs/explanation/calibration.md).
 DEFAULT_LIBRARY = CALIBRATED
 SI_PREFIX = "SI-"
 SI_NAMES: tuple[str, ...] = tuple(SI_PREFIX + name for name in LIBRARY_NAMES)
-_NAME = re.compile(r"(?:(paper-r|paper|calibrated|si):|(si-))?(B(\d+)-T(\d+))", re.IGNORECASE)
+_NAME = re.compile(
+    r"(?:(paper-r|paper-gent|paper|calibrated|si):|(si-))?(B(\d+)-T(\d+))", re.IGNORECASE
+)
 MEASURED_ENV_VAR = "LABRIG_LIBRARY"
 MEASURED_DEFAULT_DIR = Path("library")
 _MEASURED_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 _VALID = (
     f"B{BRAID_LENGTHS_MM[0]}..B{BRAID_LENGTHS_MM[-1]} x T{TUBE_LENGTHS_MM[0]}.."
     f"T{TUBE_LENGTHS_MM[-1]} in steps of 2, e.g. B46-T20, or with a library: paper:B46-T20, "
-    "paper-r:, calibrated:, si:"
+    "paper-r:, paper-gent:, calibrated:, si:"
 )
 
 
 def library_names(library: str | None = None) -> tuple[str, ...]:
-    """The 36 names of ``library`` (``paper``, ``paper-r``, ``calibrated``, ``si``) with its prefix;
+    """The 36 names of ``library`` (``LIBRARIES``) with its prefix;
     bare names (the default library) for None."""
     if library is None:
         return LIBRARY_NAMES
@@ -85,10 +91,15 @@ def library_geometry(name: str) -> tuple[int, int]:
 
 def library_segment(name: str):
     """The segment object behind a library name (``paper:`` a ``PaperBraidedSegment``,
-    ``paper-r:`` one with the braid tubing's radius as printed, ``si:`` the SI's
-    ``BraidedSegment``, ``calibrated:`` an ``OgdenBraidedSegment``)."""
+    ``paper-r:`` one with the braid tubing's radius as printed, ``paper-gent:`` a
+    ``GentBulgeSegment``, ``si:`` the SI's ``BraidedSegment``, ``calibrated:`` an
+    ``OgdenBraidedSegment``)."""
     braid, tube = library_geometry(name)
     library = parse_library_name(name)[0]
+    if library == PAPER_GENT:
+        from labrig.model.segments.free_bulge import GentBulgeSegment
+
+        return GentBulgeSegment(braid, tube)
     if library in (PAPER, PAPER_RADIUS):
         from labrig.model.segments import paper_braided
 
@@ -188,7 +199,7 @@ def load_segment(spec: str, library_dir: Path | None = None) -> SegmentCurve:
 
         return load_csv(measured, name=text) if measured else load_csv(Path(text))
     raise InputError(
-        f"unknown segment {spec!r}: use a library name ({_VALID}), gent-a/b/c, a measured "
-        f"segment in {resolve_library_dir(library_dir)}/ (labrig library add), or a path to a CSV "
+        f"unknown segment {spec!r}: a library name ({_VALID}), gent-a/b/c, a measured "
+        f"segment in {resolve_library_dir(library_dir)}/ (labrig library add), or a CSV "
         "file with the header volume_ml,pressure_kpa,length_mm"
     )

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import ClassVar
 
 import numpy as np
 from scipy.optimize import brentq, root
@@ -63,6 +64,8 @@ _LARGEST_ANGLE = float(np.arccos(1 - 0.54))
 # A corrector landing up to _CORNER steps from the last point (at any step size: a
 # corner, where the path turns by up to acos(1/_CORNER)) is accepted.
 _CORNER = 10.0
+# the share stepped across a corner the continuation cannot turn (``_across_corner``)
+_CORNER_SHARE = 1e-3
 # the residual reported outside the states (``_inside``): far from any root
 _OUTSIDE = 1e6
 # the largest residual of an accepted point (the conditions are of order 1)
@@ -248,24 +251,44 @@ class HeldBulge:
         theta = float(np.arccos(min(length / seg.l_braid_mm, 1.0)))
         return np.array([b_u, a_u, theta])
 
-    def path(self) -> HeldBulgePath:
-        """Follow the conditions from s = START_SHARE by pseudo-arclength continuation
-        in (b_u, a_u, theta, s) (the share need not grow monotonically along the path)
-        until the whole tube fills the strips (``end_room_mm3`` = 0, at the latest at
-        s = 1). Raises ValueError where the path cannot be followed."""
+    def contact(self, share: float, x) -> float:
+        """P - dw/da of the bulged phase (units of 2 mu H/R): its contact pressure on the
+        strips, >= 0 where it presses on them."""
+        b_u, a_u, theta = (float(y) for y in x)
+        a_b, b_b = self._bulged(share, b_u, theta)[:2]
+        return float(self._gradient(a_u, b_u)[0] - self._gradient(a_b, b_b)[0])
+
+    def start_points(self) -> list[np.ndarray]:
+        """The path's first two points, (b_u, a_u, theta, s) at s = START_SHARE and 5 %
+        further, solved from ``start_guess``."""
         share = START_SHARE * 1.05
         first = root(lambda x: self.residual(START_SHARE, x), self.start_guess(), tol=1e-13)
         second = root(lambda x: self.residual(share, x), first.x, tol=1e-13)
         residuals = (self.residual(START_SHARE, first.x), self.residual(share, second.x))
         if max(np.max(np.abs(r)) for r in residuals) > _TOLERANCE:
             raise ValueError(f"no two-phase equilibrium near s = {START_SHARE}")
-        points = [np.append(first.x, START_SHARE), np.append(second.x, share)]
         if not self.end_room_mm3(START_SHARE, first.x) > 0:
             raise NoRoom("the tube fills the strips as the bulge starts")
+        return [np.append(first.x, START_SHARE), np.append(second.x, share)]
+
+    def follow(self, points: list[np.ndarray], leaves=None) -> tuple[list[np.ndarray], bool]:
+        """Continue the held path from its last two ``points`` by pseudo-arclength
+        continuation in (b_u, a_u, theta, s) (the share need not grow monotonically)
+        until the whole tube fills the strips (``end_room_mm3`` = 0, at the latest at
+        s = 1; the last point is then the fill: returns (points, True)) or ``leaves``
+        (a function of a point) turns true (returns (points, False) with that point
+        last). Raises ValueError where the path cannot be followed."""
+        points = list(points)
         step = _STEP
         while not self.end_room_mm3(points[-1][3], points[-1][:3]) <= 0:
-            if step < _STEP * 1e-4 or len(points) > _MAX_POINTS:
+            if len(points) > _MAX_POINTS:
                 raise ValueError(f"the two-phase path stops at s = {points[-1][3]:.4f}")
+            if step < _STEP * 1e-4:
+                points.append(self._across_corner(points))
+                if leaves is not None and leaves(points[-1]):
+                    return points, False
+                step = _STEP
+                continue
             tangent = points[-1] - points[-2]
             tangent /= np.linalg.norm(tangent)
             predicted = points[-1] + step * tangent
@@ -283,17 +306,35 @@ class HeldBulge:
                 step *= 0.5
                 continue
             points.append(found.x)
+            if leaves is not None and leaves(found.x):
+                return points, False
             step = min(step * 1.3, _STEP)
-        points[-1] = self._fill(points[-2], points[-1])
+        points[-1] = self.crossing(points[-2], points[-1], self.end_room_mm3)
+        return points, True
+
+    def _across_corner(self, points: list[np.ndarray]) -> np.ndarray:
+        """The next point past a corner the continuation cannot turn (its tangent jumps
+        where the unbulged phase goes slack and Gent's latex steepens the turn): the
+        root at a share _CORNER_SHARE further on, from the last point."""
+        last = points[-1]
+        share = last[3] + np.sign(last[3] - points[-2][3]) * _CORNER_SHARE
+        found = root(lambda x: self.residual(share, x), last[:3], tol=1e-13)
+        if np.max(np.abs(self.residual(share, found.x))) > _TOLERANCE:
+            raise ValueError(f"the two-phase path stops at s = {last[3]:.4f}")
+        return np.append(found.x, share)
+
+    def path(self) -> HeldBulgePath:
+        """The held path from s = START_SHARE to the fill (``follow``)."""
+        points, _ = self.follow(self.start_points())
         xs = np.array(points)
         rows = [self.state(x[3], x[:3]) for x in xs]
         columns = [np.array(col, dtype=float) for col in zip(*rows, strict=True)]
         return HeldBulgePath(xs[:, 3], xs[:, 1], xs[:, 0], xs[:, 2], *columns)
 
-    def _fill(self, before, after) -> np.ndarray:
-        """The point between two path points where the tube fills the strips
-        (``end_room_mm3`` = 0): on the hyperplanes across the chord from ``before`` to
-        ``after`` (as the continuation's), by Brent's method in the chord's fraction."""
+    def crossing(self, before, after, measure) -> np.ndarray:
+        """The point between two path points where ``measure(share, x)`` crosses 0 (the
+        fill with ``end_room_mm3``): on the hyperplanes across the chord from ``before``
+        to ``after`` (as the continuation's), by Brent's method in the chord's fraction."""
         chord = after - before
 
         def on_path(fraction):
@@ -304,14 +345,14 @@ class HeldBulge:
 
             return root(conditions, predicted, tol=1e-13).x
 
-        def room(fraction):
+        def value(fraction):
             x = on_path(fraction)
-            return self.end_room_mm3(x[3], x[:3])
+            return measure(x[3], x[:3])
 
-        fraction = brentq(room, 0.0, 1.0, xtol=1e-12)
+        fraction = brentq(value, 0.0, 1.0, xtol=1e-12)
         found = on_path(fraction)
         if np.max(np.abs(self.residual(found[3], found[:3]))) > _TOLERANCE:
-            raise ValueError("the two-phase path's fill was not found")
+            raise ValueError("the two-phase path's crossing was not found")
         return found
 
 
@@ -340,13 +381,17 @@ class HeldBulgeSegment(PaperBraidedSegment):
     neo-Hookean)."""
 
     limiting_invariant: float | None = None
+    # the path's form, and whether the lobes after the fill share the phases' latex
+    # (record 0011's measuring option keeps them neo-Hookean; record 0012 does not)
+    path_form: ClassVar[type[HeldBulge]] = HeldBulge
+    gent_lobes: ClassVar[bool] = False
 
     @cached_property
     def held_path(self) -> HeldBulgePath | None:
         if self.bulge is None:
             return None
         try:
-            return HeldBulge(self, self.limiting_invariant).path()
+            return self.path_form(self, self.limiting_invariant).path()
         except NoRoom:
             return None
 
@@ -356,7 +401,8 @@ class HeldBulgeSegment(PaperBraidedSegment):
         if path is None:
             return PaperBraidedSegment.lobes.func(self)
         angle = float(path.theta[-1])
-        return LobeBranch(_StripsFrom(self, angle), angle, float(path.p_kpa[-1]))
+        latex = self.limiting_invariant if self.gent_lobes else None
+        return LobeBranch(_StripsFrom(self, angle), angle, float(path.p_kpa[-1]), latex)
 
     def _bulged_tables(self, bulge: Bulge):
         path = self.held_path

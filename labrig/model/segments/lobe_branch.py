@@ -11,7 +11,7 @@ envelope's volume V_e(theta) at length l, outer radius r = sqrt(V_e/(pi l)). The
 - hoop stretch lambda_theta = (2 pi r_i + 8 ds(phi))/(2 pi R), r_i the inner radius of
   the equivalent cylinder and ds the lobe's arc beyond the circle's; lambda_z = l/L_tube;
 - energy Pi = mu (2 pi R H L_tube) W(lambda_theta, lambda_z) - F l (S14, S31's constant
-  braid force).
+  braid force; with ``limiting_invariant`` J_m, Gent's W of the same I1, record 0012).
 
 Equilibrium in phi is Laplace's law: dPi/dphi = p dV/dphi gives p = T/rho with T =
 mu H W_theta/lambda_z the membrane's hoop tension and rho the lobe's radius (dA/ds =
@@ -69,8 +69,16 @@ class LobeBranch:
     """The branch of ``segment`` from braid angle ``start_angle`` and pressure
     ``start_kpa`` (module docstring)."""
 
-    def __init__(self, segment: PaperBraidedSegment, start_angle: float, start_kpa: float):
+    def __init__(
+        self,
+        segment: PaperBraidedSegment,
+        start_angle: float,
+        start_kpa: float,
+        limiting_invariant: float | None = None,
+    ):
         self.segment = segment
+        # J_m of Gent's latex (docs/decisions/0012); None: S14's neo-Hookean membrane
+        self.limiting_invariant = limiting_invariant
         self.start_angle = float(start_angle)
         self.start_kpa = float(start_kpa)
         self.width_mm = lobes.strip_width_mm(segment.end_radius_mm)
@@ -111,9 +119,17 @@ class LobeBranch:
         volume = env.volume_mm3 - seg.wall_volume_mm3 + lobes.STRIP_COUNT * env.length_mm * area
         invariant = hoop**2 + axial**2 + 1 / (hoop * axial) ** 2 - 3
         wall_mm3 = 2 * np.pi * seg.radius_mm * seg.thickness_mm * seg.l_tube_mm
-        membrane = 0.5 * seg.shear_modulus_mpa * wall_mm3 * invariant
+        j_m = self.limiting_invariant
+        if j_m is None:
+            density, stiffening = 0.5 * invariant, 1.0
+        else:  # Gent: -(J_m/2) ln(1 - (I1 - 3)/J_m), its slope 1/(1 - (I1 - 3)/J_m) times
+            # S14's; locked (infinitely stiff) from I1 - 3 = J_m on
+            share = np.minimum(invariant / j_m, 1.0)
+            with np.errstate(divide="ignore"):
+                density, stiffening = -0.5 * j_m * np.log1p(-share), 1 / (1 - share)
+        membrane = seg.shear_modulus_mpa * wall_mm3 * density
         energy = membrane - seg.axial_force_n * env.length_mm
-        w_theta = hoop - 1 / (hoop**3 * axial**2)
+        w_theta = stiffening * (hoop - 1 / (hoop**3 * axial**2))
         tension = seg.shear_modulus_mpa * seg.thickness_mm * w_theta / axial
         pressure = tension / lobes.arc_radius_mm(chord, phi) * KPA_PER_MPA
         return volume, energy, pressure
@@ -123,7 +139,10 @@ class LobeBranch:
         v_lo, e_lo, _ = self.terms(self.envelope(theta - ANGLE_STEP), phi)
         v_hi, e_hi, _ = self.terms(self.envelope(theta + ANGLE_STEP), phi)
         p_mpa = self.terms(self.envelope(theta), phi)[2] / KPA_PER_MPA
-        return (e_hi - e_lo - p_mpa * (v_hi - v_lo)) / (2 * ANGLE_STEP)
+        # past Gent's lock both energies are infinite: G is undefined (NaN), which
+        # ``end_half_angle`` reads as the latex rigid
+        with np.errstate(invalid="ignore"):
+            return (e_hi - e_lo - p_mpa * (v_hi - v_lo)) / (2 * ANGLE_STEP)
 
     def state(self, theta, phi):
         """(supplied v_ml, p_kpa, l_mm) at (theta, phi)."""
@@ -190,9 +209,15 @@ class LobeBranch:
 
     @cached_property
     def end_half_angle(self) -> float:
-        """phi where the branch reaches P_END_KPA."""
+        """phi where the branch reaches P_END_KPA (past Gent's lock, where the energy is
+        infinite and the state undefined, the latex counts as rigid: above it)."""
+
+        def excess_kpa(phi):
+            p = float(self.state_along(phi)[1][0])
+            return p - P_END_KPA if np.isfinite(p) else P_END_KPA
+
         return brentq(
-            lambda phi: float(self.state_along(phi)[1][0]) - P_END_KPA,
+            excess_kpa,
             self.start_half_angle,
             HALF_ANGLE_HIGH,
             xtol=1e-13,

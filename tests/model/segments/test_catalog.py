@@ -116,5 +116,6 @@ def test_library_prefixes_and_the_legacy_si_names_parse():
     assert parse_library_name("paper:B47-T20") is None
     assert parse_library_name("Paper-R:b46-t20") == ("paper-r", 46, 20)
     assert parse_library_name("paper-x:B46-T20") is None
-    assert set(LIBRARIES) == {"paper", "paper-r", "calibrated", "si"}
+    assert set(LIBRARIES) == {"paper", "paper-r", "paper-gent", "calibrated", "si"}
+    assert parse_library_name("Paper-Gent:b46-t20") == ("paper-gent", 46, 20)
     assert library_names("si")[0] == "si:B40-T20" and library_names() == LIBRARY_NAMES
