@@ -90,6 +90,12 @@ class ScalarCurve:
         return (3 * a * h + 2 * b) * h + c
 
 
+def _growth_rate(evaluated: tuple[float, float], conductance: float) -> float:
+    """How fast a segment at (p, dp/dv) ``evaluated`` runs away on its own (1/s): c (-k)
+    on a softening branch (k < 0), zero on a stiffening one."""
+    return max(0.0, -evaluated[1]) * conductance
+
+
 class Plant:
     """The specimen's state as a function of the pump's volume history."""
 
@@ -199,6 +205,13 @@ class Plant:
         # length, and at a steady pump rate that would be every other solve
         if self._fastest_ml_s > 0:
             dt = min(dt, max(0.9 * self.max_step_volume_ml / self._fastest_ml_s, 1e-4))
+        # an unstable (softening) mode grows at rate ~ -c k; a backward Euler step longer
+        # than ~1/rate would damp it into a false equilibrium. The rate is the last
+        # step's, so the step is halved to it here, before any solve (on a softening
+        # branch that is several halvings a step)
+        unstable_rate = max(map(_growth_rate, self._evaluated, self._conductances))
+        while dt * unstable_rate > 0.5:
+            dt /= 2
         while True:
             supplied_next = float(self.volume_ml_at(self._t + dt))
             d_supplied = supplied_next - self._supplied_ml
@@ -230,11 +243,6 @@ class Plant:
         c, old = self._conductances, self._w
         total_c = self._total_conductance
         flow = d_supplied / dt
-        slopes_old = [k for _, k in self._evaluated]
-        # an unstable (softening) mode grows at rate ~ -c k; a backward Euler step longer
-        # than ~1/rate would damp it into a false equilibrium
-        if dt * max(max(0.0, -k) * ci for k, ci in zip(slopes_old, c, strict=True)) > 0.5:
-            return None
         # Newton starts from the last step's flows carried on (a smooth flow changes
         # little from one step to the next), their total made the pump's: fewer
         # evaluations a step than starting from the pump's volume split by conductance
