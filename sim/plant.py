@@ -52,7 +52,9 @@ class ScalarCurve:
         pressure = PchipInterpolator(curve.v_ml, curve.p_kpa)
         length = PchipInterpolator(curve.v_ml, curve.l_mm)
         self.x = curve.v_ml.tolist()
-        self._last_interval = len(self.x) - 2
+        # the knots between the intervals: bisecting them gives a volume's interval,
+        # the first one below the table and the last one above it
+        self._inner_knots = self.x[1:-1]
         self.p_coef = pressure.c.T.tolist()
         self.l_coef = length.c.T.tolist()
         self.v_end = self.x[-1]
@@ -60,14 +62,10 @@ class ScalarCurve:
         self.slope_end = float(pressure.derivative()(self.v_end))
         self.l_end = float(curve.l_mm[-1])
 
-    def _interval(self, v: float) -> int:
-        i = bisect.bisect_right(self.x, v) - 1
-        return 0 if i < 0 else min(i, self._last_interval)
-
     def pressure_and_slope(self, v: float) -> tuple[float, float]:
         if v > self.v_end:
             return self.p_end + self.slope_end * (v - self.v_end), self.slope_end
-        i = self._interval(v)
+        i = bisect.bisect_right(self._inner_knots, v)
         a, b, c, d = self.p_coef[i]
         h = v - self.x[i]
         return ((a * h + b) * h + c) * h + d, (3 * a * h + 2 * b) * h + c
@@ -75,7 +73,7 @@ class ScalarCurve:
     def length(self, v: float) -> float:
         if v > self.v_end:
             return self.l_end
-        i = self._interval(v)
+        i = bisect.bisect_right(self._inner_knots, v)
         a, b, c, d = self.l_coef[i]
         h = v - self.x[i]
         return ((a * h + b) * h + c) * h + d
@@ -84,7 +82,7 @@ class ScalarCurve:
         """dl/dv (mm/mL): zero past the table's end, where the length is held."""
         if v > self.v_end:
             return 0.0
-        i = self._interval(v)
+        i = bisect.bisect_right(self._inner_knots, v)
         a, b, c, _ = self.l_coef[i]
         h = v - self.x[i]
         return (3 * a * h + 2 * b) * h + c
