@@ -341,7 +341,7 @@ def profile_demo(checkout: Path, out: Path) -> dict:
 def profile_table(profiles: dict, checkouts: list[Path], names: dict) -> str:
     """Median CPU seconds per part over the runs of each checkout."""
     after = profiles[ROOT]
-    names = sorted(
+    parts = sorted(
         {name for run in after for name in run["parts"]},
         key=lambda name: -np.median([run["parts"].get(name, 0.0) for run in after]),
     )
@@ -351,7 +351,7 @@ def profile_table(profiles: dict, checkouts: list[Path], names: dict) -> str:
 
     rows = []
     total_after = float(np.median([run["cpu_s"] for run in after]))
-    for name in names:
+    for name in parts:
         cpu_s = median(after, name)
         if cpu_s < 0.005 and all(median(profiles[c], name) < 0.005 for c in checkouts):
             continue  # a thread that only waits
