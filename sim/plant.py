@@ -52,7 +52,9 @@ class ScalarCurve:
         pressure = PchipInterpolator(curve.v_ml, curve.p_kpa)
         length = PchipInterpolator(curve.v_ml, curve.l_mm)
         self.x = curve.v_ml.tolist()
-        self._last_interval = len(self.x) - 2
+        # the knots between the intervals: bisecting them gives a volume's interval,
+        # the first one below the table and the last one above it
+        self._inner_knots = self.x[1:-1]
         self.p_coef = pressure.c.T.tolist()
         self.l_coef = length.c.T.tolist()
         self.v_end = self.x[-1]
@@ -60,14 +62,10 @@ class ScalarCurve:
         self.slope_end = float(pressure.derivative()(self.v_end))
         self.l_end = float(curve.l_mm[-1])
 
-    def _interval(self, v: float) -> int:
-        i = bisect.bisect_right(self.x, v) - 1
-        return 0 if i < 0 else min(i, self._last_interval)
-
     def pressure_and_slope(self, v: float) -> tuple[float, float]:
         if v > self.v_end:
             return self.p_end + self.slope_end * (v - self.v_end), self.slope_end
-        i = self._interval(v)
+        i = bisect.bisect_right(self._inner_knots, v)
         a, b, c, d = self.p_coef[i]
         h = v - self.x[i]
         return ((a * h + b) * h + c) * h + d, (3 * a * h + 2 * b) * h + c
@@ -75,7 +73,7 @@ class ScalarCurve:
     def length(self, v: float) -> float:
         if v > self.v_end:
             return self.l_end
-        i = self._interval(v)
+        i = bisect.bisect_right(self._inner_knots, v)
         a, b, c, d = self.l_coef[i]
         h = v - self.x[i]
         return ((a * h + b) * h + c) * h + d
@@ -84,10 +82,16 @@ class ScalarCurve:
         """dl/dv (mm/mL): zero past the table's end, where the length is held."""
         if v > self.v_end:
             return 0.0
-        i = self._interval(v)
+        i = bisect.bisect_right(self._inner_knots, v)
         a, b, c, _ = self.l_coef[i]
         h = v - self.x[i]
         return (3 * a * h + 2 * b) * h + c
+
+
+def _growth_rate(evaluated: tuple[float, float], conductance: float) -> float:
+    """How fast a segment at (p, dp/dv) ``evaluated`` runs away on its own (1/s): c (-k)
+    on a softening branch (k < 0), zero on a stiffening one."""
+    return max(0.0, -evaluated[1]) * conductance
 
 
 class Plant:
@@ -199,6 +203,13 @@ class Plant:
         # length, and at a steady pump rate that would be every other solve
         if self._fastest_ml_s > 0:
             dt = min(dt, max(0.9 * self.max_step_volume_ml / self._fastest_ml_s, 1e-4))
+        # an unstable (softening) mode grows at rate ~ -c k; a backward Euler step longer
+        # than ~1/rate would damp it into a false equilibrium. The rate is the last
+        # step's, so the step is halved to it here, before any solve (on a softening
+        # branch that is several halvings a step)
+        unstable_rate = max(map(_growth_rate, self._evaluated, self._conductances))
+        while dt * unstable_rate > 0.5:
+            dt /= 2
         while True:
             supplied_next = float(self.volume_ml_at(self._t + dt))
             d_supplied = supplied_next - self._supplied_ml
@@ -230,11 +241,6 @@ class Plant:
         c, old = self._conductances, self._w
         total_c = self._total_conductance
         flow = d_supplied / dt
-        slopes_old = [k for _, k in self._evaluated]
-        # an unstable (softening) mode grows at rate ~ -c k; a backward Euler step longer
-        # than ~1/rate would damp it into a false equilibrium
-        if dt * max(max(0.0, -k) * ci for k, ci in zip(slopes_old, c, strict=True)) > 0.5:
-            return None
         # Newton starts from the last step's flows carried on (a smooth flow changes
         # little from one step to the next), their total made the pump's: fewer
         # evaluations a step than starting from the pump's volume split by conductance

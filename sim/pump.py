@@ -411,7 +411,8 @@ class PumpEmulator:
         """Execute one line, whatever it holds: nothing a client sends may end the
         serving thread (the port would be gone while the process serves on)."""
         text = line.decode("ascii", errors="replace")
-        text = "".join(c if c.isprintable() and c.isascii() else "?" for c in text)
+        if not (text.isascii() and text.isprintable()):  # a client's command seldom
+            text = "".join(c if c.isprintable() and c.isascii() else "?" for c in text)
         try:
             self._execute(text)
         except Exception:  # a bug answering one line: logged (boundedly), the port lives

@@ -298,20 +298,17 @@ class VirtualClock:
         """The next thing due (under the lock): a waiter whose condition holds now, or
         else the earliest of timers and wake-ups (timers first at equal times). With
         nobody waiting nothing is due: timers alone never move time."""
-        # one pass (every dispatch makes it): the earliest-queued waiter whose condition
-        # holds, and the earliest wake-up (every condition evaluated, as each may be
-        # what a waiter is waiting for)
-        ready = member = None
+        # one pass (every dispatch makes it): the waiters are queued in the order they
+        # went to sleep (``seq``), so the first whose condition holds is the
+        # earliest-queued one, and the first of the earliest wake-ups wins a tie
+        member = None
         for m in self._waiting:
             if m.predicate is not None and _holds(m.predicate):
-                if ready is None or m.seq < ready.seq:
-                    ready = m
-            elif member is None or (m.wake_ns, m.seq) < (member.wake_ns, member.seq):
+                self._waiting.remove(m)
+                m.result = True
+                return m, None, self._now_ns
+            if member is None or m.wake_ns < member.wake_ns:
                 member = m
-        if ready is not None:
-            self._waiting.remove(ready)
-            ready.result = True
-            return ready, None, self._now_ns
         while self._timers and self._timers[0][2].cancelled:
             heapq.heappop(self._timers)
         if member is None:

@@ -21,7 +21,8 @@ writer thread, the virtual clock's hand-overs, the analysis, the interpreter's e
 are timed on their threads' CPU clocks (``sim_rig_profile.py``), beside the marker
 tracker's process. With ``--before CHECKOUT`` (a checkout of an earlier commit with its
 own ``.venv``) the same is measured there, in interleaved pairs, and the whole process's
-speed-up before and after.
+speed-up before and after. Beside it, what one hand-over of the virtual clock costs,
+back to the same thread and between threads.
 
 Run: python tests/benchmarks/bench_sim_rig.py [--burners N] [--camera-only] [--pairs N]
      [--profile [--before CHECKOUT]] [--write-docs]
@@ -274,7 +275,8 @@ def protocols(tmp: Path) -> str:
 
 
 def profile_main(args) -> None:
-    sections = ["sim-rig-profile"] + (["sim-rig-before-after"] if args.before else [])
+    sections = ["sim-rig-profile", "sim-rig-handovers"]
+    sections += ["sim-rig-before-after"] if args.before else []
     doc = script_doc(sections, args.write_docs)
     checkouts = ([args.before] if args.before else []) + [ROOT]
     names = {checkout: commit_of(checkout) for checkout in checkouts}  # before any write
@@ -291,8 +293,45 @@ def profile_main(args) -> None:
                     out = Path(tmp) / f"s{k}_{len(speeds[checkout])}.h5"
                     speeds[checkout].append(demo_speed(checkout, out))
         doc.publish("sim-rig-profile", profile_table(profiles, checkouts, names))
+        doc.publish("sim-rig-handovers", handover_table())
         if args.before:
             doc.publish("sim-rig-before-after", before_after_table(speeds, checkouts, names))
+
+
+def handover_cost(n_threads: int, turns: int = 3000) -> float:
+    """CPU microseconds per hand-over of a ``VirtualClock`` whose ``n_threads`` threads
+    each sleep 10 ms of clock time ``turns`` times, their wake-ups staggered so that
+    they take turns (one thread: every hand-over is back to itself)."""
+    from labrig.time.virtual import VirtualClock
+
+    clock = VirtualClock()
+
+    def sleeper(offset_s: float):
+        def run() -> None:
+            clock.sleep(offset_s)
+            for _ in range(turns):
+                clock.sleep(0.01)
+
+        return run
+
+    cpu0 = time.process_time()
+    with clock.participate():
+        threads = [
+            clock.start_thread(sleeper(0.01 * k / n_threads), f"sleeper {k}")
+            for k in range(n_threads)
+        ]
+        clock.wait_for(lambda: all(t.done for t in threads), 1e9)
+    return 1e6 * (time.process_time() - cpu0) / (n_threads * turns)
+
+
+def handover_table() -> str:
+    """What one hand-over of the virtual clock costs, to itself and between threads
+    (median of three)."""
+    rows = []
+    for n_threads, what in ((1, "back to the same thread"), (2, "2 threads"), (8, "8 threads")):
+        cost_us = float(np.median([handover_cost(n_threads) for _ in range(3)]))
+        rows.append((what, f"{cost_us:.1f}"))
+    return markdown_table(("hand-overs", "CPU per hand-over (us)"), rows, right={1})
 
 
 def commit_of(checkout: Path) -> str:
@@ -341,7 +380,7 @@ def profile_demo(checkout: Path, out: Path) -> dict:
 def profile_table(profiles: dict, checkouts: list[Path], names: dict) -> str:
     """Median CPU seconds per part over the runs of each checkout."""
     after = profiles[ROOT]
-    names = sorted(
+    parts = sorted(
         {name for run in after for name in run["parts"]},
         key=lambda name: -np.median([run["parts"].get(name, 0.0) for run in after]),
     )
@@ -351,7 +390,7 @@ def profile_table(profiles: dict, checkouts: list[Path], names: dict) -> str:
 
     rows = []
     total_after = float(np.median([run["cpu_s"] for run in after]))
-    for name in names:
+    for name in parts:
         cpu_s = median(after, name)
         if cpu_s < 0.005 and all(median(profiles[c], name) < 0.005 for c in checkouts):
             continue  # a thread that only waits

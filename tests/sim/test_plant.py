@@ -6,6 +6,9 @@ import threading
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from scipy.interpolate import PchipInterpolator
 from scipy.optimize import brentq
 
 from labrig.model.segments.curve import SegmentCurve
@@ -144,3 +147,42 @@ def test_length_is_the_sum_of_segments_plus_fittings():
     w = plant.volumes_ml
     expected = float(a.length_mm(w[0]) + b.length_mm(w[1])) + 12.0
     assert float(plant.length_mm_at(20.0)) == pytest.approx(expected, abs=1e-9)
+
+
+KNOTS_ML = np.array([0.0, 0.5, 1.25, 2.0, 4.0, 7.5, 9.0])
+TABLE = SegmentCurve(
+    "table",
+    KNOTS_ML,
+    3 * KNOTS_ML - 0.4 * KNOTS_ML**2 + 0.03 * KNOTS_ML**3,
+    20 + KNOTS_ML,
+    V0_ml=0.0,
+)
+
+
+@given(
+    st.one_of(
+        st.floats(-2.0, 12.0, allow_nan=False),
+        st.sampled_from(KNOTS_ML.tolist()),  # on a knot: the interval to its right
+    )
+)
+def test_the_plants_scalar_curve_is_the_pchip_of_its_table(v_ml):
+    """ScalarCurve's own interval search and Horner evaluation against scipy's
+    interpolant of the same table: below the table the first interval's polynomial,
+    past its end a straight continuation (pressure) or the held end (length)."""
+    from labrig.sim.plant import ScalarCurve
+
+    curve = ScalarCurve(TABLE)
+    pressure = PchipInterpolator(TABLE.v_ml, TABLE.p_kpa)
+    length = PchipInterpolator(TABLE.v_ml, TABLE.l_mm)
+    v_end = float(KNOTS_ML[-1])
+    p_kpa, slope = curve.pressure_and_slope(v_ml)
+    if v_ml > v_end:
+        slope_end = float(pressure.derivative()(v_end))
+        expected = (float(pressure(v_end)) + slope_end * (v_ml - v_end), slope_end, TABLE.l_mm[-1])
+        expected_dl = 0.0
+    else:
+        expected = (float(pressure(v_ml)), float(pressure.derivative()(v_ml)), float(length(v_ml)))
+        expected_dl = float(length.derivative()(v_ml))
+    got = (p_kpa, slope, curve.length(v_ml))
+    assert got == pytest.approx(expected, rel=1e-12, abs=1e-12)
+    assert curve.length_slope(v_ml) == pytest.approx(expected_dl, rel=1e-12, abs=1e-12)

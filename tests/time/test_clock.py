@@ -101,6 +101,38 @@ def test_wait_for_wakes_when_the_condition_holds_and_times_out_otherwise():
         assert clock.now() == 5.75
 
 
+@pytest.mark.parametrize("order", [["c", "a", "b"], ["b", "c", "a"]])
+def test_conditions_that_hold_together_wake_in_the_order_of_going_to_sleep(order):
+    """Waiters whose conditions come true at one instant run in the order they began
+    to wait (whatever order their threads were started in), before the time moves on
+    to a sleeper's wake-up."""
+    clock = VirtualClock()
+    state = {"go": False}
+    log = []
+
+    def waiter(name, delay_s):
+        def run():
+            clock.sleep(delay_s)  # they begin to wait one after another
+            clock.wait_for(lambda: state["go"], timeout_s=100.0)
+            log.append((clock.now(), name))
+
+        return run
+
+    def sleeper():
+        clock.sleep(3.0)
+        log.append((clock.now(), "sleeper"))
+
+    with clock.participate():
+        threads = [clock.start_thread(sleeper, "sleeper")]
+        threads += [  # started a, b, c; waiting in ``order``
+            clock.start_thread(waiter(name, 0.1 * order.index(name)), name) for name in "abc"
+        ]
+        clock.sleep(2.0)
+        state["go"] = True
+        clock.wait_for(lambda: all(t.done for t in threads), 100.0)
+    assert log == [(2.0, name) for name in order] + [(3.0, "sleeper")]
+
+
 def test_timers_run_at_their_time_in_order_with_sleepers():
     clock = VirtualClock()
     log = []
