@@ -14,6 +14,11 @@ from labrig.model.scan import background_compile, plan
 from labrig.model.scan.plan import SolverPlan
 
 
+class _Finished:
+    def wait(self) -> int:
+        return 0
+
+
 class _Spawned:
     def __init__(self) -> None:
         self.calls = []
@@ -79,8 +84,11 @@ def test_the_scan_command_says_what_it_compiles(
 ):
     chosen = SolverPlan(compiled, cached, python_s=1.0, compiled_s=1.0)
     monkeypatch.setattr(plan, "choose_solver_mode", lambda *args: chosen)
-    started = []
+    started, beside = [], []
     monkeypatch.setattr(background_compile, "start", lambda: started.append(1) or True)
+    monkeypatch.setattr(
+        background_compile, "compile_beside", lambda: beside.append(1) or _Finished()
+    )
     out = tmp_path / "gent.h5"
     with pytest.raises(SystemExit) as exited:
         main(["model", "scan", "--n", "2", "--library", "gent", "--out", str(out)])
@@ -89,6 +97,7 @@ def test_the_scan_command_says_what_it_compiles(
     assert ("compiling the solver once" in err) is before
     assert ("compiling the solver in the background" in err) is after
     assert started == ([1] if after else [])
+    assert beside == ([1] if before else [])  # beside the library's tables
 
 
 def test_no_compile_is_announced_for_a_scan_refused(tmp_path, capsys, monkeypatch):
