@@ -104,7 +104,7 @@ def choose(*args):
                     return wait(*args)
                 finally:  # its whole compile, and what the scan waited for past the library
                     spans["compile"] = time.perf_counter() - started
-                    spans["solver"] = spans.get("solver", 0.0) + time.perf_counter() - waiting
+                    spans["waited"] = time.perf_counter() - waiting
 
             process.wait = timed_wait
             return process
@@ -149,6 +149,7 @@ def scan_once(option: str, n: int, out: Path, env: dict, base: Path | None) -> d
     spans = json.loads(done.stdout.strip().splitlines()[-1])
     spans["start-up"] += spans.pop("entered") - started_epoch
     spans["compute"] = spans.pop("chunks") - spans.get("solver", 0.0)
+    spans["solver"] = spans.get("solver", 0.0) + spans.pop("waited", 0.0)
     spans["wall"] = wall
     spans["cpu"] = after.ru_utime + after.ru_stime - cpu.ru_utime - cpu.ru_stime
     spans["load"] = os.getloadavg()[0]
@@ -179,21 +180,26 @@ def checkout(commit: str, folder: Path) -> Path:
 
 
 def row(option: str, runs: list[dict]) -> tuple:
+    """The medians over ``runs``; rest and the ratio are each run's own, then their
+    median (a median of walls over a median of computes would mix two runs)."""
+    for spans in runs:
+        spans["rest"] = spans["wall"] - sum(spans.get(step, 0.0) for step in STEPS)
+        spans["ratio"] = spans["wall"] / spans["compute"] if spans["compute"] > 0 else 0.0
+
     def median(key: str) -> float:
         values = sorted(r.get(key, 0.0) for r in runs)
-        return values[len(values) // 2]
+        mid = len(values) // 2
+        return values[mid] if len(values) % 2 else (values[mid - 1] + values[mid]) / 2
 
-    wall, compute = median("wall"), median("compute")
-    rest = wall - sum(median(step) for step in STEPS)
     loads = [r["load"] for r in runs]
     return (
         option,
         *(f"{median(step):.2f}" for step in STEPS),
         f"{median('compile'):.2f}",
-        f"{rest:.2f}",
-        f"{wall:.2f}",
+        f"{median('rest'):.2f}",
+        f"{median('wall'):.2f}",
         f"{median('cpu'):.2f}",
-        f"{wall / compute:.2f}" if compute > 0 else "",
+        f"{median('ratio'):.2f}",
         f"{min(loads):.1f}-{max(loads):.1f}",
     )
 
@@ -270,10 +276,16 @@ def main() -> None:
         + f". Transitions of every option's file the same: {'yes' if identical else 'NO'}."
     )
     doc.publish("scan-wall", f"{said}\n\n{table}")
-    cold_rows = [row(f"{option}, cold", spans) for option, spans in colds.items() if spans]
+    cold_rows = [
+        row(f"{option}, cold, turn {i + 1}", [spans])
+        for i in range(args.cold_rounds)
+        for option, runs in colds.items()
+        if runs
+        for spans in runs[i : i + 1]
+    ]
     said = (
-        f"`labrig model scan --n {args.n}`, the first after install (empty caches), median "
-        f"of {args.cold_rounds}, in turns"
+        f"`labrig model scan --n {args.n}`, the first after install (empty caches of its "
+        f"own), {args.cold_rounds} turns"
         + (f"; before: the code of {args.before}" if args.before else "")
         + "."
     )
