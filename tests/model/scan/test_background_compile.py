@@ -40,6 +40,26 @@ def test_start_detaches_a_process_in_numbas_mode(monkeypatch):
     assert options["stdout"] == options["stderr"] == subprocess.DEVNULL
 
 
+def test_the_compile_beside_a_scan_is_its_child_at_its_priority(monkeypatch):
+    spawned = _Spawned()
+    monkeypatch.setattr(background_compile.subprocess, "Popen", spawned)
+    monkeypatch.setenv(background_compile.SWITCH_VARIABLE, "0")  # only the background's switch
+    monkeypatch.setenv(plan.MODE_VARIABLE, plan.PYTHON)
+    background_compile.compile_beside()
+    [(argv, options)] = spawned.calls
+    assert argv == [sys.executable, "-m", "labrig.model.scan.background_compile", "--now"]
+    assert plan.MODE_VARIABLE not in options["env"]
+    assert not options["start_new_session"]  # a Ctrl-C at the scan stops it too
+    niced = []
+    monkeypatch.setattr(background_compile.os, "nice", niced.append, raising=False)
+    monkeypatch.setattr(background_compile, "solver_cached", lambda: True)  # nothing to do
+    for args, lowest in (([], [19]), (["--now"], [])):
+        niced.clear()
+        monkeypatch.setattr(sys, "argv", ["background_compile", *args])
+        background_compile.main()
+        assert niced == lowest
+
+
 def test_start_is_switched_off(monkeypatch):
     spawned = _Spawned()
     monkeypatch.setattr(background_compile.subprocess, "Popen", spawned)
