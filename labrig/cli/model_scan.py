@@ -222,10 +222,11 @@ def scan(
     print_summary(read_scan(out), plot_png)
     if plan is not None and not plan.compiled and not plan.cached:
         _compile_for_the_next_scan()
-    # The scan is done and so, from the shell, is the process: its objects (numba's
-    # compiled solver, hundreds of thousands) need not be collected one by one as the
-    # interpreter exits, which took 0.3-2 s of a warm n = 3 scan's 4-9 s. Frozen, they
-    # are freed with the process; only garbage in cycles outlives a caller that goes on.
+    # The scan is done and so, from the shell, is the process: its objects (numba's,
+    # hundreds of thousands) need not be collected one by one as the interpreter exits,
+    # which took 0.4 s of a warm n = 3 scan and 1.3-1.5 s after a compile
+    # (tests/benchmarks/bench_scan_wall.py). Frozen, they are freed with the process;
+    # only garbage in cycles outlives it in a caller that goes on.
     gc.freeze()
 
 

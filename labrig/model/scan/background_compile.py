@@ -1,8 +1,8 @@
 """The solver compiled into numba's cache by a process of its own at the lowest priority,
 after a scan that ran as plain Python because compiling would not have paid for it
 (``labrig.model.scan.plan``): the next larger scan then loads the machine code instead of
-compiling it before it starts. And a scan that compiles first has the same process
-compile beside it (``compile_beside``), at its own priority, while it builds its library.
+compiling it before it starts. A scan that compiles first starts such a process at once,
+at its own priority (``compile_beside``), and builds its library meanwhile.
 
 At the lowest priority it takes only the cores nothing else wants; one runs at a time
 (a lock file in the temporary folder), and it stops at once where the cache holds the
