@@ -10,12 +10,22 @@ and the reference path, whose Python calls compiled kernels with its own argumen
 (more than one recompiles its whole call tree), its compile time with its callees'
 compiles (inclusive) and without (own), in wall seconds; and the process's CPU time.
 
+With ``--levels 1,2,3`` it measures instead LLVM's optimisation level (``NUMBA_OPT``) as a
+lever: per level, in a fresh process of its own with an empty cache, the compile of the
+scan's solver (wall and CPU) and then the CPU time of the first 2,000 triples of the
+analytical library by the compiled code, with the compile's share that is LLVM's
+(module passes and machine code) beside; levels in turns, ``--rounds`` times.
+
 Run: python tests/benchmarks/bench_compile.py [--no-reference] [--passes] [--write-docs]
+     python tests/benchmarks/bench_compile.py --levels 1,2,3 [--rounds 1] [--write-docs]
 """
 
 import argparse
+import hashlib
+import json
 import os
 import resource
+import subprocess
 import sys
 import tempfile
 import time
@@ -122,12 +132,118 @@ def _workloads(reference: bool) -> list[tuple[str, object]]:
     return work
 
 
+# the triples --levels solves with the compiled code, after the compile
+LEVEL_TRIPLES = 2000
+
+
+def _one_level() -> None:
+    """In a process of its own (``NUMBA_OPT`` and an empty ``NUMBA_CACHE_DIR`` set by
+    ``_levels``): compile, then solve; one line of JSON."""
+    from numba.core import codegen
+
+    llvm = [0.0]
+
+    def counted(cls, name):
+        real = getattr(cls, name)
+
+        def wrapper(self, *args, **kwargs):
+            started = time.thread_time()
+            try:
+                return real(self, *args, **kwargs)
+            finally:
+                llvm[0] += time.thread_time() - started
+
+        setattr(cls, name, wrapper)
+
+    counted(codegen.CPUCodeLibrary, "_optimize_final_module")
+    counted(codegen.CPUCodeLibrary, "_optimize_functions")
+    counted(codegen.JITCodeLibrary, "_finalize_specific")
+    from labrig.model.scan.scan import Chunk, load_library, run_chunk, solve_actuator
+
+    library = load_library(None)
+    cpu, wall = _cpu_s(), time.perf_counter()
+    solve_actuator(library, (0, 1))
+    compiled = {"compile_wall": time.perf_counter() - wall, "compile_cpu": _cpu_s() - cpu}
+    cpu = _cpu_s()
+    result = run_chunk(library, Chunk(0, 0, LEVEL_TRIPLES, 3))
+    compiled |= {"run_cpu": _cpu_s() - cpu, "llvm_cpu": llvm[0], "rows": len(result.actuator)}
+    digest = hashlib.sha256(result.actuator.tobytes())
+    for column in result.columns.values():
+        digest.update(column.tobytes())
+    compiled["digest"] = digest.hexdigest()  # the same bits at every level
+    print(json.dumps(compiled))
+
+
+def _span(loads: list[float]) -> str:
+    return f"{min(loads):.1f}-{max(loads):.1f}"
+
+
+def _levels(levels: list[str], rounds: int, doc) -> None:
+    found: dict[str, list[dict]] = {level: [] for level in levels}
+    for _ in range(rounds):
+        for level in levels:
+            env = dict(os.environ, NUMBA_OPT=level, LABRIG_LEVEL_CHILD="1")
+            env["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(prefix="labrig-numba-cache-")
+            env.pop("LABRIG_JIT", None)
+            done = subprocess.run(
+                [sys.executable, __file__], env=env, capture_output=True, text=True, check=True
+            )
+            one = json.loads(done.stdout.strip().splitlines()[-1]) | {"load": os.getloadavg()[0]}
+            found[level].append(one)
+            print(f"NUMBA_OPT={level}: {one}", file=sys.stderr)
+
+    def median(level: str, key: str) -> float:
+        values = sorted(r[key] for r in found[level])
+        return values[len(values) // 2]
+
+    base = levels[-1]
+    same = len({r["digest"] for runs in found.values() for r in runs}) == 1
+    rows = [
+        (
+            level,
+            f"{median(level, 'compile_wall'):.1f}",
+            f"{median(level, 'compile_cpu'):.1f}",
+            f"{median(level, 'llvm_cpu'):.1f}",
+            f"{median(level, 'compile_cpu') / median(base, 'compile_cpu'):.2f}",
+            f"{median(level, 'run_cpu'):.2f}",
+            f"{median(level, 'run_cpu') / median(base, 'run_cpu'):.2f}",
+            _span([r["load"] for r in found[level]]),
+        )
+        for level in levels
+    ]
+    header = (
+        "NUMBA_OPT",
+        "compile wall (s)",
+        "compile CPU (s)",
+        "of which LLVM (s)",
+        f"compile / level {base}",
+        f"{LEVEL_TRIPLES:,} triples, CPU (s)",
+        f"run / level {base}",
+        "load",
+    )
+    said = (
+        f"Median of {rounds}, levels in turns; the transitions of every level the same: "
+        f"{'yes' if same else 'NO'}."
+    )
+    doc.publish("compile-levels", f"{said}\n\n{markdown_table(header, rows, right=range(1, 8))}")
+
+
 def main() -> None:
+    if os.environ.get("LABRIG_LEVEL_CHILD"):
+        _one_level()
+        return
     parser = argparse.ArgumentParser()
     parser.add_argument("--no-reference", action="store_true")
     parser.add_argument("--passes", action="store_true", help="also seconds per compiler pass")
+    parser.add_argument("--levels", default=None, help="NUMBA_OPT levels to compare: 1,2,3")
+    parser.add_argument("--rounds", type=int, default=1, help="with --levels: turns")
     add_write_docs_argument(parser)
     args = parser.parse_args()
+    if args.levels:
+        _levels(
+            args.levels.split(","), args.rounds, script_doc(["compile-levels"], args.write_docs)
+        )
+        return
     doc = script_doc(["compile"], args.write_docs)
     os.environ["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(prefix="labrig-numba-cache-")
     os.environ.pop("LABRIG_JIT", None)

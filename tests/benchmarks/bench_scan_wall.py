@@ -9,7 +9,9 @@ plan), the plan (which reads numba's cache index), the library (its segments' ta
 the solver (numba's import and its machine code loaded, or compiled), compute (the
 chunks on the workers, the parent writing each result as it comes) and the summary;
 "rest" is what the steps leave of the whole process's wall time, measured from outside.
-The ratio is the whole process's wall time over compute's.
+The ratio is the whole process's wall time over compute's. "compile beside" is numba's
+cold compile in the process the scan starts for it beside the library's tabulation
+(within "library" and "solver", not added to them); 0 where the solver was cached.
 
 The options, each measured in the same session, in rounds (A, B, C, ... then again), so
 that load from other work falls on all of them: ``before`` (the code of ``--before``, a
@@ -20,8 +22,8 @@ place of the worker processes: the solver's compiled functions hold the GIL, so 
 is what threads give without nogil kernels). The scan files of all must hold the same
 transitions (checked here, value for value).
 
-Run: python tests/benchmarks/bench_scan_wall.py [--n 3] [--rounds 3] [--before COMMIT]
-[--write-docs]
+Run: python tests/benchmarks/bench_scan_wall.py [--n 3] [--rounds 3] [--cold-rounds 1]
+[--before COMMIT] [--write-docs]
 """
 
 import argparse
@@ -87,6 +89,27 @@ def choose(*args):
         run.run_chunks = with_threads
     timed(scan, "load_library", "library")
     timed(scan._CompiledRows, "warm", "solver")
+    import labrig.model.scan.background_compile as compiling
+    if hasattr(compiling, "compile_beside"):  # not in the code of every --before
+        beside = compiling.compile_beside
+
+        def compile_beside():
+            started = time.perf_counter()
+            process = beside()
+            wait = process.wait
+
+            def timed_wait(*args):
+                waiting = time.perf_counter()
+                try:
+                    return wait(*args)
+                finally:  # its whole compile, and what the scan waited for past the library
+                    spans["compile"] = time.perf_counter() - started
+                    spans["waited"] = time.perf_counter() - waiting
+
+            process.wait = timed_wait
+            return process
+
+        compiling.compile_beside = compile_beside
     timed(run, "run_chunks", "chunks")
     timed(command, "print_summary", "summary")
     return chosen
@@ -126,6 +149,7 @@ def scan_once(option: str, n: int, out: Path, env: dict, base: Path | None) -> d
     spans = json.loads(done.stdout.strip().splitlines()[-1])
     spans["start-up"] += spans.pop("entered") - started_epoch
     spans["compute"] = spans.pop("chunks") - spans.get("solver", 0.0)
+    spans["solver"] = spans.get("solver", 0.0) + spans.pop("waited", 0.0)
     spans["wall"] = wall
     spans["cpu"] = after.ru_utime + after.ru_stime - cpu.ru_utime - cpu.ru_stime
     spans["load"] = os.getloadavg()[0]
@@ -156,20 +180,26 @@ def checkout(commit: str, folder: Path) -> Path:
 
 
 def row(option: str, runs: list[dict]) -> tuple:
+    """The medians over ``runs``; rest and the ratio are each run's own, then their
+    median (a median of walls over a median of computes would mix two runs)."""
+    for spans in runs:
+        spans["rest"] = spans["wall"] - sum(spans.get(step, 0.0) for step in STEPS)
+        spans["ratio"] = spans["wall"] / spans["compute"] if spans["compute"] > 0 else 0.0
+
     def median(key: str) -> float:
         values = sorted(r.get(key, 0.0) for r in runs)
-        return values[len(values) // 2]
+        mid = len(values) // 2
+        return values[mid] if len(values) % 2 else (values[mid - 1] + values[mid]) / 2
 
-    wall, compute = median("wall"), median("compute")
-    rest = wall - sum(median(step) for step in STEPS)
     loads = [r["load"] for r in runs]
     return (
         option,
         *(f"{median(step):.2f}" for step in STEPS),
-        f"{rest:.2f}",
-        f"{wall:.2f}",
+        f"{median('compile'):.2f}",
+        f"{median('rest'):.2f}",
+        f"{median('wall'):.2f}",
         f"{median('cpu'):.2f}",
-        f"{wall / compute:.2f}" if compute > 0 else "",
+        f"{median('ratio'):.2f}",
         f"{min(loads):.1f}-{max(loads):.1f}",
     )
 
@@ -177,6 +207,7 @@ def row(option: str, runs: list[dict]) -> tuple:
 HEADER = (
     "option",
     *(f"{step} (s)" for step in STEPS),
+    "compile beside (s)",
     "rest (s)",
     "whole process (s)",
     "CPU (s)",
@@ -190,6 +221,9 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=3)
     parser.add_argument("--rounds", type=int, default=3, help="scans per option (median)")
     parser.add_argument("--before", default=None, help="a commit to measure beside (git)")
+    parser.add_argument(
+        "--cold-rounds", type=int, default=1, help="first scans per code, on empty caches"
+    )
     add_write_docs_argument(parser)
     args = parser.parse_args()
     doc = script_doc(["scan-cold", "scan-wall"], args.write_docs)
@@ -201,24 +235,37 @@ def main() -> None:
             (folder / "before").mkdir()
             base = checkout(args.before, folder / "before")
         env = {k: v for k, v in os.environ.items() if k != "LABRIG_JIT"}
-        env |= {"NUMBA_CACHE_DIR": str(folder / "numba"), "LABRIG_CACHE_DIR": str(folder / "lib")}
         env["LABRIG_BACKGROUND_COMPILE"] = "0"
+        envs: dict[str, dict] = {}
         runs: dict[str, list[dict]] = {option: [] for option in options}
-        # the first scans fill the caches; numba's entries are per source file, so the
-        # code before compiles its own
-        colds = {"processes": scan_once("processes", args.n, folder / "cold.h5", env, None)}
-        if base is not None:
-            colds["before"] = scan_once("before", args.n, folder / "cold-before.h5", env, base)
+        colds: dict[str, list[dict]] = {"processes": [], "before": []}
+        # the first scans, on empty caches of their own (numba's and the library's), in
+        # turns: the code before and after each compile and tabulate as on a fresh install;
+        # the last round's caches are then the warm scans'
+        for i in range(args.cold_rounds):
+            for option in colds if base is not None else ["processes"]:
+                caches = {
+                    "NUMBA_CACHE_DIR": str(folder / f"numba-{option}-{i}"),
+                    "LABRIG_CACHE_DIR": str(folder / f"library-{option}-{i}"),
+                }
+                code = base if option == "before" else None
+                out = folder / f"cold-{option}-{i}.h5"
+                colds[option].append(scan_once(option, args.n, out, env | caches, code))
+                print(f"{option}, cold: {colds[option][-1]}", file=sys.stderr)
+                envs[option] = env | caches
+        envs |= {o: envs["processes"] for o in ("one process", "threads")}
         files = {}
         for i in range(args.rounds):
             for option in options:
                 out = folder / f"{option.replace(' ', '-')}-{i}.h5"
                 runs[option].append(
-                    scan_once(option, args.n, out, env, base if option == "before" else None)
+                    scan_once(
+                        option, args.n, out, envs[option], base if option == "before" else None
+                    )
                 )
                 files.setdefault(option, out)
                 print(f"{option}: {runs[option][-1]}", file=sys.stderr)
-        scanned = [*files.values(), *(folder / f"{name}.h5" for name in ("cold", "cold-before"))]
+        scanned = [*files.values(), *folder.glob("cold-*.h5")]
         identical = all(same(scanned[0], f) for f in scanned if f.exists())
     table = markdown_table(
         HEADER, [row(o, r) for o, r in runs.items()], right=tuple(range(1, len(HEADER)))
@@ -229,8 +276,19 @@ def main() -> None:
         + f". Transitions of every option's file the same: {'yes' if identical else 'NO'}."
     )
     doc.publish("scan-wall", f"{said}\n\n{table}")
-    cold_rows = [row(f"{option}, cold", [spans]) for option, spans in colds.items()]
-    said = f"`labrig model scan --n {args.n}`, the first after install: one each."
+    cold_rows = [
+        row(f"{option}, cold, turn {i + 1}", [spans])
+        for i in range(args.cold_rounds)
+        for option, runs in colds.items()
+        if runs
+        for spans in runs[i : i + 1]
+    ]
+    said = (
+        f"`labrig model scan --n {args.n}`, the first after install (empty caches of its "
+        f"own), {args.cold_rounds} turns"
+        + (f"; before: the code of {args.before}" if args.before else "")
+        + "."
+    )
     cold_table = markdown_table(HEADER, cold_rows, right=tuple(range(1, len(HEADER))))
     doc.publish("scan-cold", f"{said}\n\n{cold_table}")
 

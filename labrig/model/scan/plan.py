@@ -9,8 +9,10 @@ Compiling pays for scans, not for every scan. Compiled, an actuator takes ~0.3 m
 plain Python ~6 ms for a pair and 10 ms to seconds for more segments. Compiling on a
 fresh install costs ~40 s of one core, once: numba keeps the machine code in its cache.
 So a small scan on an empty cache (``labrig model scan --n 2``: 630 actuators, ~4 s of
-Python on one core) runs as Python, and a large one (n = 3 and up) compiles first; a
-scan whose compiled code is already cached loads it (~0.5 s). The figures of
+Python on one core) runs as Python, and a large one (n = 3 and up) compiles first (in a
+process of its own while the scan builds its library's tables,
+``labrig.model.scan.background_compile.compile_beside``); a scan whose compiled code is
+already cached loads it (~0.5 s). The figures of
 ``SolverCosts`` were measured on a 2-core machine (``tests/benchmarks/bench_scan_mode.py``
 prints them beside the code's); the choice only needs them right within a factor of
 about two.
@@ -62,7 +64,7 @@ def default_workers() -> int:
 class SolverCosts:
     """What a scan's solver costs, in seconds of one core (see the module docstring)."""
 
-    compile_s: float = 40.0  # a cold compile, in the scan's process before the workers fork
+    compile_s: float = 40.0  # a cold compile, beside the library's tables, before the workers
     load_s: float = 0.5  # importing numba and loading the cached machine code
     compiled_ms_per_actuator: float = 0.3
     # plain Python, by segments per actuator, the last for more. A pair settles by an

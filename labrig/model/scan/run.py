@@ -69,15 +69,7 @@ def run_scan(
     workers = default_workers() if workers is None else workers
     if workers < 1:
         raise InputError(f"--workers {workers}: must be at least 1")
-    if resume and not out.is_file():
-        raise InputError(f"--resume: {out} does not exist; start the scan without --resume")
-    if not resume:
-        if out.exists():
-            raise InputError(
-                f"--out {out}: the file exists; --resume continues it, or remove it first"
-            )
-        if not out.parent.is_dir():
-            raise InputError(f"--out {out}: the folder {out.parent} does not exist")
+    check_out(out, resume=resume)
     options = dict(resume=resume, deflate=deflate, chunk_size=chunk_size, progress=progress)
     if scheduler is None:
         _scan_into(library, n, out, workers=workers, client=None, stop=stop, **options)
@@ -91,6 +83,21 @@ def run_scan(
     finally:
         client.close()
     return out
+
+
+def check_out(out: Path, *, resume: bool) -> None:
+    """InputError unless ``out`` can take the scan: a new file in an existing folder, or
+    with ``resume`` an existing one (``run_scan`` checks it; the command also checks it
+    first, before it starts compiling)."""
+    if resume and not out.is_file():
+        raise InputError(f"--resume: {out} does not exist; start the scan without --resume")
+    if not resume:
+        if out.exists():
+            raise InputError(
+                f"--out {out}: the file exists; --resume continues it, or remove it first"
+            )
+        if not out.parent.is_dir():
+            raise InputError(f"--out {out}: the folder {out.parent} does not exist")
 
 
 def _scan_into(

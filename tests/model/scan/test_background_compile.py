@@ -14,6 +14,11 @@ from labrig.model.scan import background_compile, plan
 from labrig.model.scan.plan import SolverPlan
 
 
+class _Finished:
+    def wait(self) -> int:
+        return 0
+
+
 class _Spawned:
     def __init__(self) -> None:
         self.calls = []
@@ -33,6 +38,26 @@ def test_start_detaches_a_process_in_numbas_mode(monkeypatch):
     assert plan.MODE_VARIABLE not in options["env"]
     assert options["start_new_session"]
     assert options["stdout"] == options["stderr"] == subprocess.DEVNULL
+
+
+def test_the_compile_beside_a_scan_is_its_child_at_its_priority(monkeypatch):
+    spawned = _Spawned()
+    monkeypatch.setattr(background_compile.subprocess, "Popen", spawned)
+    monkeypatch.setenv(background_compile.SWITCH_VARIABLE, "0")  # only the background's switch
+    monkeypatch.setenv(plan.MODE_VARIABLE, plan.PYTHON)
+    background_compile.compile_beside()
+    [(argv, options)] = spawned.calls
+    assert argv == [sys.executable, "-m", "labrig.model.scan.background_compile", "--now"]
+    assert plan.MODE_VARIABLE not in options["env"]
+    assert not options["start_new_session"]  # a Ctrl-C at the scan stops it too
+    niced = []
+    monkeypatch.setattr(background_compile.os, "nice", niced.append, raising=False)
+    monkeypatch.setattr(background_compile, "solver_cached", lambda: True)  # nothing to do
+    for args, lowest in (([], [19]), (["--now"], [])):
+        niced.clear()
+        monkeypatch.setattr(sys, "argv", ["background_compile", *args])
+        background_compile.main()
+        assert niced == lowest
 
 
 def test_start_is_switched_off(monkeypatch):
@@ -79,8 +104,11 @@ def test_the_scan_command_says_what_it_compiles(
 ):
     chosen = SolverPlan(compiled, cached, python_s=1.0, compiled_s=1.0)
     monkeypatch.setattr(plan, "choose_solver_mode", lambda *args: chosen)
-    started = []
+    started, beside = [], []
     monkeypatch.setattr(background_compile, "start", lambda: started.append(1) or True)
+    monkeypatch.setattr(
+        background_compile, "compile_beside", lambda: beside.append(1) or _Finished()
+    )
     out = tmp_path / "gent.h5"
     with pytest.raises(SystemExit) as exited:
         main(["model", "scan", "--n", "2", "--library", "gent", "--out", str(out)])
@@ -89,6 +117,7 @@ def test_the_scan_command_says_what_it_compiles(
     assert ("compiling the solver once" in err) is before
     assert ("compiling the solver in the background" in err) is after
     assert started == ([1] if after else [])
+    assert beside == ([1] if before else [])  # beside the library's tables
 
 
 def test_no_compile_is_announced_for_a_scan_refused(tmp_path, capsys, monkeypatch):
