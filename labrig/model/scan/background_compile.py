@@ -5,9 +5,10 @@ compiling it before it starts. A scan that compiles first starts such a process 
 at its own priority (``compile_beside``), and builds its library meanwhile.
 
 At the lowest priority it takes only the cores nothing else wants; one runs at a time
-(a lock file in the temporary folder), and it stops at once where the cache holds the
-solver already. ``LABRIG_BACKGROUND_COMPILE=0`` turns it off (the test suite does: it
-compiles once, in the foreground, for the tests that need it).
+per compile cache (a lock file in the temporary folder named after the cache), and it
+stops at once where the cache holds the solver already. ``LABRIG_BACKGROUND_COMPILE=0``
+turns it off (the test suite does: it compiles once, in the foreground, for the tests
+that need it).
 
 Run as ``python -m labrig.model.scan.background_compile [--now]``, which ``start`` and
 ``compile_beside`` do.
@@ -16,6 +17,7 @@ Run as ``python -m labrig.model.scan.background_compile [--now]``, which ``start
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import subprocess
 import sys
@@ -76,14 +78,20 @@ def compile_solver() -> None:
 
 @contextlib.contextmanager
 def one_at_a_time() -> Iterator[bool]:
-    """True while this process holds the background compile's lock, False where another
-    holds it; True without a lock where the system has none (not POSIX)."""
+    """True while this process holds the background compile's lock for its compile cache,
+    False where another holds it; True without a lock where the system has none (not
+    POSIX). The lock is the cache's: two compiles into one cache would write the same
+    files twice, while compiles into different caches (another install, or
+    ``NUMBA_CACHE_DIR`` elsewhere) do not wait for each other."""
     try:
         import fcntl
     except ImportError:
         yield True
         return
-    path = Path(tempfile.gettempdir()) / f"labrig-background-compile-{os.getuid()}.lock"
+    # numba writes beside the sources unless NUMBA_CACHE_DIR says where
+    cache = os.environ.get("NUMBA_CACHE_DIR") or str(Path(__file__).resolve().parents[2])
+    key = hashlib.sha256(os.path.abspath(cache).encode()).hexdigest()[:12]
+    path = Path(tempfile.gettempdir()) / f"labrig-background-compile-{os.getuid()}-{key}.lock"
     with open(path, "a") as lock:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)

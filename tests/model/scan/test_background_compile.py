@@ -68,10 +68,12 @@ def test_start_is_switched_off(monkeypatch):
     assert spawned.calls == []
 
 
-def test_one_compile_at_a_time(tmp_path):
+def test_one_compile_at_a_time(tmp_path, monkeypatch):
+    """One compile at a time into one cache; this test's own cache, so a compile into
+    the suite's cache elsewhere neither blocks it nor is blocked."""
     cache = tmp_path / "cache"
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))
     env = {k: v for k, v in os.environ.items() if k != plan.MODE_VARIABLE}
-    env["NUMBA_CACHE_DIR"] = str(cache)
     with background_compile.one_at_a_time() as mine:
         assert mine
         with background_compile.one_at_a_time() as second:
@@ -88,6 +90,10 @@ def test_one_compile_at_a_time(tmp_path):
     assert not list(cache.rglob("*.nbi"))
     with background_compile.one_at_a_time() as again:
         assert again  # released
+    with background_compile.one_at_a_time() as mine:
+        monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "another cache"))
+        with background_compile.one_at_a_time() as other:
+            assert mine and other  # a compile into another cache does not wait for it
 
 
 @pytest.mark.parametrize(
