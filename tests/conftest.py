@@ -93,8 +93,14 @@ GROUPS = {
     # same libraries' 36 segments (labrig.model.segments.catalog keeps them per process)
     "tests/cli/test_model_paper.py::": "libraries",
     "tests/model/segments/test_catalog.py::test_every_library_segment": "libraries",
+    # tests/api/conftest.py's run and scan: every module that reads them (spread, the
+    # run was recorded by two workers and the scan by two, ~3 s of CPU each)
     "tests/api/test_run.py::": "api_quick_run",
     "tests/api/test_matches_the_cli.py::": "api_quick_run",
+    "tests/api/test_run_energy.py::": "api_quick_run",
+    "tests/api/test_solver_mode.py::": "api_quick_run",
+    "tests/api/test_vocabulary.py::": "api_quick_run",
+    "tests/api/test_model_and_scan.py::": "api_quick_run",
 }
 
 
