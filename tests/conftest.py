@@ -29,6 +29,7 @@ import os
 import pkgutil
 import re
 import shutil
+import sys
 from pathlib import Path
 
 import pytest
@@ -48,7 +49,6 @@ LONG_FIRST = (
     "tests/model/segments/test_paper_braided.py::",  # 110: the paper library, built once
     "tests/rig/test_demo_run.py::",  # the demo's group: ~90
     "tests/rig/test_video_and_frames.py::",  # 90
-    "tests/rig/test_soak.py::test_a_short_soak",  # 70: fifteen runs, one per fault kind
     "tests/analysis/test_compare.py::",  # the simulated runs' group: ~70
     "tests/api/test_tutorial.py::test_the_tutorial_runs_top_to_bottom",  # 55: 3 runs
     "tests/rig/test_faults.py::",  # 55
@@ -93,8 +93,14 @@ GROUPS = {
     # same libraries' 36 segments (labrig.model.segments.catalog keeps them per process)
     "tests/cli/test_model_paper.py::": "libraries",
     "tests/model/segments/test_catalog.py::test_every_library_segment": "libraries",
+    # tests/api/conftest.py's run and scan: every module that reads them (spread, the
+    # run was recorded by two workers and the scan by two, ~3 s of CPU each)
     "tests/api/test_run.py::": "api_quick_run",
     "tests/api/test_matches_the_cli.py::": "api_quick_run",
+    "tests/api/test_run_energy.py::": "api_quick_run",
+    "tests/api/test_solver_mode.py::": "api_quick_run",
+    "tests/api/test_vocabulary.py::": "api_quick_run",
+    "tests/api/test_model_and_scan.py::": "api_quick_run",
 }
 
 
@@ -114,7 +120,14 @@ def _import_every_module() -> None:
 
 def pytest_configure(config):
     """Every module of labrig imported where tests run: not in xdist's controller,
-    which hands out work and runs none (~3 s of CPU it need not spend)."""
+    which hands out work and runs none (~3 s of CPU it need not spend).
+
+    Bytecode is kept (``__pycache__``, where numba keeps its cache) even where
+    ``PYTHONDONTWRITEBYTECODE`` is set: without it each of the three workers rewrote
+    every test module's asserts again (collection took 10 s of CPU, 5 s with the
+    bytecode kept) and every command a test starts compiled labrig's modules again;
+    the processes the tests start still write none, they read what is there."""
+    sys.dont_write_bytecode = False
     controller = (
         not hasattr(config, "workerinput")
         and config.getoption("dist", "no") != "no"
