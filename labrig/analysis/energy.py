@@ -84,8 +84,11 @@ def _top(v_ml: np.ndarray, p_kpa: np.ndarray) -> float:
     return float(np.max(np.asarray(v_ml)[finite])) if np.count_nonzero(finite) >= 2 else np.nan
 
 
-def _finite(x: float) -> float | None:
-    return float(x) if np.isfinite(x) else None
+def finite_or_none(value: float | None) -> float | None:
+    """A number for JSON: NaN, infinities and missing become null."""
+    if value is None or not np.isfinite(value):
+        return None
+    return float(value)
 
 
 def _curves(result: AnalysisResult) -> tuple[tuple, tuple] | None:
@@ -105,9 +108,9 @@ def transition_energy(result: AnalysisResult, predicted, measured) -> dict[str, 
     E before and after and its dE; for an inflation transition, the one-cycle numbers
     (``cycle_dE``) of the measurement at its volume and of the model at its own."""
     row: dict[str, float | None] = {
-        "energy_before_model_mj": _finite(predicted.energy_before_mj) if predicted else None,
-        "energy_after_model_mj": _finite(predicted.energy_after_mj) if predicted else None,
-        "dE_model": _finite(predicted.dE) if predicted else None,
+        "energy_before_model_mj": finite_or_none(predicted.energy_before_mj) if predicted else None,
+        "energy_after_model_mj": finite_or_none(predicted.energy_after_mj) if predicted else None,
+        "dE_model": finite_or_none(predicted.dE) if predicted else None,
     }
     curves = _curves(result)
     for side, transition, cycle in (
@@ -117,9 +120,9 @@ def transition_energy(result: AnalysisResult, predicted, measured) -> dict[str, 
         numbers = (float("nan"),) * 3
         if transition is not None and cycle is not None and transition.direction > 0:
             numbers = cycle_dE(*cycle, transition.v_ml)
-        row[f"cycle_energy_before_{side}_mj"] = _finite(numbers[0])
-        row[f"cycle_energy_returned_{side}_mj"] = _finite(numbers[1])
-        row[f"cycle_dE_{side}"] = _finite(numbers[2])
+        row[f"cycle_energy_before_{side}_mj"] = finite_or_none(numbers[0])
+        row[f"cycle_energy_returned_{side}_mj"] = finite_or_none(numbers[1])
+        row[f"cycle_dE_{side}"] = finite_or_none(numbers[2])
     return row
 
 
@@ -132,14 +135,14 @@ def cycle_energy(result: AnalysisResult) -> dict[str, float | None]:
     for side, cycle in zip(("measured", "model"), curves or (None, None), strict=True):
         top = _top(cycle[0], cycle[1]) if cycle else float("nan")
         stored = stored_energy_mj(cycle[0], cycle[1], top) if cycle else float("nan")
-        out[f"stored_{side}_mj"] = _finite(stored)
-        out[f"released_{side}_mj"] = _finite(released_mj(*cycle) if cycle else float("nan"))
+        out[f"stored_{side}_mj"] = finite_or_none(stored)
+        out[f"released_{side}_mj"] = finite_or_none(released_mj(*cycle) if cycle else float("nan"))
     snaps = (
         [t for t in result.comparison.prediction.transitions if not t.stable]
         if result.comparison is not None
         else []
     )
-    out["released_by_snaps_model_mj"] = _finite(
+    out["released_by_snaps_model_mj"] = finite_or_none(
         float(sum(t.energy_before_mj - t.energy_after_mj for t in snaps))
     )
     return out

@@ -15,7 +15,7 @@ from rich.table import Table
 from rich.text import Text
 
 from labrig.analysis.curves import DEFLATE, INFLATE, PHASES
-from labrig.analysis.energy import cycle_energy, transition_energy
+from labrig.analysis.energy import cycle_energy, finite_or_none, transition_energy
 from labrig.analysis.results import AnalysisResult
 from labrig.analysis.runfile import RunRecord
 from labrig.config.protocol import plan
@@ -233,13 +233,6 @@ def matches_table(result: AnalysisResult) -> RenderableType | None:
     return table
 
 
-def _finite(value: float | None) -> float | None:
-    """A number for JSON: NaN and missing become null."""
-    if value is None or not math.isfinite(value):
-        return None
-    return float(value)
-
-
 def comparison_json(result: AnalysisResult) -> dict:
     """The comparison as one JSON-ready object (``labrig compare --json``): the RMSE per
     phase and quantity, and each predicted transition with the measured one paired to
@@ -253,8 +246,8 @@ def comparison_json(result: AnalysisResult) -> dict:
     comparison = result.comparison
     rmse = {}
     for phase, name in PHASES.items():
-        rmse[f"{name}_pressure_kpa"] = _finite(comparison.rmse_p_kpa[phase])
-        rmse[f"{name}_length_mm"] = _finite(comparison.rmse_l_mm[phase])
+        rmse[f"{name}_pressure_kpa"] = finite_or_none(comparison.rmse_p_kpa[phase])
+        rmse[f"{name}_length_mm"] = finite_or_none(comparison.rmse_l_mm[phase])
     transitions, _ = _matched(comparison.matches, result)
     paper, unpredicted = _matched(comparison.paper_matches, result)
     return {
@@ -295,9 +288,9 @@ def _matched(matches, result: AnalysisResult) -> tuple[list[dict], list[dict]]:
                 beside_fields(
                     {
                         "phase": DIRECTION[match.direction],
-                        "v_meas_ml": _finite(m.v_ml),
-                        "dp_meas_kpa": _finite(m.dp_kpa),
-                        "dl_meas_mm": _finite(m.dl_mm),
+                        "v_meas_ml": finite_or_none(m.v_ml),
+                        "dp_meas_kpa": finite_or_none(m.dp_kpa),
+                        "dl_meas_mm": finite_or_none(m.dl_mm),
                         "on_model_curve": result.on_the_models_curve(m),
                     },
                     ALIASES["comparison"],
@@ -309,12 +302,12 @@ def _matched(matches, result: AnalysisResult) -> tuple[list[dict], list[dict]]:
             "type": "stable" if p.stable else "snap",
             "alpha": p.alpha,
             "beta": p.beta,
-            "v_ml": _finite(p.v_ml),
-            "v_meas_ml": _finite(m.v_ml) if m else None,
-            "dp_kpa": _finite(p.dp_kpa),
-            "dp_meas_kpa": _finite(m.dp_kpa) if m else None,
-            "dl_mm": _finite(p.dl_mm),
-            "dl_meas_mm": _finite(m.dl_mm) if m else None,
+            "v_ml": finite_or_none(p.v_ml),
+            "v_meas_ml": finite_or_none(m.v_ml) if m else None,
+            "dp_kpa": finite_or_none(p.dp_kpa),
+            "dp_meas_kpa": finite_or_none(m.dp_kpa) if m else None,
+            "dl_mm": finite_or_none(p.dl_mm),
+            "dl_meas_mm": finite_or_none(m.dl_mm) if m else None,
             **transition_energy(result, p, m),
         }
         transitions.append(beside_fields(row, ALIASES["comparison"]))

@@ -147,9 +147,9 @@ def _text(entry: h5py.Group, name: str, where: str) -> str:
 def open_checked(path: Path, opener: Callable[[Path], h5py.File] = open_run) -> h5py.File:
     """The run file opened by ``opener``, checked to be a labrig run file; InputError
     (one line) saying why not: not HDF5, truncated, no ``/entry``."""
-    if path.is_file() and truncation(path):
+    if path.is_file() and (why := truncation(path)):
         # SWMR read mode would open it, and fail somewhere in the middle of the data
-        raise InputError(truncation(path))
+        raise InputError(why)
     try:
         run = opener(path)
     except InputError as exc:

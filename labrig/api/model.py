@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from labrig.errors import InputError
-from labrig.vocabulary import ALIASES, DEFLATE, INFLATE, beside
+from labrig.vocabulary import ALIASES, beside, with_direction_names
 
 from .axes import panel_axes
 from .solver_mode import prefer_plain_python
@@ -198,8 +198,8 @@ class ActuatorPath:
         per_segment = fields.pop("v_i_ml")
         table = beside(pd.DataFrame(fields), ALIASES["model path"])
         table["length_mm"] = table["l_mm"] + self.fittings_length_mm
-        direction = np.asarray(self.sampled.direction)
-        table["direction"] = np.where(direction > 0, INFLATE, DEFLATE)
+        table["direction"] = np.asarray(self.sampled.direction)
+        table = with_direction_names(table)
         for i, values in enumerate(per_segment, 1):
             table[f"v{i}_ml"] = values
         return table

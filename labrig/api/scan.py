@@ -134,10 +134,9 @@ class Scan:
                     "scan.paper_transitions (or of scan.transitions)"
                 )
             columns = {name: transitions[name].to_numpy() for name in FIG4_COLUMNS}
-            # the figure's colours read the sign; the table's direction is named
-            columns["direction"] = np.where(
-                np.isin(columns["direction"], ("inflate", 1)), 1, -1
-            ).astype(np.int8)
+            # the figure's colours read the sign, which the tables keep beside the name
+            if "direction_sign" in transitions:
+                columns["direction"] = transitions["direction_sign"].to_numpy(np.int8)
         axes, shown = panel_axes(ax, 3)
         draw_fig4(axes, columns)
         return shown

@@ -48,16 +48,16 @@ LIBRARIES = (PAPER, PAPER_RADIUS, CALIBRATED, SI, PAPER_GENT)
 DEFAULT_LIBRARY = CALIBRATED
 SI_PREFIX = "SI-"
 SI_NAMES: tuple[str, ...] = tuple(SI_PREFIX + name for name in LIBRARY_NAMES)
-_NAME = re.compile(
-    r"(?:(paper-r|paper-gent|paper|calibrated|si):|(si-))?(B(\d+)-T(\d+))", re.IGNORECASE
-)
+# the prefixes longest first, so that "paper-r:" is not read as "paper:" and a rest
+_PREFIXES = "|".join(map(re.escape, sorted(LIBRARIES, key=len, reverse=True)))
+_NAME = re.compile(rf"(?:({_PREFIXES}):|(si-))?(B(\d+)-T(\d+))", re.IGNORECASE)
 MEASURED_ENV_VAR = "LABRIG_LIBRARY"
 MEASURED_DEFAULT_DIR = Path("library")
 _MEASURED_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 _VALID = (
     f"B{BRAID_LENGTHS_MM[0]}..B{BRAID_LENGTHS_MM[-1]} x T{TUBE_LENGTHS_MM[0]}.."
-    f"T{TUBE_LENGTHS_MM[-1]} in steps of 2, e.g. B46-T20, or with a library: paper:B46-T20, "
-    "paper-r:, paper-gent:, calibrated:, si:"
+    f"T{TUBE_LENGTHS_MM[-1]} in steps of 2, e.g. B46-T20, or with a library: "
+    f"{LIBRARIES[0]}:B46-T20, " + ", ".join(f"{library}:" for library in LIBRARIES[1:])
 )
 
 

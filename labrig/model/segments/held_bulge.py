@@ -66,7 +66,7 @@ _LARGEST_ANGLE = float(np.arccos(1 - 0.54))
 _CORNER = 10.0
 # the share stepped across a corner the continuation cannot turn (``_across_corner``)
 _CORNER_SHARE = 1e-3
-# the residual reported outside the states (``_inside``): far from any root
+# the residual reported outside the states (``_bulged_inside``): far from any root
 _OUTSIDE = 1e6
 # the largest residual of an accepted point (the conditions are of order 1)
 _TOLERANCE = 1e-9
@@ -160,26 +160,28 @@ class HeldBulge:
         b_b = span / (share * seg.l_tube_mm)
         return a_b, b_b, volume, np.pi * front**2, length, span
 
-    def _inside(self, share, b_u, a_u, theta) -> bool:
-        """Whether (s, b_u, a_u, theta) is a state at all: both phases stretched
-        positively, the strips between straight and _LARGEST_ANGLE, the bulge's span
-        inside the strips' length."""
+    def _bulged_inside(self, share, b_u, a_u, theta):
+        """The bulged phase (``_bulged``'s tuple) where (s, b_u, a_u, theta) is a state
+        at all, None where not: both phases stretched positively, the strips between
+        straight and _LARGEST_ANGLE, the bulge's span inside the strips' length, and with
+        Gent's latex both phases short of its lock. One call gives the check and the
+        phase, which the residual (the root finder's every evaluation) needs both of."""
         seg = self.segment
         if not np.all(np.isfinite([share, b_u, a_u, theta])):
-            return False
+            return None
         if not (0 < share <= 1 and b_u > 0 and a_u > 0 and 0 < theta < _LARGEST_ANGLE):
-            return False
+            return None
         length = seg.l_braid_mm * np.cos(theta)
         span = length - (1 - share) * b_u * seg.l_tube_mm
         if not 0 < span <= length:
-            return False
+            return None
+        bulged = self._bulged(share, b_u, theta)
         if self.limiting_invariant is None:
-            return True
-        a_b, b_b = self._bulged(share, b_u, theta)[:2]
+            return bulged
+        a_b, b_b = bulged[:2]
         limit = 0.5 * self.limiting_invariant
-        return bool(
-            energy_density(a_u, b_u) < limit and a_b > 0 and energy_density(a_b, b_b) < limit
-        )
+        inside = energy_density(a_u, b_u) < limit and a_b > 0 and energy_density(a_b, b_b) < limit
+        return bulged if inside else None
 
     def _volume_slope(self, share, b_u, theta, span):
         """dV_b/dtheta at a fixed span (mm^3/rad)."""
@@ -196,9 +198,10 @@ class HeldBulge:
         where it reaches 0 the whole tube fills the strips (the fill)."""
         seg = self.segment
         b_u, a_u, theta = (float(y) for y in x)
-        if not self._inside(share, b_u, a_u, theta):
+        bulged = self._bulged_inside(share, b_u, a_u, theta)
+        if bulged is None:
             return np.nan
-        _, _, volume, _, length, _ = self._bulged(share, b_u, theta)
+        _, _, volume, _, length, _ = bulged
         whole = float(elastica.envelope_volume_mm3(length, seg.l_braid_mm, seg.end_radius_mm))
         unbulged = (1 - share) * seg.l_tube_mm * (self.cross_mm2 * a_u + self.wall_mm2)
         return whole - volume - unbulged
@@ -206,9 +209,10 @@ class HeldBulge:
     def residual(self, share: float, x) -> np.ndarray:
         """The three equilibrium conditions (module docstring) at (b_u, a_u, theta)."""
         b_u, a_u, theta = (float(y) for y in x)
-        if not self._inside(share, b_u, a_u, theta):
+        bulged = self._bulged_inside(share, b_u, a_u, theta)
+        if bulged is None:
             return np.full(3, _OUTSIDE)
-        a_b, b_b, _, dv_dl, _, span = self._bulged(share, b_u, theta)
+        a_b, b_b, _, dv_dl, _, span = bulged
         pu_a, pu_b = self._gradient(a_u, b_u)
         pb_a, pb_b = self._gradient(a_b, b_b)
         dl_dtheta = -self.segment.l_braid_mm * np.sin(theta)
