@@ -55,7 +55,7 @@ def suggestion(name: str, extra: Sequence[str] = ()) -> str | None:
 def names_a_model(name: str, library_dir: Path | None = None) -> str | None:
     """What ``name`` names in the model (a library segment, a Gent membrane, a measured
     segment, a CSV file), or None when it names nothing there."""
-    from labrig.model.segments.catalog import find_measured, is_library_name
+    from labrig.model.segments.catalog import find_measured, is_library_name, looks_like_path
     from labrig.model.segments.gent import GENT_NAMES
 
     text = name.strip()
@@ -65,7 +65,7 @@ def names_a_model(name: str, library_dir: Path | None = None) -> str | None:
         return "a Gent membrane"
     if find_measured(text, library_dir) is not None:
         return "a measured segment in the library"
-    if text.lower().endswith(".csv") or "/" in text or "\\" in text or Path(text).exists():
+    if looks_like_path(text):
         return "a CSV file"
     return None
 

@@ -41,9 +41,12 @@ def open_growing(path: Path, wait_s: float = 5.0) -> h5py.File:
     if not path.is_file():  # HDF5 would wait forever on a pipe's open
         raise InputError(f"{path}: not a regular file (a folder, a device or a pipe)")
     deadline = time.monotonic() + wait_s
+    checked = False
     while True:
         try:
-            check_file(path)  # a damaged file is walked by a watched child first
+            if not checked:  # a damaged file is walked by a watched child first, once
+                check_file(path)
+                checked = True
             # no file lock: the writer reopens the file for its analysis once the run
             # has ended, and must not find it locked by a reader that has not yet seen
             # the end (SWMR itself needs no lock on the reader's side)

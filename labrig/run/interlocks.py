@@ -205,7 +205,7 @@ class SpecimenPressure(Interlock):
         self._peak_kpa = 0.0
         self._low: tuple[float, float, int] | None = None
         # while the pump withdraws: since when, and the volume its latest status counts
-        self._withdrawing: tuple[float, float] | None = None
+        self._withdrawing: float | None = None
         self._last_kpa = 0.0  # the latest finite sample
         self._suction_run = 0  # samples in a row below -LEAK_SUCTION_KPA
 
@@ -228,11 +228,8 @@ class SpecimenPressure(Interlock):
                 if not moves:  # a new infusion
                     self._t0_s, self._peak_kpa, self._low = status.t_s, 0.0, None
                 moves.append((status.t_s, volume_ml))
-            if status.state is PumpState.WITHDRAWING:
-                since_s = self._withdrawing[0] if self._withdrawing else status.t_s
-                self._withdrawing = (since_s, volume_ml)
-            else:
-                self._withdrawing = None
+            # the volume still counted while withdrawing, None otherwise
+            self._withdrawing = volume_ml if status.state is PumpState.WITHDRAWING else None
             return self._burst()
 
     def _add_to_bins(self, t: np.ndarray, p: np.ndarray) -> None:
@@ -251,7 +248,7 @@ class SpecimenPressure(Interlock):
     def _suction(self, t: np.ndarray, p: np.ndarray) -> str | None:
         """Samples below atmosphere while withdrawing with volume still counted."""
         withdrawing = self._withdrawing
-        counted = withdrawing is not None and withdrawing[1] > LEAK_COUNTED_ML
+        counted = withdrawing is not None and withdrawing > LEAK_COUNTED_ML
         if counted and len(p) == 0:
             return None  # nothing to judge: a run below atmosphere goes on
         # a sample at or above -LEAK_SUCTION_KPA only ends a run: the samples before the
@@ -276,7 +273,7 @@ class SpecimenPressure(Interlock):
                 if self._suction_run >= LEAK_SUCTION_SAMPLES:
                     return (
                         f"the specimen leaks: withdrawing, the pressure fell to {p_kpa:.1f} "
-                        f"kPa below atmosphere at t = {t_s:.2f} s with {withdrawing[1]:.2f} "
+                        f"kPa below atmosphere at t = {t_s:.2f} s with {withdrawing:.2f} "
                         "mL still counted in it: it held less than the pump has put in; "
                         "check the fittings and the specimen for a leak"
                     )

@@ -178,7 +178,8 @@ def find_measured(name: str, directory: str | Path | None = None) -> Path | None
     return None
 
 
-def _looks_like_path(spec: str) -> bool:
+def looks_like_path(spec: str) -> bool:
+    """Whether a segment name is meant as a CSV file's path."""
     return spec.lower().endswith(".csv") or "/" in spec or "\\" in spec or Path(spec).exists()
 
 
@@ -194,7 +195,7 @@ def load_segment(spec: str, library_dir: Path | None = None) -> SegmentCurve:
     if is_library_name(text):
         return analytical_segment(text)
     measured = find_measured(text, library_dir)
-    if measured is not None or _looks_like_path(text):
+    if measured is not None or looks_like_path(text):
         from labrig.model.segments.measured import load_csv
 
         return load_csv(measured, name=text) if measured else load_csv(Path(text))
