@@ -419,9 +419,13 @@ class NiDaqPressure:
         p_raw_kpa, adc_flags = self._to_raw_kpa(data)
         p_kpa = p_raw_kpa - self.offset_kpa
         # the output band is the sensor's own, before the zero is taken off
-        beyond = mpx5100.beyond_sensor_range(p_kpa) | (p_raw_kpa > mpx5100.BAND_TOP_KPA)
+        wire_open = p_raw_kpa > mpx5100.BAND_TOP_KPA
+        beyond = mpx5100.beyond_sensor_range(p_kpa) | wire_open
         return PressureBlock(
-            t_s=self._stamp(k), pressure_kpa=p_kpa, out_of_range=adc_flags | beyond
+            t_s=self._stamp(k),
+            pressure_kpa=p_kpa,
+            out_of_range=adc_flags | beyond,
+            wire_open=wire_open,
         )
 
     def _translate(self, exc: Exception, doing: str, rate_hz: float | None = None) -> DeviceError:

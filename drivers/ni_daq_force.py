@@ -9,7 +9,7 @@ conversion (``labrig.drivers.load_cell``) and its zero.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -23,7 +23,7 @@ from labrig.rig.devices import PressureBlock
 class PressureForceBlock(PressureBlock):
     """Pressure samples and the force (N, zeroed, compression positive) at their times."""
 
-    force_n: np.ndarray
+    force_n: np.ndarray = field(kw_only=True)
 
 
 class NiDaqPressureForce(NiDaqPressure):
@@ -69,4 +69,6 @@ class NiDaqPressureForce(NiDaqPressure):
         force = f_raw_n - self.force_offset_n
         # a saturated force channel is kept as measured, flagged like the pressure
         out_of_range = block.out_of_range | flags | (np.abs(force) > self.capacity_n)
-        return PressureForceBlock(block.t_s, block.pressure_kpa, out_of_range, force)
+        return PressureForceBlock(
+            block.t_s, block.pressure_kpa, out_of_range, block.wire_open, force_n=force
+        )

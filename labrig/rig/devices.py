@@ -88,11 +88,14 @@ class Pump(Protocol):
 class PressureBlock:
     """Consecutive pressure samples: times in s on the shared clock, pressure in kPa
     (gauge, after zeroing). ``out_of_range`` flags samples beyond the sensor's or the
-    ADC's range: they are kept as measured, never clipped."""
+    ADC's range: they are kept as measured, never clipped. ``wire_open`` flags, among
+    them, the samples above the sensor's output band before the zero is taken off,
+    where the rig's pull-up holds a cut output wire (None: no sample is)."""
 
     t_s: np.ndarray
     pressure_kpa: np.ndarray
     out_of_range: np.ndarray
+    wire_open: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.t_s)

@@ -17,7 +17,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from labrig.drivers import mpx5100
 from labrig.errors import LinkLost
 from labrig.rig.devices import PressureBlock, Pump, PumpState, PumpStatus
 
@@ -42,9 +41,10 @@ class Interlock:
 
 @dataclass(frozen=True)
 class PressureCeiling(Interlock):
-    """Trips when any sample exceeds the limit (an over-range reading counts, but not
-    one that leapt from below the limit to above the sensor's output band: that is a
-    wire); the reason names the first sample above it, the moment the limit was passed."""
+    """Trips when any sample exceeds the limit (an over-range reading counts, but not one
+    the driver flags as a cut wire: no pressure leaps from below the limit to above the
+    sensor's output band in one sample); the reason names the first sample above it,
+    the moment the limit was passed."""
 
     max_pressure_kpa: float
 
@@ -53,10 +53,8 @@ class PressureCeiling(Interlock):
         if len(above) == 0:
             return None
         first = int(above[0])
-        if block.out_of_range[first] and block.pressure_kpa[first] > mpx5100.RANGE_KPA[1]:
-            # straight from below the limit to above the sensor's band: no pressure rises
-            # so in one sample; a cut wire does (``PressureSignal`` names it)
-            return None
+        if block.wire_open is not None and block.wire_open[first]:
+            return None  # a cut wire, not a pressure: ``PressureSignal`` names it
         return (
             f"pressure {block.pressure_kpa[first]:.1f} kPa above the limit "
             f"{self.max_pressure_kpa:g} kPa at t = {block.t_s[first]:.2f} s"
@@ -85,7 +83,7 @@ class PressureSignal(Interlock):
                 f"pressure signal lost at t = {t_s:.2f} s: the reading is not a number "
                 "(check the sensor's supply and its wires)"
             )
-        if p[first] > mpx5100.RANGE_KPA[1]:
+        if block.wire_open is not None and block.wire_open[first]:
             return (
                 f"pressure sensor wire open at t = {t_s:.2f} s: the reading "
                 f"{p[first]:.1f} kPa is above the sensor's output band, where the pull-up "

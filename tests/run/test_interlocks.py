@@ -32,10 +32,13 @@ def block(*pressures_kpa):
     return PressureBlock(np.arange(len(p)) * 0.001, p, np.zeros(len(p), bool))
 
 
-def samples(p_kpa, t0_s=0.0, out_of_range=None):
+def samples(p_kpa, t0_s=0.0, out_of_range=None, wire_open=None):
     p = np.asarray(p_kpa, dtype=float)
     flags = np.zeros(len(p), bool) if out_of_range is None else np.asarray(out_of_range)
-    return PressureBlock(t0_s + np.arange(len(p)) * 0.001, p, flags)
+    if wire_open is not None:  # a cut wire's samples are beyond the band too
+        wire_open = np.asarray(wire_open, bool)
+        flags = flags | wire_open
+    return PressureBlock(t0_s + np.arange(len(p)) * 0.001, p, flags, wire_open)
 
 
 def status(infused=0.0, withdrawn=0.0, state=PumpState.INFUSING):
@@ -128,7 +131,8 @@ def test_a_reading_that_is_no_pressure_trips_the_signal_interlock():
 def test_a_cut_wire_reads_above_the_band_and_is_named_a_wire_not_a_high_pressure():
     """With the pull-up a cut output wire leaps from a pressure to above the sensor's
     band in one sample: the ceiling leaves it to the signal interlock, which names it."""
-    leap = samples([40.0, 40.1, 103.4, 103.3], t0_s=2.0, out_of_range=[0, 0, 1, 1])
+    # the driver flags both: beyond the band, and (raw, before the zero) a cut wire
+    leap = samples([40.0, 40.1, 103.4, 103.3], t0_s=2.0, wire_open=[0, 0, 1, 1])
     assert PressureCeiling(95.0).check_pressure(leap) is None
     reason = interlocks.PressureSignal().check_pressure(leap)
     assert reason.startswith("pressure sensor wire open at t = 2.00 s: the reading 103.4 kPa")
@@ -136,6 +140,12 @@ def test_a_cut_wire_reads_above_the_band_and_is_named_a_wire_not_a_high_pressure
     # a pressure that rises through the limit is the ceiling's
     rising = samples([94.0, 95.5, 99.0, 103.4], out_of_range=[0, 0, 0, 1])
     assert PressureCeiling(95.0).check_pressure(rising).startswith("pressure 95.5 kPa above")
+    # above the band after zeroing, but not before it (a zero taken 2 kPa low): a
+    # pressure at the top of the sensor's range, which the driver does not call a wire
+    high = samples([99.0, 101.0], out_of_range=[0, 1], wire_open=[0, 0])
+    assert PressureCeiling(95.0).check_pressure(high).startswith("pressure 99.0 kPa above")
+    named = interlocks.PressureSignal().check_pressure(high)
+    assert named.startswith("pressure reading 101.0 kPa at t = 0.00 s is outside the sensor")
 
 
 def test_a_frozen_reading_trips_only_after_a_dithering_one():
