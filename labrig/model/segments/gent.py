@@ -42,6 +42,15 @@ def gent_pressure_ratio(stretch, j_m: float):
     return 2 * j_m / lam**3 * (lam**6 - 1) / (-1 + lam**4 * (3 + j_m) - 2 * lam**6)
 
 
+def gent_density(invariant_excess, j_m: float):
+    """Gent's energy per reference volume over mu, -(J_m/2) ln(1 - (I1 - 3)/J_m), and
+    its stiffening factor 1/(1 - (I1 - 3)/J_m) (its slope over neo-Hookean's), at
+    ``invariant_excess`` = I1 - 3; locked (infinite) from I1 - 3 = J_m on."""
+    share = np.minimum(np.asarray(invariant_excess) / j_m, 1.0)
+    with np.errstate(divide="ignore"):
+        return -0.5 * j_m * np.log1p(-share), 1 / (1 - share)
+
+
 def lock_stretch(j_m: float) -> float:
     """Stretch at which the Gent energy diverges: 2 lambda^2 + lambda^-4 - 3 = J_m."""
     return brentq(lambda lam: 2 * lam**2 + lam**-4 - 3 - j_m, 1.0, np.sqrt(j_m + 3))

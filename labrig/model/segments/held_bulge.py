@@ -49,6 +49,7 @@ from scipy.optimize import brentq, root
 
 from labrig.model.segments import elastica
 from labrig.model.segments.braided import KPA_PER_MPA, hoop_stretch_sq
+from labrig.model.segments.gent import gent_density
 from labrig.model.segments.lobe_branch import ANGLE_STEP, LobeBranch
 from labrig.model.segments.paper_braided import DROP_SHARE, Bulge, PaperBraidedSegment
 
@@ -139,13 +140,13 @@ class HeldBulge:
         w = energy_density(a, b)
         if self.limiting_invariant is None:
             return w
-        return -0.5 * self.limiting_invariant * np.log1p(-2 * w / self.limiting_invariant)
+        return gent_density(2 * w, self.limiting_invariant)[0]
 
     def _gradient(self, a, b):
         w_a, w_b = energy_gradient(a, b)
         if self.limiting_invariant is None:
             return w_a, w_b
-        stiffening = 1 / (1 - 2 * energy_density(a, b) / self.limiting_invariant)
+        stiffening = gent_density(2 * energy_density(a, b), self.limiting_invariant)[1]
         return w_a * stiffening, w_b * stiffening
 
     def _bulged(self, share: float, b_u: float, theta: float, span_shift: float = 0.0):

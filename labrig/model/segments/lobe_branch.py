@@ -36,6 +36,7 @@ from scipy.optimize import brentq
 
 from labrig.model.segments import lobes
 from labrig.model.segments.braided import KPA_PER_MPA, MM3_PER_ML, P_END_KPA
+from labrig.model.segments.gent import gent_density
 from labrig.model.segments.tabulate import tabulate
 
 if TYPE_CHECKING:
@@ -122,11 +123,8 @@ class LobeBranch:
         j_m = self.limiting_invariant
         if j_m is None:
             density, stiffening = 0.5 * invariant, 1.0
-        else:  # Gent: -(J_m/2) ln(1 - (I1 - 3)/J_m), its slope 1/(1 - (I1 - 3)/J_m) times
-            # S14's; locked (infinitely stiff) from I1 - 3 = J_m on
-            share = np.minimum(invariant / j_m, 1.0)
-            with np.errstate(divide="ignore"):
-                density, stiffening = -0.5 * j_m * np.log1p(-share), 1 / (1 - share)
+        else:
+            density, stiffening = gent_density(invariant, j_m)
         membrane = seg.shear_modulus_mpa * wall_mm3 * density
         energy = membrane - seg.axial_force_n * env.length_mm
         w_theta = stiffening * (hoop - 1 / (hoop**3 * axial**2))
