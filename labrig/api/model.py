@@ -151,13 +151,10 @@ class Actuator:
         """The quasi-static path under volume-controlled inflation to ``v_end_ml`` (mL;
         default: where no further transition is possible) and, with ``deflate``, back
         to zero, as ``labrig model path`` computes it."""
-        if v_end_ml is not None and not (
-            isinstance(v_end_ml, numbers.Real) and math.isfinite(v_end_ml) and v_end_ml > 0
-        ):
-            raise InputError(f"v_end_ml={v_end_ml!r}: the end volume of inflation, mL, > 0")
-        prefer_plain_python()
-        from labrig.model.path_document import solve_path
+        prefer_plain_python()  # before the model's first import fixes the solver's mode
+        from labrig.model.path_document import checked_end_volume_ml, solve_path
 
+        v_end_ml = checked_end_volume_ml(v_end_ml, named="v_end_ml")
         return ActuatorPath(
             *solve_path([s.model for s in self.segments], v_end_ml, deflate=deflate),
             self.fittings_length_mm,

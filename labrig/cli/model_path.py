@@ -86,9 +86,9 @@ def path(
         raise InputError(
             f"model path needs at least two segments, got {len(segs)}: e.g. B46-T20 B46-T22"
         )
-    if v_end_ml is not None and not v_end_ml > 0:
-        raise InputError(f"--v-end-ml {v_end_ml}: must be > 0")
-    from labrig.model.path_document import path_document, solve_path
+    from labrig.model.path_document import checked_end_volume_ml, path_document, solve_path
+
+    v_end_ml = checked_end_volume_ml(v_end_ml, named="--v-end-ml")
     from labrig.model.segments.catalog import load_segment
 
     curves = [load_segment(s) for s in segs]

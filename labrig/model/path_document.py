@@ -7,9 +7,12 @@ command's JSON and the API's tables cannot drift apart.
 
 from __future__ import annotations
 
+import math
+import numbers
 from collections.abc import Sequence
 from typing import NamedTuple
 
+from labrig.errors import InputError
 from labrig.model.actuator.equilibria import Actuator
 from labrig.model.actuator.paper_counting import paper_transitions
 from labrig.model.actuator.path import Path, SampledPath, quasi_static_path, sample_path
@@ -25,6 +28,22 @@ class SolvedPath(NamedTuple):
     path: Path
     sampled: SampledPath
     found: tuple[Transition, ...]
+
+
+def checked_end_volume_ml(v_end_ml: object, *, named: str) -> float | None:
+    """``v_end_ml`` as an end volume of inflation (mL), or an InputError naming the input
+    as the caller's user wrote it (``named``): a path to infinity or to NaN would run the
+    solver until it gives up with a message about its bracket, not about the input."""
+    if v_end_ml is None:
+        return None
+    if (
+        isinstance(v_end_ml, numbers.Real)
+        and not isinstance(v_end_ml, bool)
+        and math.isfinite(v_end_ml)
+        and v_end_ml > 0
+    ):
+        return float(v_end_ml)
+    raise InputError(f"{named}={v_end_ml!r}: the end volume of inflation, mL, > 0 and finite")
 
 
 def solve_path(

@@ -118,7 +118,7 @@ def test_an_actuator_from_a_list_and_a_clear_end_volume():
         with pytest.raises(InputError, match=r"fittings_length_mm=.*: the fittings' length, mm"):
             labrig.actuator("B48-T30", "B50-T20", fittings_length_mm=wrong)
     pair = labrig.actuator("B48-T30", "B50-T20")
-    for wrong in (-1, 0, float("nan"), float("inf"), "3"):
+    for wrong in (-1, 0, float("nan"), float("inf"), "3", True):
         with pytest.raises(InputError, match=r"v_end_ml=.*: the end volume of inflation, mL, > 0"):
             pair.path(v_end_ml=wrong)
 

@@ -128,7 +128,9 @@ def test_measured_csv_segments(tmp_path, capsys):
         (["SI-B46-T20"], "at least two segments, got 1"),
         ([], "at least two segments, got 0"),
         (["SI-B46-T20", "SI-B99-T20"], "unknown segment 'SI-B99-T20'"),
-        (["SI-B46-T20", "SI-B46-T22", "--v-end-ml", "-3"], "--v-end-ml -3.0: must be > 0"),
+        (["SI-B46-T20", "SI-B46-T22", "--v-end-ml", "-3"], "--v-end-ml=-3.0: the end volume"),
+        (["SI-B46-T20", "SI-B46-T22", "--v-end-ml", "inf"], "--v-end-ml=inf: the end volume"),
+        (["SI-B46-T20", "SI-B46-T22", "--v-end-ml", "nan"], "--v-end-ml=nan: the end volume"),
         (["SI-B46-T20", "SI-B46-T22", "--plot", "/no/such/dir/x.png"], "--plot /no/such/dir/x.png"),
     ],
 )
