@@ -162,9 +162,7 @@ class Plant:
             return np.array(self._w)
 
     def _length(self, w: list[float]) -> float:
-        return sum(c.length(wi) for c, wi in zip(self._curves, w, strict=True)) + (
-            self.fittings_length_mm
-        )
+        return sum(map(ScalarCurve.length, self._curves, w)) + self.fittings_length_mm
 
     def _evaluate(self, w: list[float]) -> list[tuple[float, float]]:
         """(p, dp/dv) of each segment at volumes ``w``."""
@@ -184,7 +182,7 @@ class Plant:
         self._history_t.append(self._t)
         self._history_p.append(inlet)
         self._history_l.append(self._length(self._w))
-        self._history_w.append(list(self._w))
+        self._history_w.append(self._w)  # a step makes a new list: never changed after
         if self._t - self._history_t[0] > 1.5 * self.history_s:
             cut = bisect.bisect_left(self._history_t, self._t - self.history_s)
             del self._history_t[:cut], self._history_p[:cut]

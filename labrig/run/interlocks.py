@@ -106,28 +106,68 @@ FROZEN_S = 0.3
 FROZEN_MIN_SAMPLES = 30
 FROZEN_ARMING_S = 1.0
 FROZEN_NOISE_KPA = 0.035
+# the history a verdict needs: the run's minimum and the second before it, and a second
+# to spare
+FROZEN_WINDOW_S = FROZEN_ARMING_S + FROZEN_S + 1.0
 
 
 class PressureFrozen(Interlock):
     """Trips when a reading that was dithering stops changing at all: a live input with
     noise of most of a converter step or more never repeats one number for ``FROZEN_S``
     (a quiet one does, on a flat pressure, and is never judged). The DAQ's buffer or the
-    driver repeating one block is the cause."""
+    driver repeating one block is the cause.
+
+    Each block extends the current run of one number (its first sample's time and its
+    length) and adds to the window of history judged (the run and the second before
+    it): the window is searched for the run and its noise measured only once the run is
+    long enough to trip, which a dithering signal's never is."""
 
     outcome = "faulted"
 
     def __init__(self) -> None:
-        self._t = np.empty(0)
-        self._p = np.empty(0)
+        # the finite samples of the window, a block at a time (a block leaves it whole,
+        # once its newest sample is older than the window)
+        self._blocks: deque[tuple[np.ndarray, np.ndarray]] = deque()
+        self._last_kpa = math.nan  # the newest finite sample
+        self._run_t0_s = math.nan  # the current run of one number: its first sample
+        self._run_n = 0  # and how many samples it has
 
     def check_pressure(self, block: PressureBlock) -> str | None:
         good = np.isfinite(block.pressure_kpa)
-        t = np.concatenate([self._t, block.t_s[good]])
-        p = np.concatenate([self._p, block.pressure_kpa[good]])
-        if len(t) == 0:
+        t, p = block.t_s[good], block.pressure_kpa[good]
+        if len(t):
+            self._extend_run(t, p)
+            self._blocks.append((t, p))
+            horizon_s = t[-1] - FROZEN_WINDOW_S
+            while self._blocks[0][0][-1] < horizon_s:
+                self._blocks.popleft()
+        if not self._blocks:
             return None
-        keep = t >= t[-1] - (FROZEN_ARMING_S + FROZEN_S + 1.0)
-        t, p = self._t, self._p = t[keep], p[keep]
+        newest_s = self._blocks[-1][0][-1]
+        # the run within the window is at most the whole run: a run too short to trip
+        # cannot trip, and nothing else needs the window
+        if newest_s - self._run_t0_s < FROZEN_S or self._run_n < FROZEN_MIN_SAMPLES:
+            return None
+        return self._judge()
+
+    def _extend_run(self, t: np.ndarray, p: np.ndarray) -> None:
+        changed = np.flatnonzero(p[1:] != p[:-1])
+        if len(changed):
+            first = int(changed[-1]) + 1
+            self._run_t0_s, self._run_n = float(t[first]), len(p) - first
+        elif p[0] == self._last_kpa:
+            self._run_n += len(p)
+        else:
+            self._run_t0_s, self._run_n = float(t[0]), len(p)
+        self._last_kpa = float(p[-1])
+
+    def _judge(self) -> str | None:
+        """The run of one number within the window and the noise of the second before
+        it (at least ``FROZEN_MIN_SAMPLES`` samples of it in the window)."""
+        t = np.concatenate([t for t, _ in self._blocks])
+        p = np.concatenate([p for _, p in self._blocks])
+        keep = t >= t[-1] - FROZEN_WINDOW_S
+        t, p = t[keep], p[keep]
         changed = np.flatnonzero(p[1:] != p[:-1])
         run_start = int(changed[-1]) + 1 if len(changed) else 0
         if t[-1] - t[run_start] < FROZEN_S or len(p) - run_start < FROZEN_MIN_SAMPLES:

@@ -24,6 +24,10 @@ own ``.venv``) the same is measured there, in interleaved pairs, and the whole p
 speed-up before and after. Beside it, what one hand-over of the virtual clock costs,
 back to the same thread and between threads.
 
+Each checkout's bytecode is compiled first (``compileall``), as any install's first
+command leaves it: a process that finds none (``PYTHONDONTWRITEBYTECODE`` set, as on
+some CI machines) compiles labrig's modules again at every start.
+
 Run: python tests/benchmarks/bench_sim_rig.py [--burners N] [--camera-only] [--pairs N]
      [--profile [--before CHECKOUT]] [--write-docs]
 (--burners 2 runs two CPU-burning processes alongside, as on a busy CI machine.)
@@ -67,6 +71,16 @@ def completeness(path: Path) -> tuple[float, int, int, int, int, int, int]:
                 extra = int(np.sum(np.diff(t) < period_s - 1e-9)) if log == "pump" else 0
                 counts[log][1] += round((t[-1] - t[0]) / period_s) + 1 + extra
     return rig_s, *counts["pressure"], *counts["pump"], *counts["length"]
+
+
+def cache_bytecode(checkout: Path) -> None:
+    """Compile the checkout's modules to bytecode, as an install's first command does."""
+    subprocess.run(
+        [python_of(checkout), "-m", "compileall", "-q", "labrig", "sim", "drivers"],
+        check=True,
+        capture_output=True,
+        cwd=checkout,
+    )
 
 
 def run_protocol(protocol: Path, out: Path) -> tuple[float, float, float]:
@@ -212,6 +226,8 @@ def main() -> None:
     )
     add_write_docs_argument(parser)
     args = parser.parse_args()
+    for checkout in ([args.before] if args.before else []) + [ROOT]:
+        cache_bytecode(checkout)
     if args.profile:
         profile_main(args)
         return

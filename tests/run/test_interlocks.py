@@ -5,7 +5,7 @@ import threading
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from support.sensor_runs import infuse_judged, shipped_infusions
 
@@ -160,6 +160,76 @@ def test_a_frozen_reading_trips_only_after_a_dithering_one():
     steps = np.repeat(np.round(20.0 + np.arange(20) * 0.05, 2), 100)  # one step every 0.1 s
     assert quiet.check_pressure(samples(steps)) is None
     assert quiet.check_pressure(samples(np.full(2000, steps[-1]), t0_s=2.0)) is None
+
+
+def frozen_verdict(t, p):
+    """The frozen check's rule on the whole history at once (the samples of its last
+    2.3 s): the run of one number that ends it, at least 0.3 s and 30 samples long, after
+    a second of at least 30 samples whose noise (std of second differences over sqrt 6)
+    is at least 0.035 kPa. The reason's first words, or None."""
+    keep = t >= t[-1] - 2.3
+    t, p = t[keep], p[keep]
+    start = len(p) - 1
+    while start > 0 and p[start - 1] == p[-1]:
+        start -= 1
+    if t[-1] - t[start] < 0.3 or len(p) - start < 30:
+        return None
+    arming = (t >= t[start] - 1.0) & (np.arange(len(t)) < start)
+    if arming.sum() < 30:
+        return None
+    second = p[np.flatnonzero(arming)[0] : start]
+    if np.std(np.diff(second, 2)) / np.sqrt(6) < 0.035:
+        return None
+    return f"pressure reading frozen at {p[-1]:.2f} kPa from t = {t[start]:.2f} s"
+
+
+@settings(max_examples=60, deadline=None)
+# frozen after a dithering second (and past the window, 2.3 s), with a gap, after too
+# short a second, after a quiet one; then the drawn ones
+@example(stretches=[("noisy", 1500), ("still", 3000)], cuts=[200], seed=1)
+@example(stretches=[("noisy", 900), ("lost", 50), ("still", 600)], cuts=[37, 200], seed=2)
+@example(stretches=[("still", 500), ("noisy", 29), ("still", 700)], cuts=[150], seed=3)
+@example(
+    stretches=[("quiet", 1500), ("still", 800), ("noisy", 60), ("still", 400)], cuts=[7], seed=4
+)
+@given(
+    stretches=st.lists(
+        st.tuples(st.sampled_from(["noisy", "still", "quiet", "lost"]), st.integers(1, 1500)),
+        min_size=1,
+        max_size=8,
+    ),
+    cuts=st.lists(st.integers(1, 400), min_size=1, max_size=30),
+    seed=st.integers(0, 2**16),
+)
+def test_the_frozen_check_judges_every_block_as_the_whole_history(stretches, cuts, seed):
+    """However the samples come in blocks, each block's verdict is the rule's on
+    everything so far: the check keeps its run and its window from block to block."""
+    rng = np.random.default_rng(seed)
+    parts, level = [], 20.0
+    for kind, n in stretches:
+        if kind == "noisy":
+            part = np.round(level + rng.normal(0.0, 0.06, n), 2)
+        elif kind == "quiet":
+            part = np.round(level + rng.normal(0.0, 0.004, n), 2)
+        elif kind == "lost":
+            part = np.full(n, np.nan)
+        else:  # the last reading repeated, or a level of its own
+            part = np.full(n, parts[-1][-1] if parts and rng.random() < 0.5 else round(level, 2))
+        parts.append(part)
+        level += rng.normal(0.0, 1.0)
+    p = np.concatenate(parts)
+    t = np.arange(len(p)) * 0.001
+    frozen = interlocks.PressureFrozen()
+    edges = np.cumsum(cuts * (len(p) // sum(cuts) + 1))
+    start = 0
+    for end in [*edges[edges < len(p)], len(p)]:
+        flags = np.zeros(end - start, bool)
+        reason = frozen.check_pressure(PressureBlock(t[start:end], p[start:end], flags))
+        seen = np.isfinite(p[:end])
+        expected = frozen_verdict(t[:end][seen], p[:end][seen]) if seen.any() else None
+        assert (reason is None) == (expected is None)
+        assert reason is None or reason.startswith(expected)
+        start = end
 
 
 def feed(interlock, pressure_at, legs, period_s=0.2):
