@@ -315,10 +315,15 @@ def _theta_outcome(library: Library, prefix: str) -> Outcome:
 
 
 def evaluate(library: Library, prefix: str) -> list[Outcome]:
+    return _input_outcomes(library, prefix) + shape_outcomes(library, prefix)
+
+
+def shape_outcomes(library: Library, prefix: str) -> list[Outcome]:
+    """The statements judged on the 36 curves alone (not the constants behind them): what
+    a family of segments that is not a library can be measured by (docs/decisions/0013)."""
     peaks = peak_pressures(library, prefix)
     return (
-        _input_outcomes(library, prefix)
-        + _peak_outcomes(peaks)
+        _peak_outcomes(peaks)
         + _trend_outcomes(peaks, prefix)
         + [_length_outcome(library, prefix)]
         + _stiffening_outcomes(library, prefix)

@@ -30,7 +30,6 @@ import numpy as np
 from scipy.optimize import brentq, root
 
 from labrig.model.segments import elastica
-from labrig.model.segments.braided import KPA_PER_MPA
 from labrig.model.segments.held_bulge import (
     START_SHARE,
     HeldBulge,
@@ -142,13 +141,9 @@ class FreeOrHeldBulge(HeldBulge):
 
     def free_row(self, share: float, c: Coexistence):
         """(v_ml, p_kpa, l_mm, contact_kpa = 0, energy_mj) of the free state at share s."""
-        seg = self.segment
-        enclosed = (1 - share) * c.a_u + share * c.a_b
-        w = (1 - share) * self._energy(c.a_u, c.b_u) + share * self._energy(c.a_b, c.b_b)
         length = self.free_length_mm(share, c)
-        scale = 2 * seg.shear_modulus_mpa * seg.thickness_mm / seg.radius_mm * KPA_PER_MPA
-        energy = self.membrane_n * seg.l_tube_mm * float(w) - seg.axial_force_n * length
-        return seg.V0_ml * (enclosed - 1), c.pressure_ratio * scale, length, 0.0, energy
+        phases = (c.a_u, c.b_u), (c.a_b, c.b_b)
+        return self.row(share, *phases, length, c.pressure_ratio, 0.0)
 
     def _touch(self, start: float, c: Coexistence) -> float:
         """The share past ``start`` where the free bulge meets the strips (ValueError if it

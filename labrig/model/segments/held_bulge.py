@@ -233,16 +233,23 @@ class HeldBulge:
 
     def state(self, share: float, x):
         """(v_ml, p_kpa, l_mm, contact_kpa, energy_mj) at share s and (b_u, a_u, theta)."""
-        seg = self.segment
         b_u, a_u, theta = (float(y) for y in x)
         a_b, b_b, _, _, length, _ = self._bulged(share, b_u, theta)
-        enclosed = (1 - share) * a_u + share * a_b  # over pi R^2 L_tube
-        v_ml = seg.V0_ml * (enclosed - 1)
-        scale = 2 * seg.shear_modulus_mpa * seg.thickness_mm / seg.radius_mm * KPA_PER_MPA
         p_u, p_b = self._gradient(a_u, b_u)[0], self._gradient(a_b, b_b)[0]
+        return self.row(share, (a_u, b_u), (a_b, b_b), length, p_u, p_u - p_b)
+
+    def row(self, share: float, unbulged, bulged, length_mm: float, pressure, contact):
+        """(v_ml, p_kpa, l_mm, contact_kpa, energy_mj) of the unbulged and bulged phases'
+        (a, b) at share s, the tube's length, its pressure and the bulge's contact pressure
+        (both in units of 2 mu H/R): the one place the two-phase tube's row is computed,
+        held (``state``) or free (``free_bulge``)."""
+        seg = self.segment
+        (a_u, b_u), (a_b, b_b) = unbulged, bulged
+        enclosed = (1 - share) * a_u + share * a_b  # over pi R^2 L_tube
         w = (1 - share) * self._energy(a_u, b_u) + share * self._energy(a_b, b_b)
-        energy = self.membrane_n * seg.l_tube_mm * w - seg.axial_force_n * length
-        return v_ml, p_u * scale, length, (p_u - p_b) * scale, energy
+        energy = self.membrane_n * seg.l_tube_mm * float(w) - seg.axial_force_n * length_mm
+        scale = 2 * seg.shear_modulus_mpa * seg.thickness_mm / seg.radius_mm * KPA_PER_MPA
+        return seg.V0_ml * (enclosed - 1), pressure * scale, length_mm, contact * scale, energy
 
     def start_guess(self):
         """(b_u, a_u, theta) near s -> 0: 0007's unbulged phase on the rising branch and
