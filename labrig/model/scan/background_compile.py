@@ -1,9 +1,9 @@
 """The solver compiled into numba's cache by a process of its own at the lowest priority,
 after a scan that ran as plain Python because compiling would not have paid for it
 (``labrig.model.scan.plan``): the next larger scan then loads the machine code instead of
-compiling it before it starts. A scan that compiles first starts two such processes at
-once, one per part of the solver, at its own priority (``compile_beside``), and builds
-its library meanwhile.
+compiling it before it starts. A scan that compiles first starts one per part of the
+solver at once (``compile_beside``): the part it runs its actuators with at its own
+priority, which it waits for while it builds its library, and the other at the lowest.
 
 At the lowest priority it takes only the cores nothing else wants; one runs at a time
 per compile cache (a lock file in the temporary folder named after the cache), and it
