@@ -153,12 +153,14 @@ def scan(
         logging.getLogger("distributed").setLevel(logging.CRITICAL)
     compiling = None
     if plan is not None and plan.compiles_now:
-        from labrig.model.scan.background_compile import compile_beside
+        from labrig.model.scan.background_compile import COMPILED, REFERENCE, compile_beside
+        from labrig.model.scan.plan import named_library
         from labrig.model.scan.run import check_out
 
         check_out(out, resume=resume)  # a scan refused compiles nothing
         print("compiling the solver once for this install (~1 min)...", file=sys.stderr)
-        compiling = compile_beside()  # while the library's tables are built here
+        # while the library's tables are built here
+        compiling = compile_beside(COMPILED if named_library(library_spec) else REFERENCE)
     library = load_library(library_spec)
     if compiling is not None:
         compiling.wait()  # then the workers load its machine code from numba's cache

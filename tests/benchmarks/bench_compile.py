@@ -16,8 +16,13 @@ scan's solver (wall and CPU) and then the CPU time of the first 2,000 triples of
 analytical library by the compiled code, with the compile's share that is LLVM's
 (module passes and machine code) beside; levels in turns, ``--rounds`` times.
 
+With ``--before COMMIT`` it measures the same, at numba's default level, for the code of
+that commit (checked out into a temporary folder, imported first) and for this code,
+in turns: what a change to the compile gains, on the same machine under the same load.
+
 Run: python tests/benchmarks/bench_compile.py [--no-reference] [--passes] [--write-docs]
      python tests/benchmarks/bench_compile.py --levels 1,2,3 [--rounds 1] [--write-docs]
+     python tests/benchmarks/bench_compile.py --before COMMIT [--rounds 1] [--write-docs]
 """
 
 import argparse
@@ -112,11 +117,11 @@ def _workloads(reference: bool) -> list[tuple[str, object]]:
     chunks = [Chunk(i, start, stop, n, deflate=True) for i, (n, start, stop) in enumerate(CHUNKS)]
     work = [
         (
-            "compiled pair (the suite's fixture, a scan's warm)",
+            "compile: the compiled path (what a first scan waits for)",
             lambda: solve_actuator(pair, (0, 1)),
         ),
         (
-            "chunks n = 2, 3, 4 with deflation (test_jit)",
+            "compute: chunks n = 2, 3, 4 with deflation (test_jit)",
             lambda: [run_chunk(small_library(), chunk) for chunk in chunks],
         ),
     ]
@@ -125,8 +130,8 @@ def _workloads(reference: bool) -> list[tuple[str, object]]:
         combos = [(0, 1), (0, 1, 2), (0, 1, 2, 3)]
         work.append(
             (
-                "reference path n = 2, 3, 4 with deflation (path.py)",
-                lambda: [scan._reference_rows(library, c, True) for c in combos],
+                "compile: the reference's kernels, after it (path.py, n = 2, 3, 4)",
+                lambda: [scan.reference_rows(library, c, True) for c in combos],
             )
         )
     return work
@@ -178,54 +183,87 @@ def _span(loads: list[float]) -> str:
     return f"{min(loads):.1f}-{max(loads):.1f}"
 
 
-def _levels(levels: list[str], rounds: int, doc) -> None:
-    found: dict[str, list[dict]] = {level: [] for level in levels}
+def _measured(variants: dict[str, dict], rounds: int) -> dict[str, list[dict]]:
+    """``_one_level`` in a fresh process per variant (its extra environment) and round,
+    variants in turns, each on an empty cache."""
+    found: dict[str, list[dict]] = {name: [] for name in variants}
     for _ in range(rounds):
-        for level in levels:
-            env = dict(os.environ, NUMBA_OPT=level, LABRIG_LEVEL_CHILD="1")
+        for name, extra in variants.items():
+            env = dict(os.environ, LABRIG_LEVEL_CHILD="1", **extra)
             env["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(prefix="labrig-numba-cache-")
             env.pop("LABRIG_JIT", None)
             done = subprocess.run(
                 [sys.executable, __file__], env=env, capture_output=True, text=True, check=True
             )
             one = json.loads(done.stdout.strip().splitlines()[-1]) | {"load": os.getloadavg()[0]}
-            found[level].append(one)
-            print(f"NUMBA_OPT={level}: {one}", file=sys.stderr)
+            found[name].append(one)
+            print(f"{name}: {one}", file=sys.stderr)
+    return found
 
-    def median(level: str, key: str) -> float:
-        values = sorted(r[key] for r in found[level])
+
+def _before(commit: str, rounds: int, doc) -> None:
+    root = Path(__file__).resolve().parents[2]
+    with tempfile.TemporaryDirectory() as folder:
+        archive = subprocess.run(
+            ["git", "-C", str(root), "archive", commit, "labrig"], check=True, capture_output=True
+        ).stdout
+        subprocess.run(["tar", "-x", "-C", folder], input=archive, check=True)
+        variants = {f"before ({commit})": {"PYTHONPATH": folder}, "this code": {}}
+        found = _measured(variants, rounds)
+
+    same, table = _compared(found, "code", next(iter(variants)), "before")
+    said = (
+        f"Median of {rounds}, in turns, each in a fresh process on an empty cache; the "
+        f"transitions the same: {'yes' if same else 'NO'}."
+    )
+    doc.publish("compile-before", f"{said}\n\n{table}")
+
+
+def _compared(
+    found: dict[str, list[dict]], heading: str, base: str, base_name: str
+) -> tuple[bool, str]:
+    """Whether every variant gave the same transitions, and the table of their medians,
+    with ratios to variant ``base``'s (called ``base_name``)."""
+
+    def median(name: str, key: str) -> float:
+        values = sorted(r[key] for r in found[name])
         return values[len(values) // 2]
 
-    base = levels[-1]
     same = len({r["digest"] for runs in found.values() for r in runs}) == 1
     rows = [
         (
-            level,
-            f"{median(level, 'compile_wall'):.1f}",
-            f"{median(level, 'compile_cpu'):.1f}",
-            f"{median(level, 'llvm_cpu'):.1f}",
-            f"{median(level, 'compile_cpu') / median(base, 'compile_cpu'):.2f}",
-            f"{median(level, 'run_cpu'):.2f}",
-            f"{median(level, 'run_cpu') / median(base, 'run_cpu'):.2f}",
-            _span([r["load"] for r in found[level]]),
+            name,
+            f"{median(name, 'compile_wall'):.1f}",
+            f"{median(name, 'compile_cpu'):.1f}",
+            f"{median(name, 'llvm_cpu'):.1f}",
+            f"{median(name, 'compile_cpu') / median(base, 'compile_cpu'):.2f}",
+            f"{median(name, 'run_cpu'):.2f}",
+            f"{median(name, 'run_cpu') / median(base, 'run_cpu'):.2f}",
+            _span([r["load"] for r in found[name]]),
         )
-        for level in levels
+        for name in found
     ]
     header = (
-        "NUMBA_OPT",
+        heading,
         "compile wall (s)",
         "compile CPU (s)",
         "of which LLVM (s)",
-        f"compile / level {base}",
+        f"compile / {base_name}",
         f"{LEVEL_TRIPLES:,} triples, CPU (s)",
-        f"run / level {base}",
+        f"run / {base_name}",
         "load",
     )
+    return same, markdown_table(header, rows, right=range(1, 8))
+
+
+def _levels(levels: list[str], rounds: int, doc) -> None:
+    found = _measured({level: {"NUMBA_OPT": level} for level in levels}, rounds)
+    same, table = _compared(found, "NUMBA_OPT", levels[-1], f"level {levels[-1]}")
     said = (
         f"Median of {rounds}, levels in turns; the transitions of every level the same: "
         f"{'yes' if same else 'NO'}."
     )
-    doc.publish("compile-levels", f"{said}\n\n{markdown_table(header, rows, right=range(1, 8))}")
+    doc.publish("compile-levels", f"{said}\n\n{table}")
 
 
 def main() -> None:
@@ -236,9 +274,13 @@ def main() -> None:
     parser.add_argument("--no-reference", action="store_true")
     parser.add_argument("--passes", action="store_true", help="also seconds per compiler pass")
     parser.add_argument("--levels", default=None, help="NUMBA_OPT levels to compare: 1,2,3")
-    parser.add_argument("--rounds", type=int, default=1, help="with --levels: turns")
+    parser.add_argument("--before", default=None, help="a commit to measure beside (git)")
+    parser.add_argument("--rounds", type=int, default=1, help="with --levels or --before: turns")
     add_write_docs_argument(parser)
     args = parser.parse_args()
+    if args.before:
+        _before(args.before, args.rounds, script_doc(["compile-before"], args.write_docs))
+        return
     if args.levels:
         _levels(
             args.levels.split(","), args.rounds, script_doc(["compile-levels"], args.write_docs)
@@ -254,7 +296,13 @@ def main() -> None:
     import labrig.model.scan.scan  # noqa: F401
 
     print(f"numba {numba.__version__}, cache {os.environ['NUMBA_CACHE_DIR']}")
-    steps = [(f"imports (numba {numba.__version__}, labrig)", time.perf_counter() - t0, _cpu_s())]
+    steps = [
+        (
+            f"start-up: imports (numba {numba.__version__}, labrig)",
+            time.perf_counter() - t0,
+            _cpu_s(),
+        )
+    ]
     compiles, passes = _Compiles(), _Passes()
     event.register("numba:compile", _listener(compiles))
     if args.passes:

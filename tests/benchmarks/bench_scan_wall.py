@@ -93,9 +93,9 @@ def choose(*args):
     if hasattr(compiling, "compile_beside"):  # not in the code of every --before
         beside = compiling.compile_beside
 
-        def compile_beside():
+        def compile_beside(*args):
             started = time.perf_counter()
-            process = beside()
+            process = beside(*args)
             wait = process.wait
 
             def timed_wait(*args):

@@ -19,18 +19,13 @@ The mode is read once, when this module is first imported: every compiled functi
 call only compiled ones, so the modes never mix within a process.
 
 Compile time. A fresh install's first scan compiles ``compiled_path.trace_transitions``
-and all it calls. numba compiles each function it is asked for into machine code
-together with every function it calls (LLVM links the callees' code into the caller's,
-then optimises and compiles the whole again), so a cold compile costs the size of each
-compiled function's call tree, summed over the functions, and a second signature of a
-function compiles its tree a second time. So every tree is kept small: no literal
-specialisations (constants passed between compiled functions,
-``labrig.model.actuator.dispatcher``), functions called from one place copied into their
-caller (``INLINE``), and no Python wrappers for those only compiled code calls
-(``INTERNAL``). Copying more into ``trace_transitions`` does not pay: LLVM's time grows
-faster than the size of one function. What is left is LLVM compiling the whole tree at
-each of a few levels (``trace_transitions``, ``_follow``, ``_cross``, ``_snap_from_fold``,
-``find_fold``; a third of the time in the first two). ``python
+and all it calls. numba types and lowers each compiled function once per signature,
+and ``labrig.model.actuator.dispatcher`` has LLVM optimise and compile the whole call
+tree once, in the library of the function Python calls (numba's own way compiles every
+function's machine code, then again within each caller's, five levels deep here). So
+the tree is kept small: no literal specialisations (constants passed between compiled
+functions), functions called from one place copied into their caller (``INLINE``), and
+no Python wrappers for those only compiled code calls (``INTERNAL``). ``python
 tests/benchmarks/bench_compile.py`` measures it on an empty cache (docs/performance.md,
 "Compiling").
 """
@@ -64,30 +59,20 @@ LEAF = {"cache": True, "_nrt": False}
 # same bits.
 INLINE = {"inline": "always"}
 # The options of a function only compiled code calls: no wrappers for calls from Python
-# (code numba would otherwise compile, with the callees', for every such function) and
-# no cache of its own (a process loads its callers' machine code, which holds it).
+# (code numba would otherwise compile, with the callees', for every such function), no
+# machine code and no cache of its own (a process loads its callers', which holds it).
 INTERNAL = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True}
 INTERNAL_LEAF = {**INTERNAL, "_nrt": False}  # a LEAF that only compiled code calls
 
 
 def njit(**options):
-    """numba's ``njit(**options)`` when compiling (with the dispatcher of
-    ``labrig.model.actuator.dispatcher``: no literal specialisations), else the
-    function itself."""
+    """numba's ``njit(**options)`` when compiling (with the dispatchers of
+    ``labrig.model.actuator.dispatcher``), else the function itself."""
     if not COMPILED:
         return _plain
-    from labrig.model.actuator.dispatcher import Dispatcher
+    from labrig.model.actuator.dispatcher import dispatcher
 
-    cache = options.pop("cache", False)
-    targetoptions = {"nopython": True, **options}
-
-    def compiled(function):
-        dispatcher = Dispatcher(py_func=function, locals={}, targetoptions=targetoptions)
-        if cache:
-            dispatcher.enable_caching()
-        return dispatcher
-
-    return compiled
+    return lambda function: dispatcher(function, options)
 
 
 def _plain(function):

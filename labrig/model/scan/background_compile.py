@@ -1,8 +1,9 @@
 """The solver compiled into numba's cache by a process of its own at the lowest priority,
 after a scan that ran as plain Python because compiling would not have paid for it
 (``labrig.model.scan.plan``): the next larger scan then loads the machine code instead of
-compiling it before it starts. A scan that compiles first starts such a process at once,
-at its own priority (``compile_beside``), and builds its library meanwhile.
+compiling it before it starts. A scan that compiles first starts one per part of the
+solver at once (``compile_beside``): the part it runs its actuators with at its own
+priority, which it waits for while it builds its library, and the other at the lowest.
 
 At the lowest priority it takes only the cores nothing else wants; one runs at a time
 per compile cache (a lock file in the temporary folder named after the cache), and it
@@ -10,8 +11,8 @@ stops at once where the cache holds the solver already. ``LABRIG_BACKGROUND_COMP
 turns it off (the test suite does: it compiles once, in the foreground, for the tests
 that need it).
 
-Run as ``python -m labrig.model.scan.background_compile [--now]``, which ``start`` and
-``compile_beside`` do.
+Run as ``python -m labrig.model.scan.background_compile [--now] [compiled|reference]``
+(both parts where none is named), which ``start`` and ``compile_beside`` do.
 """
 
 from __future__ import annotations
@@ -25,12 +26,29 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from labrig.model.scan.plan import MODE_VARIABLE, solver_cached
+from labrig.model.scan.plan import (
+    COMPILED_ENTRIES,
+    MODE_VARIABLE,
+    REFERENCE_ENTRIES,
+    solver_cached,
+)
 
 SWITCH_VARIABLE = "LABRIG_BACKGROUND_COMPILE"
 
 
 NOW = "--now"  # the compile a scan waits for: at its priority, not the lowest
+
+# The parts of the solver a scan loads, each compiled by solving actuators with it (which
+# compiles what they call and writes it to numba's cache, or loads it from there):
+# the compiled path (``trace_transitions``, all it calls copied into its machine code),
+# and the reference path's functions that Python calls (``find_fold``, ``settle_flow``
+# and the small kernels), which the scan runs for an actuator the compiled path leaves.
+# The segments are cheap to build; any pair, and a triple that flows after its snap,
+# compile the same.
+COMPILED, REFERENCE = "compiled", "reference"
+PARTS = (COMPILED, REFERENCE)
+_ENTRIES = {COMPILED: COMPILED_ENTRIES, REFERENCE: REFERENCE_ENTRIES}
+_NAMES = ("SI-B46-T20", "SI-B46-T22", "SI-B48-T30")
 
 
 def start() -> bool:
@@ -42,15 +60,25 @@ def start() -> bool:
     return True
 
 
-def compile_beside() -> subprocess.Popen:
-    """The compile in a process of its own, started now, for a scan that compiles first
-    (an empty cache) and waits for it: meanwhile the scan builds its library's tables on
-    the other core, and then loads the machine code from the cache (or, where none was
+def compile_beside(waited: str = COMPILED) -> subprocess.Popen:
+    """The compile of the part of the solver a scan runs its actuators with (``waited``,
+    one of ``PARTS``: the compiled path for a named library, the reference for measured
+    curves) in a process of its own, started now, for a scan that compiles first (an
+    empty cache) and waits for it: meanwhile the scan builds its library's tables on the
+    other core, and then loads the machine code from the cache (or, where none was
     written, compiles it as before). A process, not a thread: LLVM's work releases the
-    GIL call by call, and a thread that waits for it back at every call behind the
+    GIL call by call, and a thread that waited for it back at every call behind the
     tables' Python made the two together slower than one after the other (256 s against
-    140 s, measured at load 8)."""
-    return _spawn(NOW)
+    140 s, measured at load 8).
+
+    The other part is compiled by a second process at the lowest priority, which the scan
+    does not wait for: the compiled path leaves the reference none of the analytical
+    library's 7,140 triples, and a worker that needs it before that process has cached
+    it compiles what it calls, as before."""
+    for part in PARTS:
+        if part != waited:
+            _spawn(part)  # not --now: at the lowest priority
+    return _spawn(NOW, waited)
 
 
 def _spawn(*args: str, start_new_session: bool = False) -> subprocess.Popen:
@@ -65,23 +93,26 @@ def _spawn(*args: str, start_new_session: bool = False) -> subprocess.Popen:
     )
 
 
-def compile_solver() -> None:
-    """Solve one pair by the compiled path, which compiles the solver's functions that a
-    scan loads (``labrig.model.scan.plan.SOLVER_ENTRIES``, with their callees) and
-    writes them to numba's cache, or loads them from it. In a compiling process only."""
-    from labrig.model.scan.scan import ScanLibrary, solve_actuator
+def compile_solver(parts: tuple[str, ...] = PARTS) -> None:
+    """Compile ``parts`` of the solver (``PARTS``) into numba's cache, or load them from
+    it. In a compiling process only."""
+    from labrig.model.scan.scan import ScanLibrary, reference_rows, solve_actuator
     from labrig.model.segments.catalog import analytical_segment
 
-    names = ("SI-B46-T20", "SI-B46-T22")  # cheap to build; any pair compiles the same
-    solve_actuator(ScanLibrary("warm-up", tuple(analytical_segment(n) for n in names)), (0, 1))
+    library = ScanLibrary("warm-up", tuple(analytical_segment(n) for n in _NAMES))
+    if COMPILED in parts:
+        solve_actuator(library, (0, 1))
+    if REFERENCE in parts:
+        reference_rows(library, (0, 1, 2), True)
 
 
 @contextlib.contextmanager
-def one_at_a_time() -> Iterator[bool]:
-    """True while this process holds the background compile's lock for its compile cache,
-    False where another holds it; True without a lock where the system has none (not
-    POSIX). The lock is the cache's: two compiles into one cache would write the same
-    files twice, while compiles into different caches (another install, or
+def one_at_a_time(parts: tuple[str, ...] = PARTS) -> Iterator[bool]:
+    """True while this process holds the background compile's lock for its compile cache
+    and ``parts``, False where another holds it; True without a lock where the system
+    has none (not POSIX). The lock is the cache's: two compiles of a part into one
+    cache would write the same files twice, while the two parts (which write different
+    functions) and compiles into different caches (another install, or
     ``NUMBA_CACHE_DIR`` elsewhere) do not wait for each other."""
     try:
         import fcntl
@@ -90,7 +121,8 @@ def one_at_a_time() -> Iterator[bool]:
         return
     # numba writes beside the sources unless NUMBA_CACHE_DIR says where
     cache = os.environ.get("NUMBA_CACHE_DIR") or str(Path(__file__).resolve().parents[2])
-    key = hashlib.sha256(os.path.abspath(cache).encode()).hexdigest()[:12]
+    named = "\0".join((os.path.abspath(cache), *parts))
+    key = hashlib.sha256(named.encode()).hexdigest()[:12]
     path = Path(tempfile.gettempdir()) / f"labrig-background-compile-{os.getuid()}-{key}.lock"
     with open(path, "a") as lock:
         try:
@@ -104,9 +136,10 @@ def one_at_a_time() -> Iterator[bool]:
 def main() -> None:
     if hasattr(os, "nice") and NOW not in sys.argv[1:]:
         os.nice(19)
-    with one_at_a_time() as mine:
-        if mine and not solver_cached():
-            compile_solver()
+    parts = tuple(part for part in PARTS if part in sys.argv[1:]) or PARTS
+    with one_at_a_time(parts) as mine:
+        if mine and not solver_cached(tuple(e for part in parts for e in _ENTRIES[part])):
+            compile_solver(parts)
 
 
 if __name__ == "__main__":

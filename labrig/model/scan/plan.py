@@ -41,15 +41,17 @@ MAX_N = 6
 # the named library of the 36 braided segments by their bare names
 ANALYTICAL = "analytical"
 
-# The compiled functions whose machine code a scan loads from numba's cache: the
-# compiled path and the two largest the reference path calls from Python (an actuator
-# the compiled path leaves to the reference, every actuator of a measured library).
-# Each one's cache holds its callees' code.
-SOLVER_ENTRIES = (
-    ("labrig.model.actuator.compiled_path", "trace_transitions"),
+# The compiled functions whose machine code a scan loads from numba's cache, by the part
+# of the solver that runs its actuators (``labrig.model.scan.background_compile.PARTS``
+# compiles each): the compiled path, for a named library's; the two largest functions
+# the reference path calls from Python, for a measured library's (and for an actuator
+# the compiled path leaves to the reference). Each one's cache holds its callees' code.
+COMPILED_ENTRIES = (("labrig.model.actuator.compiled_path", "trace_transitions"),)
+REFERENCE_ENTRIES = (
     ("labrig.model.actuator.fold_search", "find_fold"),
     ("labrig.model.actuator.rosenbrock_flow", "settle_flow"),
 )
+SOLVER_ENTRIES = COMPILED_ENTRIES + REFERENCE_ENTRIES
 
 
 def default_workers() -> int:
@@ -137,15 +139,15 @@ def library_size(spec: str | None) -> int:
     return len(list(folder.glob("*.csv"))) if folder.is_dir() else 0
 
 
-def solver_cached() -> bool:
-    """Whether numba's cache holds machine code for every ``SOLVER_ENTRIES`` function that
+def solver_cached(entries: tuple[tuple[str, str], ...] = SOLVER_ENTRIES) -> bool:
+    """Whether numba's cache holds machine code for every function of ``entries`` that
     this process would load: for this numba, this CPU, the function's current bytecode
     and its source file's current stamp, read from numba's own index by numba's own
     code. False when it cannot tell (numba missing, or its cache's layout changed): the
     scan then plans as for an empty cache, which costs a large scan nothing (it compiles,
     which loads what is cached) and a small one at most its run in Python."""
     try:
-        return all(_cached(module, name) for module, name in SOLVER_ENTRIES)
+        return all(_cached(module, name) for module, name in entries)
     except Exception:  # an unknown numba: plan as if the cache were empty
         return False
 
@@ -196,7 +198,8 @@ def choose_solver_mode(library_spec: str | None, n: int, workers: int | None) ->
         return None  # the scan refuses it, and says why
     actuators = math.comb(segments, n)
     workers = default_workers() if workers is None or workers < 1 else workers
-    plan = plan_solver(actuators, n, workers, cached=solver_cached())
+    entries = COMPILED_ENTRIES if named_library(library_spec) else REFERENCE_ENTRIES
+    plan = plan_solver(actuators, n, workers, cached=solver_cached(entries))
     if not plan.compiled:
         os.environ[MODE_VARIABLE] = PYTHON
     return plan

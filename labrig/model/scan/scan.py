@@ -202,7 +202,8 @@ _INT_FIELDS = ("direction", "alpha", "beta", "stable")
 _FLOAT_FIELDS = ("v_ml", "dE", "dv", "dl", "dp")
 
 
-def _reference_rows(library: ScanLibrary, combo: tuple[int, ...], deflate: bool) -> Rows:
+def reference_rows(library: ScanLibrary, combo: tuple[int, ...], deflate: bool) -> Rows:
+    """An actuator's rows by the reference path (``scan_actuator``)."""
     found = scan_actuator(library, combo, deflate=deflate)
     ints = np.array([[getattr(t, f) for f in _INT_FIELDS] for t in found], dtype=np.int64)
     floats = np.array([[getattr(t, f) for f in _FLOAT_FIELDS] for t in found], dtype=float)
@@ -230,7 +231,7 @@ class _CompiledRows:
         try:
             return self.compiled(combo, deflate)
         except Exception:  # a state the compiled path leaves to the reference
-            return _reference_rows(self.library, combo, deflate)
+            return reference_rows(self.library, combo, deflate)
 
     def warm(self) -> None:
         """Compile (or load from numba's cache) before the workers fork, so that they
@@ -252,7 +253,7 @@ def _rows_function(library: ScanLibrary) -> Callable[[tuple[int, ...], bool], Ro
     measured tables also takes the reference: its transitions leave out snaps below the
     tables' resolution (``transitions``), which the compiled path does not know."""
     if not jit.COMPILED or any(c.measured is not None for c in library.curves):
-        return lambda combo, deflate: _reference_rows(library, combo, deflate)
+        return lambda combo, deflate: reference_rows(library, combo, deflate)
     rows = _ROWS.get(library)
     if rows is None:
         rows = _ROWS[library] = _CompiledRows(library)

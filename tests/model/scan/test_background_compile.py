@@ -40,24 +40,33 @@ def test_start_detaches_a_process_in_numbas_mode(monkeypatch):
     assert options["stdout"] == options["stderr"] == subprocess.DEVNULL
 
 
-def test_the_compile_beside_a_scan_is_its_child_at_its_priority(monkeypatch):
+def test_the_compile_beside_a_scan_is_its_children_at_its_priority(monkeypatch):
     spawned = _Spawned()
     monkeypatch.setattr(background_compile.subprocess, "Popen", spawned)
     monkeypatch.setenv(background_compile.SWITCH_VARIABLE, "0")  # only the background's switch
     monkeypatch.setenv(plan.MODE_VARIABLE, plan.PYTHON)
     background_compile.compile_beside()
-    [(argv, options)] = spawned.calls
-    assert argv == [sys.executable, "-m", "labrig.model.scan.background_compile", "--now"]
-    assert plan.MODE_VARIABLE not in options["env"]
-    assert not options["start_new_session"]  # a Ctrl-C at the scan stops it too
-    niced = []
+    module = [sys.executable, "-m", "labrig.model.scan.background_compile"]
+    assert [argv for argv, _ in spawned.calls] == [
+        [*module, "reference"],  # at the lowest priority, not waited for
+        [*module, "--now", "compiled"],
+    ]
+    for _, options in spawned.calls:
+        assert plan.MODE_VARIABLE not in options["env"]
+        assert not options["start_new_session"]  # a Ctrl-C at the scan stops it too
+    niced, compiled = [], []
     monkeypatch.setattr(background_compile.os, "nice", niced.append, raising=False)
-    monkeypatch.setattr(background_compile, "solver_cached", lambda: True)  # nothing to do
-    for args, lowest in (([], [19]), (["--now"], [])):
+    monkeypatch.setattr(background_compile, "solver_cached", lambda entries: False)
+    monkeypatch.setattr(background_compile, "compile_solver", compiled.append)
+    for args, lowest, parts in (
+        ([], [19], ("compiled", "reference")),
+        (["--now", "reference"], [], ("reference",)),
+    ):
         niced.clear()
         monkeypatch.setattr(sys, "argv", ["background_compile", *args])
         background_compile.main()
         assert niced == lowest
+        assert compiled.pop() == parts
 
 
 def test_start_is_switched_off(monkeypatch):
@@ -90,6 +99,11 @@ def test_one_compile_at_a_time(tmp_path, monkeypatch):
     assert not list(cache.rglob("*.nbi"))
     with background_compile.one_at_a_time() as again:
         assert again  # released
+    with (
+        background_compile.one_at_a_time(("compiled",)) as mine,
+        background_compile.one_at_a_time(("reference",)) as other,
+    ):
+        assert mine and other  # the other part writes other functions: no wait
     with background_compile.one_at_a_time() as mine:
         monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "another cache"))
         with background_compile.one_at_a_time() as other:
@@ -113,7 +127,7 @@ def test_the_scan_command_says_what_it_compiles(
     started, beside = [], []
     monkeypatch.setattr(background_compile, "start", lambda: started.append(1) or True)
     monkeypatch.setattr(
-        background_compile, "compile_beside", lambda: beside.append(1) or _Finished()
+        background_compile, "compile_beside", lambda part: beside.append(part) or _Finished()
     )
     out = tmp_path / "gent.h5"
     with pytest.raises(SystemExit) as exited:
@@ -123,7 +137,8 @@ def test_the_scan_command_says_what_it_compiles(
     assert ("compiling the solver once" in err) is before
     assert ("compiling the solver in the background" in err) is after
     assert started == ([1] if after else [])
-    assert beside == ([1] if before else [])  # beside the library's tables
+    # beside the library's tables; measured curves would run the reference
+    assert beside == (["compiled"] if before else [])
 
 
 def test_no_compile_is_announced_for_a_scan_refused(tmp_path, capsys, monkeypatch):
