@@ -135,6 +135,18 @@ def pytest_configure(config):
     )
     if not controller:
         _import_every_module()
+    if config.getoption("cpu_profile"):
+        from support import cpu_profile
+
+        config.pluginmanager.register(cpu_profile, "cpu_profile")
+
+
+def pytest_addoption(parser):
+    parser.addoption(
+        "--cpu-profile",
+        action="store_true",
+        help="print each worker's and the slowest tests' CPU time (tests/support/cpu_profile.py)",
+    )
 
 
 # every property test draws the same examples on every run and on every machine
