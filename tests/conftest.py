@@ -12,6 +12,9 @@ tests/benchmarks/bench_compile.py; 1.5-3 min before: labrig.model.actuator.jit),
 fixture ``compiled_path_cached`` does that once, in that worker, before any scan's own
 worker processes start (each would compile it at the same time, two cores for one
 result; the cache written here is the one they load: measured, no new cache file).
+The paper's statements (the ``libraries`` group, on another worker) solve pairs by the
+same compiled functions: their worker takes the fixture too, behind a lock, and loads
+what the first worker compiled (a fresh clone compiled it in both at once).
 
 Every module of labrig is imported before the first test (``_import_every_module``), in
 each process that runs tests (xdist's controller runs none, so it imports no labrig: the
@@ -23,6 +26,7 @@ as each finishes, on the host's speed. Seen: test_stress found two failing examp
 only when it ran after the compiled path's tests in their worker.
 """
 
+import contextlib
 import functools
 import importlib
 import os
@@ -72,6 +76,10 @@ LONG_FIRST = (
 # per process, so tests spread over two workers made it twice (seen: the video run, 3 s
 # of CPU each). A module with a module-scoped fixture is a group of its own (``_group``).
 COMPILED_GROUP = "compiled_path"
+# the groups whose first test would compile the compiled path on a fresh clone: each
+# takes ``compiled_path_cached`` first, so that one worker compiles and the other loads
+# what it wrote (both at once compiled it twice: the paper's statements 35 s of CPU)
+COMPILING_GROUPS = (COMPILED_GROUP, "libraries")
 GROUPS = {
     "tests/cli/test_benchmark.py::": COMPILED_GROUP,
     "tests/model/actuator/test_compiled_path.py::": COMPILED_GROUP,
@@ -135,6 +143,18 @@ def pytest_configure(config):
     )
     if not controller:
         _import_every_module()
+    if config.getoption("cpu_profile"):
+        from support import cpu_profile
+
+        config.pluginmanager.register(cpu_profile, "cpu_profile")
+
+
+def pytest_addoption(parser):
+    parser.addoption(
+        "--cpu-profile",
+        action="store_true",
+        help="print each worker's and the slowest tests' CPU time (tests/support/cpu_profile.py)",
+    )
 
 
 # every property test draws the same examples on every run and on every machine
@@ -196,21 +216,40 @@ def pytest_xdist_make_scheduler(config, log):
 
 
 @pytest.fixture(scope="session")
-def compiled_path_cached():
+def compiled_path_cached(tmp_path_factory):
     """The compiled path compiled in this process for the scans' argument types, which
-    writes numba's cache for every process after it (a no-op when the cache is warm)."""
+    writes numba's cache for every process after it (a no-op when the cache is warm).
+    One worker at a time: the first compiles, the others wait and load its cache."""
     from labrig.model.actuator import jit
 
     if not jit.COMPILED:
         return
     from labrig.model.scan.background_compile import compile_solver
 
-    compile_solver()
+    with _one_worker_at_a_time(tmp_path_factory, "compiled_path"):
+        compile_solver()
+
+
+@contextlib.contextmanager
+def _one_worker_at_a_time(tmp_path_factory, name: str):
+    """An exclusive lock shared by this run's workers (their temporary folders' parent
+    is the run's); a single process, or a system without fcntl, takes none."""
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        yield
+        return
+    try:
+        import fcntl
+    except ImportError:
+        yield
+        return
+    with open(tmp_path_factory.getbasetemp().parent / f"{name}.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield  # released when the file closes
 
 
 @pytest.fixture(autouse=True)
 def _compiled_path_first(request):
-    if _group(request.node.nodeid) == COMPILED_GROUP:
+    if _group(request.node.nodeid) in COMPILING_GROUPS:
         request.getfixturevalue("compiled_path_cached")
 
 

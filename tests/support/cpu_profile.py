@@ -1,0 +1,66 @@
+"""CPU time per test, with the processes it waited for: ``python -m pytest --cpu-profile``
+(tests/conftest.py registers this plugin then). On a shared machine a test's wall time
+says more about its neighbours than about it; its CPU time (user + system, of its worker
+and of the commands, scans and kernels the worker started and reaped) is what the
+suite's order and groups (tests/conftest.py) are balanced on.
+
+Each worker measures its tests (setup, call and teardown together) and sends the figure
+to the controller in the teardown report's ``user_properties``; the controller prints
+each worker's total and the slowest tests at the end. A child reaped during a later test
+counts there (a module fixture's processes, stopped after the module's last test)."""
+
+from __future__ import annotations
+
+import resource
+
+import pytest
+
+KEY = "cpu_s"
+SHOWN = 30  # the slowest tests listed
+
+
+def _cpu_s() -> float:
+    me = resource.getrusage(resource.RUSAGE_SELF)
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return me.ru_utime + me.ru_stime + children.ru_utime + children.ru_stime
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    item.stash[_START] = _cpu_s()
+    yield
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    if call.when == "teardown" and _START in item.stash:
+        outcome.get_result().user_properties.append((KEY, _cpu_s() - item.stash[_START]))
+
+
+_START = pytest.StashKey[float]()
+_MEASURED: list[tuple[float, str, str]] = []  # (CPU s, worker, node id), in the controller
+
+
+def pytest_runtest_logreport(report):
+    if report.when != "teardown":
+        return
+    for key, value in report.user_properties:
+        if key == KEY:
+            node = getattr(report, "node", None)  # xdist's worker, in its controller
+            worker = node.gateway.id if node is not None else "main"
+            _MEASURED.append((value, worker, report.nodeid))
+
+
+def pytest_terminal_summary(terminalreporter):
+    if not _MEASURED:
+        return
+    write = terminalreporter.write_line
+    terminalreporter.section("CPU time of the tests (s, with the processes they reaped)")
+    workers = sorted({w for _, w, _ in _MEASURED})
+    for worker in workers:
+        spent = [cpu for cpu, w, _ in _MEASURED if w == worker]
+        write(f"{worker}: {sum(spent):7.1f} in {len(spent)} tests")
+    write(f"all: {sum(cpu for cpu, _, _ in _MEASURED):7.1f}; the {SHOWN} slowest:")
+    for cpu, worker, nodeid in sorted(_MEASURED, reverse=True)[:SHOWN]:
+        write(f"{cpu:7.2f} {worker} {nodeid}")
