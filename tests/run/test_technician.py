@@ -5,9 +5,11 @@ import contextlib
 import os
 import sys
 import threading
+from types import SimpleNamespace
 
 import pytest
 
+from labrig.run import technician as technician_module
 from labrig.run.technician import ConsoleTechnician
 from labrig.time.clock import RealClock
 
@@ -40,16 +42,28 @@ def test_enter_answers_the_prompt(terminal):
     ]
 
 
-def test_a_withdrawn_prompt_returns_and_leaves_no_thread(terminal):
+def test_a_withdrawn_prompt_returns_and_leaves_no_thread(terminal, monkeypatch):
+    # The threads the technician starts, not every thread of the process: a thread
+    # another test left behind may start one of its own meanwhile on a busy host.
+    started: list[threading.Thread] = []
+
+    class RecordedThread(threading.Thread):
+        def start(self) -> None:
+            started.append(self)
+            super().start()
+
+    monkeypatch.setattr(
+        technician_module,
+        "threading",
+        SimpleNamespace(Thread=RecordedThread, Event=threading.Event),
+    )
     shown = []
     technician = ConsoleTechnician(RealClock(), show=shown_by(shown))
-    # the threads themselves, not their count: one another test left may end meanwhile
-    threads_before = set(threading.enumerate())
     trip = threading.Timer(0.05, technician.withdraw, ("stopped by the operator (Ctrl-C)",))
     trip.start()
     technician.prompt("close the valve", None)  # nobody presses Enter
+    assert [t.name for t in started if t.is_alive()] == []
     trip.join()
-    assert set(threading.enumerate()) <= threads_before
     assert shown[-1] == (
         "\n>>> The run stopped (stopped by the operator (Ctrl-C)): do not press Enter, "
         "the prompt is withdrawn."
