@@ -90,7 +90,14 @@ class ScanFile:
 
         total = math.comb(len(library.curves), n)
         n_chunks = len(make_chunks(len(library.curves), n, chunk_size))
-        h5 = h5py.File(path, "w")
+        try:
+            # "x": a file that appeared since the command checked (the compile can take
+            # minutes) is refused, never truncated
+            h5 = h5py.File(path, "x")
+        except FileExistsError:
+            raise InputError(
+                f"--out {path}: the file exists; --resume continues it, or remove it first"
+            ) from None
         attrs = h5.attrs
         attrs["kind"] = KIND
         attrs["labrig_version"] = __version__

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from support.scan_helpers import SMALL, assert_same_contents, small_library
 
+from labrig.errors import InputError
 from labrig.model.scan import library_cache
 from labrig.model.scan.scan import (
     TRANSITION_FIELDS,
@@ -134,6 +135,16 @@ def _results(library, n: int, chunk_size: int) -> list[ChunkResult]:
             )
         )
     return out
+
+
+def test_a_scan_never_truncates_a_file_that_appeared_at_its_path(tmp_path):
+    """The command checks --out before a compile of minutes; a file made there meanwhile
+    is refused, not written over."""
+    path = tmp_path / "scan.h5"
+    path.write_bytes(b"made while the solver compiled")
+    with pytest.raises(InputError, match="the file exists; --resume continues it"):
+        ScanFile.create(path, small_library(), 2, chunk_size=5, deflate=False)
+    assert path.read_bytes() == b"made while the solver compiled"
 
 
 def test_chunks_written_together_make_the_file_written_one_by_one(tmp_path):
