@@ -150,6 +150,12 @@ class RunFileLock:
         fd = os.open(self.run_path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644)
         self._hold_file(fd, refusal, writable=True)
 
+    def file_identity(self) -> tuple[int, int]:
+        """(device, inode) of the file ``create_file`` made and holds: what the path
+        must still name for the run to write, truncate or remove it."""
+        held = os.fstat(self._file_fd)
+        return held.st_dev, held.st_ino
+
     def _hold_file(self, fd: int, refusal: str, *, writable: bool) -> None:
         if not _lock_file(fd, writable):
             os.close(fd)

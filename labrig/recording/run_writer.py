@@ -171,16 +171,16 @@ class RunWriter:
         except BaseException:
             self._claim.release()
             raise
+        self._identity = self._claim.file_identity()
         try:
-            there = os.stat(self.path)
-            self._identity = (there.st_dev, there.st_ino)
             self._file = created = self._open_new_file()
             self._create_layout(title, protocol_text, protocol_path, rig_config_text)
             self._file.swmr_mode = True
         except BaseException:
             if created is not None:
                 created.close()
-            self.path.unlink(missing_ok=True)  # this writer's own new file, half laid out
+            if _identity_at(self.path) == self._identity:
+                self.path.unlink()  # this writer's own new file, half laid out
             self._claim.release()
             raise
         self._last_flush = time.monotonic()
@@ -200,7 +200,14 @@ class RunWriter:
 
     def _open_new_file(self) -> h5py.File:
         """HDF5's handle on the file just made, still empty."""
+        there = _stat_or_none(self.path)
+        if there is None or (there.st_dev, there.st_ino) != self._identity or there.st_size:
+            raise InputError(
+                f"{self.path}: the file made for this run was replaced or written to by "
+                "another program before the run opened it; nothing was written over"
+            )
         try:
+            # "w" truncates: only the empty file this run made and holds, checked above
             return h5py.File(self.path, "w", libver="latest")
         except OSError as exc:
             raise InputError(f"{self.path}: cannot create the run file ({exc})") from None
@@ -534,11 +541,7 @@ class RunWriter:
     def _check_still_there(self) -> None:
         """RunFileFailed once the path no longer names the file written (removed, its
         folder deleted): writing on would go on into a file nobody can open."""
-        try:
-            there = os.stat(self.path)
-        except OSError:
-            there = None
-        if there is None or (there.st_dev, there.st_ino) != self._identity:
+        if _identity_at(self.path) != self._identity:
             message = (
                 f"{self.path}: the run file is gone (removed, or its folder deleted, while the "
                 "run wrote it); what it held is lost"
@@ -552,3 +555,16 @@ class RunWriter:
         consistent (SWMR)."""
         abandon(self._file.id, *(d.id for d in self._datasets.values()))
         self._datasets.clear()
+
+
+def _stat_or_none(path: Path) -> os.stat_result | None:
+    try:
+        return os.stat(path)
+    except OSError:
+        return None
+
+
+def _identity_at(path: Path) -> tuple[int, int] | None:
+    """(device, inode) of the file ``path`` names now; None if it names none."""
+    there = _stat_or_none(path)
+    return None if there is None else (there.st_dev, there.st_ino)

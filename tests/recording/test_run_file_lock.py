@@ -121,6 +121,24 @@ def test_a_writer_never_replaces_an_existing_file(tmp_path):
     assert not lock_path(path).exists()
 
 
+def test_a_file_put_at_the_path_after_the_claim_is_never_truncated(tmp_path, monkeypatch):
+    """HDF5 makes its file by truncating: between the claim's empty file and HDF5's open,
+    another program's file moved onto the path must come out as it went in."""
+    path = tmp_path / "run.h5"
+    theirs = tmp_path / "theirs.bin"
+    theirs.write_bytes(b"another program's data")
+    create_file = RunFileLock.create_file
+
+    def create_then_replaced(self, refusal):
+        create_file(self, refusal)
+        os.replace(theirs, path)
+
+    monkeypatch.setattr(RunFileLock, "create_file", create_then_replaced)
+    with pytest.raises(InputError, match="replaced or written to by another program"):
+        make_writer(path)
+    assert path.read_bytes() == b"another program's data"
+
+
 def test_a_file_held_open_elsewhere_is_never_touched(tmp_path):
     path = tiny_run(tmp_path / "held.h5")
     before = path.read_bytes()
