@@ -22,7 +22,8 @@ from labrig.cli.options import plot_option
 _LIBRARY_HELP = (
     "paper (the paper's numbers, tubing read as diameters), paper-r (the same with the braid "
     "tubing's radius as printed), paper-gent (the paper's numbers with Gent's latex past the "
-    "peak, J_m = 97.2 from Gent 1996), calibrated or si (the SI as printed)"
+    "peak, J_m = 97.2 from Gent 1996), paper-clamped (the paper's numbers with the tube held "
+    "at its radius by the couplings), calibrated or si (the SI as printed)"
 )
 
 
@@ -59,7 +60,10 @@ def _fitted(library: str) -> dict | None:
 @click.option(
     "--library",
     "library",
-    type=click.Choice(["paper", "paper-r", "paper-gent", "calibrated", "si"], case_sensitive=False),
+    type=click.Choice(
+        ["paper", "paper-r", "paper-gent", "paper-clamped", "calibrated", "si"],
+        case_sensitive=False,
+    ),
     default=None,
     help=f"The segment library to check: {_LIBRARY_HELP}. Default: the default library's.",
 )

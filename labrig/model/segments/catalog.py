@@ -13,6 +13,9 @@ library as a prefix (docs/reference/segments.md):
 - ``paper-gent:B46-T20``: the paper's numbers with Gent's latex past the peak (J_m =
   97.2 from Gent 1996, not fitted) and the bulge held by the strips or free of them
   (docs/decisions/0011, 0012; ``labrig.model.segments.free_bulge``);
+- ``paper-clamped:B46-T20``: the ``paper:`` segment with the tube's radius held at R
+  where it is glued to the couplings, over its whole curve (docs/decisions/0014;
+  ``labrig.model.segments.paper_clamped``);
 - ``calibrated:B46-T20``: the calibrated form, eight fitted constants
   (``labrig.model.segments.calibrated``);
 - ``si:B46-T20`` (also ``SI-B46-T20``): the SI as printed, R = 6.35 mm
@@ -40,8 +43,8 @@ LIBRARY_NAMES: tuple[str, ...] = tuple(
     f"B{braid}-T{tube}" for braid in BRAID_LENGTHS_MM for tube in TUBE_LENGTHS_MM
 )
 PAPER, PAPER_RADIUS, CALIBRATED, SI = "paper", "paper-r", "calibrated", "si"
-PAPER_GENT = "paper-gent"
-LIBRARIES = (PAPER, PAPER_RADIUS, CALIBRATED, SI, PAPER_GENT)
+PAPER_GENT, PAPER_CLAMPED = "paper-gent", "paper-clamped"
+LIBRARIES = (PAPER, PAPER_RADIUS, CALIBRATED, SI, PAPER_GENT, PAPER_CLAMPED)
 # The library bare names resolve to, and so the simulated rig's and the demo's: the one
 # that holds more of the paper's statements with fewer fitted constants
 # (docs/explanation/calibration.md).
@@ -92,10 +95,14 @@ def library_geometry(name: str) -> tuple[int, int]:
 def library_segment(name: str):
     """The segment object behind a library name (``paper:`` a ``PaperBraidedSegment``,
     ``paper-r:`` one with the braid tubing's radius as printed, ``paper-gent:`` a
-    ``GentBulgeSegment``, ``si:`` the SI's ``BraidedSegment``, ``calibrated:`` an
-    ``OgdenBraidedSegment``)."""
+    ``GentBulgeSegment``, ``paper-clamped:`` a ``ClampedPaperSegment``, ``si:`` the SI's
+    ``BraidedSegment``, ``calibrated:`` an ``OgdenBraidedSegment``)."""
     braid, tube = library_geometry(name)
     library = parse_library_name(name)[0]
+    if library == PAPER_CLAMPED:
+        from labrig.model.segments.paper_clamped import ClampedPaperSegment
+
+        return ClampedPaperSegment(braid, tube)
     if library == PAPER_GENT:
         from labrig.model.segments.free_bulge import GentBulgeSegment
 

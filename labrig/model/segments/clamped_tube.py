@@ -17,9 +17,12 @@ T_1 = mu H (lambda_1/lambda_2 - 1/(lambda_1 lambda_2)^3) and T_2 = mu H (lambda_
 
 With the middle's radius given, phi(0) = 0 and r(L_tube/2) = R fix the shape and the
 pressure (``scipy.integrate.solve_bvp``, p an unknown parameter); following the middle's
-radius gives the tube's p(v) and l(v). Nothing here is fitted: R, H, mu and F are the
-segment's. It measures where the clamped tube peaks against where it meets the strips;
-no library is built from it.
+radius gives the tube's p(v) and l(v). Held at a length by straight braids (record
+0014), z(L_tube/2) = l/2 fixes the axial force as a second unknown, the braids' reaction
+in place of F. Nothing here is fitted: R, H, mu and F are the segment's. Record 0013
+measured with it where the clamped tube peaks against where it meets the strips; the
+``paper-clamped:`` library (``labrig.model.segments.paper_clamped``) follows it to its
+peak or to the strips.
 """
 
 from __future__ import annotations
@@ -46,13 +49,18 @@ _NEWTON_STEPS = 10
 @dataclass(frozen=True)
 class ClampedState:
     """One equilibrium: the pressure, the tube's length, its enclosed volume (not the
-    supplied volume: the rest state's is subtracted by ``ClampedTube.branch``) and the
-    membrane's energy."""
+    supplied volume: the rest state's is subtracted by ``ClampedTube.supplied_ml``), the
+    membrane's energy, the axial force on its ends (F, or the straight braids' reaction
+    where its length is held) and the outer radius of its middle (its hoop radius plus
+    the thinned wall) at its hoop stretch ``mid_hoop``."""
 
     p_kpa: float
     l_mm: float
     volume_mm3: float
     energy_mj: float
+    force_n: float
+    mid_outer_mm: float
+    mid_hoop: float
 
 
 class ClampedTube:
@@ -74,35 +82,47 @@ class ClampedTube:
             stretch = stretch - f / (1 / hoop + 3 * stretch**-4 * hoop**-3)
         return stretch
 
-    def _stretches(self, y, p_mpa):
+    def _force_n(self, p):
+        """The axial force: the second unknown where the length is held, else F."""
+        return p[1] if len(p) > 1 else self.segment.axial_force_n
+
+    def _stretches(self, y, p):
         r, _, phi = y
         hoop = r / self.radius_mm
-        axial = (self.segment.axial_force_n + p_mpa * np.pi * r**2) / (2 * np.pi * r)
+        axial = (self._force_n(p) + p[0] * np.pi * r**2) / (2 * np.pi * r)
         return hoop, self.meridian_stretch(hoop, axial / np.cos(phi))
 
     def _derivatives(self, _x, y, p):
         r, _, phi = y
-        hoop, meridian = self._stretches(y, p[0])
+        hoop, meridian = self._stretches(y, p)
         cube = (meridian * hoop) ** -3
         t1 = self.tension_n_per_mm * (meridian / hoop - cube)
         t2 = self.tension_n_per_mm * (hoop / meridian - cube)
         turn = meridian * (t2 * np.cos(phi) / r - p[0]) / t1
         return np.vstack([meridian * np.sin(phi), meridian * np.cos(phi), turn])
 
-    def solve(self, mid_hoop: float, previous=None):
+    def solve(self, mid_hoop: float, previous=None, length_mm: float | None = None):
         """The ``solve_bvp`` solution with the middle at hoop stretch ``mid_hoop``, from
-        ``previous`` (a neighbouring solution) or a uniform guess. Raises ValueError where
-        it does not converge."""
+        ``previous`` (a neighbouring solution) or a uniform guess; with ``length_mm`` the
+        tube is held at that length and the axial force is solved for. Raises ValueError
+        where it does not converge."""
         mid_mm = mid_hoop * self.radius_mm
         nodes = np.linspace(0.0, self.half_mm, _NODES)
         if previous is None:
-            guess = np.vstack([np.full_like(nodes, mid_mm), nodes, np.zeros_like(nodes)])
+            stretch = 1.0 if length_mm is None else length_mm / (2 * self.half_mm)
+            guess = np.vstack([np.full_like(nodes, mid_mm), stretch * nodes, np.zeros_like(nodes)])
             pressure = [0.0]
         else:
-            guess, pressure = previous.sol(nodes), previous.p
+            guess, pressure = previous.sol(nodes), list(previous.p[:1])
+        if length_mm is not None:
+            held = previous is not None and len(previous.p) > 1
+            pressure.append(previous.p[1] if held else self.segment.axial_force_n)
 
         def ends(start, end, p):
-            return np.array([start[0] - mid_mm, start[1], start[2], end[0] - self.radius_mm])
+            conditions = [start[0] - mid_mm, start[1], start[2], end[0] - self.radius_mm]
+            if length_mm is not None:
+                conditions.append(end[1] - 0.5 * length_mm)
+            return np.array(conditions)
 
         found = solve_bvp(
             self._derivatives, ends, nodes, guess, p=pressure, tol=_TOLERANCE, max_nodes=20000
@@ -117,13 +137,22 @@ class ClampedTube:
         x = np.linspace(0.0, self.half_mm, _QUADRATURE_NODES)
         y = solution.sol(x)
         p_mpa = float(solution.p[0])
-        hoop, meridian = self._stretches(y, p_mpa)
+        hoop, meridian = self._stretches(y, solution.p)
         r, z, phi = y
         volume = 2 * np.trapezoid(np.pi * r**2 * meridian * np.cos(phi), x)
         invariant = meridian**2 + hoop**2 + (meridian * hoop) ** -2 - 3
         wall_mm2 = 2 * np.pi * self.radius_mm * self.segment.thickness_mm
         energy = 2 * np.trapezoid(0.5 * self.segment.shear_modulus_mpa * invariant * wall_mm2, x)
-        return ClampedState(p_mpa * KPA_PER_MPA, 2 * float(z[-1]), float(volume), float(energy))
+        mid_outer = r[0] + self.segment.thickness_mm / (hoop[0] * meridian[0])
+        return ClampedState(
+            p_mpa * KPA_PER_MPA,
+            2 * float(z[-1]),
+            float(volume),
+            float(energy),
+            float(self._force_n(solution.p)),
+            float(mid_outer),
+            float(hoop[0]),
+        )
 
     def branch(self, mid_hoops) -> list[ClampedState]:
         """The states along increasing mid hoop stretches, each solved from the one before;

@@ -279,22 +279,27 @@ class PaperBraidedSegment(BraidedSegment):
         lt = np.sqrt(self._hoop_sq(lz))
         return lt * self.radius_mm + self.thickness_mm / (lt * lz)
 
-    def maxwell_pressure_kpa(self, bulged_stretch: float) -> tuple[float, float]:
+    def maxwell_pressure_kpa(
+        self, bulged_stretch: float, peak_stretch: float | None = None
+    ) -> tuple[float, float]:
         """(p_M, thin stretch): the equal-area pressure between the rising branch and the
         bulged phase at axial stretch ``bulged_stretch`` on the falling branch,
-        E(b) - E(a) = p_M (v(b) - v(a)), and the unbulged phase's stretch a."""
+        E(b) - E(a) = p_M (v(b) - v(a)), and the unbulged phase's stretch a. The rising
+        branch ends at the free tube's peak, ``peak_stretch`` (the segment's own peak if
+        not given)."""
+        peak_stretch = self.peak_stretch if peak_stretch is None else peak_stretch
         v_b = float(self.tube_state(bulged_stretch)[0])
         e_b = float(self.free_energy_mj(bulged_stretch))
 
         def thin(p):
-            return brentq(lambda lz: self.tube_state(lz)[1] - p, self.lambda_z0, self.peak_stretch)
+            return brentq(lambda lz: self.tube_state(lz)[1] - p, self.lambda_z0, peak_stretch)
 
         def area(p):
             a = thin(p)
             return e_b - float(self.free_energy_mj(a)) - p * (v_b - float(self.tube_state(a)[0]))
 
         low = float(self.tube_state(bulged_stretch)[1])
-        high = float(self.tube_state(self.peak_stretch)[1])
+        high = float(self.tube_state(peak_stretch)[1])
         p_m = brentq(area, low, high * (1 - 1e-12), xtol=1e-10)
         return p_m, thin(p_m)
 
@@ -304,19 +309,34 @@ class PaperBraidedSegment(BraidedSegment):
         (no peak before contact, or an envelope no wider than the tube at its peak)."""
         if self.peak_stretch is None:
             return None
-        peak_length = self.peak_stretch * self.l_tube_mm
-        widest = float(elastica.widest_radius_mm(peak_length, self.l_braid_mm, self.end_radius_mm))
-        if widest <= float(self.outer_radius_mm(self.peak_stretch)):
+        return self.bulge_at(
+            self.peak_stretch * self.l_tube_mm,
+            float(self.outer_radius_mm(self.peak_stretch)),
+            float(self.tube_state(self.peak_stretch)[0]),
+            self.peak_stretch,
+        )
+
+    def bulge_at(
+        self, peak_length_mm: float, peak_outer_mm: float, peak_ml: float, free_peak: float
+    ) -> Bulge | None:
+        """The bulge past a peak at length ``peak_length_mm``, where the tube's widest
+        outer radius is ``peak_outer_mm`` and its supplied volume ``peak_ml``, with
+        Maxwell's construction on the free tube's uniform branch up to its own peak
+        ``free_peak`` (axial stretch); None where there is none (``bulge``)."""
+        widest = float(
+            elastica.widest_radius_mm(peak_length_mm, self.l_braid_mm, self.end_radius_mm)
+        )
+        if widest <= peak_outer_mm:
             return None
-        far = self.peak_stretch
+        far = free_peak
         while self.outer_radius_mm(far) < widest:  # the radius grows without bound
             far *= 2
-        bulged = brentq(lambda lz: self.outer_radius_mm(lz) - widest, self.peak_stretch, far)
-        plateau, thin = self.maxwell_pressure_kpa(bulged)
-        angle = float(np.arccos(min(peak_length / self.l_braid_mm, 1.0)))
+        bulged = brentq(lambda lz: self.outer_radius_mm(lz) - widest, free_peak, far)
+        plateau, thin = self.maxwell_pressure_kpa(bulged, free_peak)
+        angle = float(np.arccos(min(peak_length_mm / self.l_braid_mm, 1.0)))
         with np.errstate(divide="ignore"):
             fill_ml = float(self.contact_state(min(angle, self.wall_angle))[0])
-        if fill_ml <= float(self.tube_state(self.peak_stretch)[0]):
+        if fill_ml <= peak_ml:
             return None
         return Bulge(plateau, thin, bulged, angle, fill_ml)
 
@@ -334,18 +354,31 @@ class PaperBraidedSegment(BraidedSegment):
         if bulge is None:
             before = self._branches()[-1](np.array([1.0]))
             return LobeBranch(self, self.contact_angle, float(before[1][0]))
-        p_peak = float(self.tube_state(self.peak_stretch)[1])
-        p_end = bulge.plateau_kpa - min(PLATEAU_FALL_KPA, p_peak - bulge.plateau_kpa)
+        return self.lobes_past_fill(bulge, float(self.tube_state(self.peak_stretch)[1]))
+
+    def lobes_past_fill(self, bulge: Bulge, p_peak_kpa: float) -> LobeBranch:
+        """The lobes from the fill at the plateau's end pressure (the plateau falls by
+        at most PLATEAU_FALL_KPA, and not below the peak less the plateau's depth)."""
+        p_end = bulge.plateau_kpa - min(PLATEAU_FALL_KPA, p_peak_kpa - bulge.plateau_kpa)
         return LobeBranch(self, min(bulge.peak_angle, self.wall_angle), p_end)
 
     def _bulged_tables(self, bulge: Bulge):
         """(v_ml, p_kpa, l_mm) from the unpressurised state through the peak, the fall,
         the plateau and the lobes past the fill."""
         free = np.linspace(self.lambda_z0, self.peak_stretch, _SAMPLES)
-        v_free, p_free, l_free = self.tube_state(free)
-        v_pk, p_pk, l_pk = float(v_free[-1]), float(p_free[-1]), float(l_free[-1])
         v_a, _, l_a = (float(x) for x in self.tube_state(bulge.thin_stretch))
+        return self.bulge_tables(bulge, self.tube_state(free), v_a, l_a)
+
+    def bulge_tables(self, bulge: Bulge, rising, v_a: float, l_a: float, shift_ml: float = 0.0):
+        """(v_ml, p_kpa, l_mm): the ``rising`` tables (to the peak, their last state)
+        followed by the fall, the plateau and the lobes past the fill. (``v_a``, ``l_a``)
+        is the unbulged phase at the plateau's pressure; ``shift_ml`` is added to the
+        lobes' supplied volumes (they count from ``V0_ml``), where the rising branch
+        counts from another rest volume."""
+        v_free, p_free, l_free = (np.asarray(x, dtype=float) for x in rising)
+        v_pk, p_pk, l_pk = float(v_free[-1]), float(p_free[-1]), float(l_free[-1])
         v_c, p_c, l_c = self.lobes.table  # starts at the plateau's end pressure
+        v_c = v_c + shift_ml
         v_end, l_end = float(v_c[0]), float(l_c[0])
 
         def mixture_mm(v):  # the bulged phase spans the strips at the length they have
