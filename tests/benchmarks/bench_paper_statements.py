@@ -1,7 +1,7 @@
 """The paper's statements on every library: the table of docs/explanation/calibration.md.
 
 Run: python tests/benchmarks/bench_paper_statements.py [--libraries paper calibrated]
-[--write-docs] [--json-dir DIR]
+[--write-docs] [--json-dir DIR] [--reuse-json]
 
 Each library is ``labrig model paper --library NAME --json`` in a process of its own;
 the table has one row a statement (its key, what the paper says and the tolerance) and
@@ -9,6 +9,8 @@ one column a library: labrig's value, whether it holds and the statement's role 
 where it is not a prediction. With ``--write-docs`` it replaces the section between
 ``<!-- bench:statements -->`` and its end marker in calibration.md, with the date, the
 machine and its load (the verdicts are the same on any machine; the seconds are not).
+With ``--reuse-json`` a library whose document is already in ``--json-dir`` (written by
+``labrig model paper --library NAME --json`` from the same code) is read, not run again.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from labrig.cli.performance_doc import PerformanceDoc, add_write_docs_argument, markdown_table
 
 CALIBRATION_DOC = Path(__file__).resolve().parents[2] / "docs" / "explanation" / "calibration.md"
-LIBRARIES = ("paper", "paper-r", "paper-gent", "calibrated", "si")
+LIBRARIES = ("paper", "paper-r", "paper-gent", "paper-clamped", "calibrated", "si")
 
 
 def statements(library: str) -> tuple[dict, float]:
@@ -85,11 +87,21 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--libraries", nargs="+", default=list(LIBRARIES))
     parser.add_argument("--json-dir", type=Path, help="also keep each library's JSON there")
+    parser.add_argument(
+        "--reuse-json", action="store_true", help="read a library's JSON from --json-dir if there"
+    )
     add_write_docs_argument(parser)
     args = parser.parse_args()
     doc = PerformanceDoc(["statements"], args.write_docs, path=CALIBRATION_DOC)
     documents = {}
+    if args.reuse_json and args.json_dir is None:
+        parser.error("--reuse-json reads from --json-dir: give it")
     for library in args.libraries:
+        kept = args.json_dir / f"{library}.json" if args.json_dir is not None else None
+        if args.reuse_json and kept.is_file():
+            documents[library] = json.loads(kept.read_text())
+            print(f"{library}: {documents[library]['holding']} hold, from {kept}", file=sys.stderr)
+            continue
         documents[library], seconds = statements(library)
         print(f"{library}: {documents[library]['holding']} hold, {seconds:.0f} s", file=sys.stderr)
         if args.json_dir is not None:
