@@ -6,7 +6,8 @@ maximum). The free tube's peak is found here in the hoop stretch from the membra
 equilibrium equations (S16, S33 with plane-stress neo-Hookean stresses), not from the
 S37/S38 root the segment uses. The tube with its ends held at their radius
 (``clamped_tube``) against the same uniform membrane far from its ends, and against the
-virtual work of its own energy."""
+virtual work of its own energy, free and held at a length by straight braids (there
+against S23 at the middle's own axial stretch)."""
 
 from types import SimpleNamespace
 
@@ -102,3 +103,33 @@ def test_the_clamped_tubes_pressure_is_the_virtual_work_of_its_energy():
         work = after.energy_mj - before.energy_mj - force * (after.l_mm - before.l_mm)
         dv_ml = (after.volume_mm3 - before.volume_mm3) / 1000
         assert work / dv_ml == pytest.approx(here.p_kpa, rel=1e-4)
+
+
+def test_held_at_a_length_far_from_its_ends_the_tube_is_s23_at_that_stretch():
+    tube = _tube(150.0)
+    stretch_z = 1.4
+    seg = tube.segment
+    scale_mpa = seg.shear_modulus_mpa * seg.thickness_mm / seg.radius_mm
+    solution = None
+    for hoop in (0.9, 1.1, 1.3):  # below the free peak, where its end zones stay short
+        solution = tube.solve(hoop, solution, length_mm=stretch_z * 150.0)
+        # the middle of a long tube is uniform: S23 at the length the ends impose there
+        middle = tube.state(solution)
+        assert middle.l_mm == pytest.approx(stretch_z * 150.0, rel=1e-9)
+        # dz/dX at the middle, where phi = 0: the meridian's stretch, the local lambda_z
+        local_z = float(solution.yp[1][0])
+        expected = capped_pressure_ratio(hoop, local_z) * scale_mpa
+        assert solution.p[0] == pytest.approx(expected, rel=1e-6)
+
+
+def test_held_at_a_length_the_pressure_is_the_virtual_work_of_the_energy():
+    """dW = p dv at a fixed length, by central differences between neighbouring states."""
+    tube = _tube(26.0)
+    solution = None
+    states = []
+    for hoop in (1.195, 1.2, 1.205):
+        solution = tube.solve(hoop, solution, length_mm=40.0)
+        states.append(tube.state(solution))
+    before, here, after = states
+    dv_ml = (after.volume_mm3 - before.volume_mm3) / 1000  # mm^3 to mL
+    assert (after.energy_mj - before.energy_mj) / dv_ml == pytest.approx(here.p_kpa, rel=1e-4)

@@ -1,65 +1,17 @@
 """The segment clamped at its couplings (docs/decisions/0014) against independent
-computations: the tube held at a fixed length far from its ends against S23 at that
-axial stretch, its pressure against the virtual work of its own energy at fixed length,
-the curve's work int p dv against the clamped membrane's energy less F times its
+computations (tests/model/segments/test_no_peak.py checks the clamped tube itself, held
+at a length too): the curve's work int p dv against the clamped membrane's energy less F times its
 lengthening, the rest volume between the bounds its shape allows, and a long tube's peak
 against the free uniform tube's (the clamp's boundary layers matter less the longer the
 tube). The join at contact adds no pressure maximum."""
-
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from labrig.model.segments.catalog import load_segment
-from labrig.model.segments.clamped_tube import ClampedTube
-from labrig.model.segments.paper_braided import capped_pressure_ratio
 from labrig.model.segments.paper_clamped import ClampedPaperSegment
 
 MM3_PER_ML = 1000.0
-
-
-def _tube(l_tube_mm: float) -> ClampedTube:
-    seg = ClampedPaperSegment(46, 20)
-    return ClampedTube(
-        SimpleNamespace(
-            radius_mm=seg.radius_mm,
-            thickness_mm=seg.thickness_mm,
-            shear_modulus_mpa=seg.shear_modulus_mpa,
-            axial_force_n=seg.axial_force_n,
-            l_tube_mm=l_tube_mm,
-        )
-    )
-
-
-def test_held_at_a_length_far_from_its_ends_the_tube_is_s23_at_that_stretch():
-    tube = _tube(150.0)
-    stretch_z = 1.4
-    seg = tube.segment
-    scale_mpa = seg.shear_modulus_mpa * seg.thickness_mm / seg.radius_mm
-    solution = None
-    for hoop in (0.9, 1.1, 1.3):  # below the free peak, where its end zones stay short
-        solution = tube.solve(hoop, solution, length_mm=stretch_z * 150.0)
-        # the middle of a long tube is uniform: S23 at the length the ends impose there
-        middle = tube.state(solution)
-        assert middle.l_mm == pytest.approx(stretch_z * 150.0, rel=1e-9)
-        # dz/dX at the middle, where phi = 0: the meridian's stretch, the local lambda_z
-        local_z = float(solution.yp[1][0])
-        expected = capped_pressure_ratio(hoop, local_z) * scale_mpa
-        assert solution.p[0] == pytest.approx(expected, rel=1e-6)
-
-
-def test_held_at_a_length_the_pressure_is_the_virtual_work_of_the_energy():
-    """dW = p dv at a fixed length, by central differences between neighbouring states."""
-    tube = _tube(26.0)
-    solution = None
-    states = []
-    for hoop in (1.195, 1.2, 1.205):
-        solution = tube.solve(hoop, solution, length_mm=40.0)
-        states.append(tube.state(solution))
-    before, here, after = states
-    dv_ml = (after.volume_mm3 - before.volume_mm3) / MM3_PER_ML
-    assert (after.energy_mj - before.energy_mj) / dv_ml == pytest.approx(here.p_kpa, rel=1e-4)
 
 
 @pytest.fixture(scope="module")
