@@ -1,5 +1,5 @@
 """Benchmark: build time of the 36 analytical library segments (the default library's,
-then the two paper-numbers libraries and the SI's), and of loading a raw measured curve
+then three paper-numbers libraries and the SI's), and of loading a raw measured curve
 (1 kHz samples at 60 mL/min). Prints numbers; asserts nothing.
 
 Run: python tests/benchmarks/bench_segments.py [--write-docs]
@@ -32,7 +32,7 @@ def main() -> None:
     t_cached = time.perf_counter() - t0
     samples = [len(c.v_ml) for c in curves]
     others = []
-    for library in (catalog.PAPER, catalog.PAPER_RADIUS, catalog.SI):
+    for library in (catalog.PAPER, catalog.PAPER_RADIUS, catalog.PAPER_CLAMPED, catalog.SI):
         t0 = time.perf_counter()
         built = [catalog.analytical_segment(name) for name in catalog.library_names(library)]
         sizes = [len(c.v_ml) for c in built]
