@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 
+from labrig.model.actuator.array_loops import sorted_unique, stable_order
 from labrig.model.actuator.curve_tables import (
     BRANCH_LAST,
     BRANCH_RISING,
@@ -320,7 +321,7 @@ def _settle_pair(tables, w):
     knots = np.concatenate((x[0, :m0], v - x[1, :m1]))
     lo, hi = _min(w[0], end), _max(w[0], end)
     inside = knots[(knots > lo) & (knots < hi)]
-    points = np.unique(np.concatenate((inside, np.array([end]))))
+    points = sorted_unique(np.concatenate((inside, np.array([end]))))
     if direction < 0:
         points = points[::-1]
     j = -1
@@ -421,7 +422,7 @@ def _combinations_near(tables, info, w, near_ml):
     for row in range(total):
         for i in range(n):
             distance[row] += product[row, i] != product[0, i]
-    order = np.argsort(distance, kind="mergesort")
+    order = stable_order(distance)
     return product[order]
 
 
