@@ -1,12 +1,13 @@
-"""numpy's stable argsort, unique and interp as the small loops the solver needs of them,
-one source for both modes (``labrig.model.actuator.jit``).
+"""numpy's stable argsort, unique, searchsorted and interp as the small loops the solver
+needs of them, one source for both modes (``labrig.model.actuator.jit``).
 
 Why not numpy's own: compiled, each is numba's general implementation (sorts for every
-dtype, kind and layout, an interp with its scalar and complex forms), typed and lowered
-for each type it is called with, and those were about a quarter of the typing and
-lowering of a cold compile of the solver. The solver sorts at most a few hundred numbers
-at a time, mostly in the sorted runs they come in (a segment's profile pressures), which
-a natural merge sort merges in a few passes.
+dtype, kind and layout, a searchsorted that takes its side as a string, an interp with
+its scalar and complex forms), typed and lowered for each type it is called with; numba's
+library functions were a quarter of the typing and lowering of a cold compile of the
+solver. The solver sorts at most a few hundred numbers at a time, mostly in the sorted
+runs they come in (a segment's profile pressures), which a natural merge sort merges in
+a few passes.
 
 The same bits as numpy's, on NaN-free input: a stable order is unique; ``sorted_unique``
 keeps the first of equal values in sorted order, where numpy keeps whichever its unstable
@@ -22,7 +23,7 @@ import math
 
 import numpy as np
 
-from labrig.model.actuator.jit import INTERNAL, njit
+from labrig.model.actuator.jit import INTERNAL, INTERNAL_LEAF, njit
 
 
 @njit(**INTERNAL)
@@ -74,6 +75,19 @@ def sorted_unique(values):
     return out[:m]
 
 
+@njit(**INTERNAL_LEAF)
+def count_at_or_below(xs, x):
+    """``np.searchsorted(xs, x, side="right")`` of increasing ``xs``: by bisection."""
+    lo, hi = 0, len(xs)
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if x >= xs[mid]:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
 @njit(**INTERNAL)
 def interp(x, xp, fp):
     """``np.interp(x, xp, fp)`` of 1-D float64 arrays, ``xp`` increasing (numpy's
@@ -90,14 +104,7 @@ def interp(x, xp, fp):
         if math.isnan(x_i):
             out[i] = x_i
             continue
-        lo, hi = 0, count  # j: the last sample point at or below x_i, -1 if none
-        while lo < hi:
-            mid = (lo + hi) >> 1
-            if x_i >= xp[mid]:
-                lo = mid + 1
-            else:
-                hi = mid
-        j = lo - 1
+        j = count_at_or_below(xp, x_i) - 1  # the last sample point at or below x_i
         if j == -1:
             out[i] = fp[0]
         elif j == count - 1 or xp[j] == x_i:

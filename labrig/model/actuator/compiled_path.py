@@ -418,7 +418,7 @@ def _combinations_near(tables, info, w, near_ml):
             digits[i] = 0
             i -= 1
     # sorted (stably) by how many positions differ from the first
-    distance = np.zeros(total, dtype=np.int64)
+    distance = np.zeros(total)  # float64: the one type ``stable_order`` is compiled for
     for row in range(total):
         for i in range(n):
             distance[row] += product[row, i] != product[0, i]
@@ -467,7 +467,8 @@ def _snap_from_fold(tables, info, fold, s_p, unit, flow_tol):
         for i in range(n):
             w0[i] = vs[i] + eta * u[i]
         post = _polish(tables, info, _settle(tables, w0, flow_tol, unit), v_fold, 0.0)
-        beyond = np.any(post[0] != b) or s_p * (post[1] - p) > 1e-9 * _max(1.0, abs(p))
+        moved = _lexicographic_less(post[0], b) or _lexicographic_less(b, post[0])
+        beyond = moved or s_p * (post[1] - p) > 1e-9 * _max(1.0, abs(p))
         if beyond and stable_slopes(post[3]):
             return _past_semi_stable(tables, info, post, fold, eta, flow_tol, unit)
     raise RuntimeError("no state to snap to from the fold")
@@ -536,7 +537,9 @@ def _cross(tables, info, end, at_limit, s_p, direction, unit, flow_tol):
     best_subset = np.zeros(0, dtype=np.int64)
     best_new = b.copy()
     for size in range(1, n_limit + 1):
-        index = np.arange(size)
+        index = np.empty(size, dtype=np.int64)  # np.arange, costly to compile
+        for j in range(size):
+            index[j] = j
         while True:  # itertools.combinations(at_limit, size), in order
             subset = at_limit[index]
             new = b.copy()
@@ -750,7 +753,9 @@ def default_end_volume(tables, info):
         p_end = 1.1 * highest
     else:
         for i in range(n):
-            top = np.max(tables[SAMPLES][i, : tables[LAST_PIECE][i] + 2])
+            top = tables[SAMPLES][i, 0]  # np.max, as a loop: numba's is costly to compile
+            for j in range(1, tables[LAST_PIECE][i] + 2):
+                top = _max(top, tables[SAMPLES][i, j])
             p_end = top if i == 0 else _max(p_end, top)
     volumes = np.empty(n)
     for i in range(n):

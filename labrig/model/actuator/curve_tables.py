@@ -24,7 +24,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from labrig.model.actuator.array_loops import interp, sorted_unique
+from labrig.model.actuator.array_loops import count_at_or_below, interp, sorted_unique
 from labrig.model.actuator.jit import INTERNAL, INTERNAL_LEAF, LEAF, njit
 
 # Newton on a branch's cubic piece stops when the step is below this fraction of the
@@ -540,9 +540,11 @@ def fold_screen(tables, profiles, branches, p_from, p_to, margin):
     m = 0
     for i in range(n):
         ps = profiles[PROFILE_P][i, branches[i], : profiles[PROFILE_COUNT][i, branches[i]]]
-        for j in range(np.searchsorted(ps, lo, side="right"), np.searchsorted(ps, hi)):
+        j = count_at_or_below(ps, lo)  # the profile's pressures above lo and below hi
+        while j < len(ps) and ps[j] < hi:
             candidates[m] = ps[j]
             m += 1
+            j += 1
     pressures = sorted_unique(candidates[:m])
     total = np.zeros(len(pressures))
     scale = np.zeros(len(pressures))

@@ -1,4 +1,4 @@
-"""The solver's loops for numpy's stable argsort, unique and interp
+"""The solver's loops for numpy's stable argsort, unique, searchsorted and interp
 (``labrig.model.actuator.array_loops``) give numpy's results bit for bit, on generated
 input with ties, single elements, sorted and reversed runs and points outside the
 samples: as the plain Python they are written in and, in a compiling process, compiled."""
@@ -49,7 +49,11 @@ def _compiled():
     def interp(x, xp, fp):
         return array_loops.interp(x, xp, fp)
 
-    return {"order": order, "unique": unique, "interp": interp}
+    @numba.njit
+    def count(xs, x):
+        return array_loops.count_at_or_below(xs, x)
+
+    return {"order": order, "unique": unique, "interp": interp, "count": count}
 
 
 def _plain():
@@ -68,6 +72,7 @@ def _plain():
         "order": plain(array_loops.stable_order),
         "unique": plain(array_loops.sorted_unique),
         "interp": plain(array_loops.interp),
+        "count": plain(array_loops.count_at_or_below),
     }
 
 
@@ -90,7 +95,7 @@ def test_stable_order_is_numpys_stable_argsort(loops, values, arrangement):
 @settings(max_examples=200, deadline=None)
 @given(values=st.lists(st.integers(0, 4), max_size=250))
 def test_stable_order_of_integer_keys(loops, values):
-    """The solver's one integer use: combinations by how many positions differ."""
+    """Integer keys, with many ties."""
     keys = np.array(values, dtype=np.int64)
     assert _same_bits(loops["order"](keys), np.argsort(keys, kind="mergesort"))
 
@@ -103,6 +108,14 @@ def test_sorted_unique_is_numpys_unique(loops, values, arrangement):
     np.testing.assert_array_equal(got, expected)
     if not np.any(values == 0.0):  # 0.0 and -0.0 tie, and numpy's sort is not stable
         assert _same_bits(got, expected)
+
+
+@settings(max_examples=300, deadline=None)
+@given(values=_VALUES, points=st.lists(st.one_of(_FEW, _ANY), max_size=10))
+def test_count_at_or_below_is_numpys_searchsorted_right(loops, values, points):
+    xs = np.sort(np.array(values, dtype=np.float64))
+    for x in [*points, *xs[:3]]:
+        assert loops["count"](xs, x) == np.searchsorted(xs, x, side="right")
 
 
 @settings(max_examples=300, deadline=None)
