@@ -76,6 +76,18 @@ def sorted_unique(values):
 
 
 @njit(**INTERNAL_LEAF)
+def copy_into(target, source):
+    """``target[:] = source`` of 1-D arrays, element by element: numba's assignment
+    checks the shapes with a message it formats at run time, and that formatting
+    (``str`` of an int, string concatenation) cost more to compile than the rest of the
+    function it was in."""
+    if len(target) != len(source):
+        raise ValueError("copy_into: arrays of different lengths")
+    for i in range(len(source)):
+        target[i] = source[i]
+
+
+@njit(**INTERNAL_LEAF)
 def count_at_or_below(xs, x):
     """``np.searchsorted(xs, x, side="right")`` of increasing ``xs``: by bisection."""
     lo, hi = 0, len(xs)

@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from labrig.model.actuator.array_loops import sorted_unique, stable_order
+from labrig.model.actuator.array_loops import copy_into, sorted_unique, stable_order
 from labrig.model.actuator.curve_tables import (
     BRANCH_LAST,
     BRANCH_RISING,
@@ -627,7 +627,7 @@ def _append_piece(timeline, start, end, direction):
     ints[count, 0], ints[count, 1] = PIECE, direction
     floats[count, 0], floats[count, 1] = start[1], end[1]
     floats[count, 2], floats[count, 3] = fsum(start[2]), fsum(end[2])
-    branches[count, 0] = start[0]
+    copy_into(branches[count, 0], start[0])
     counter[0] = count + 1
 
 
@@ -639,9 +639,12 @@ def _append_event(timeline, kind, cause, direction, pre, post):
         raise Unported("too many items on one path")
     ints[count, 0], ints[count, 1], ints[count, 2], ints[count, 3] = EVENT, direction, kind, cause
     floats[count, 0], floats[count, 1] = pre[1], post[1]
-    branches[count, 0], branches[count, 1] = pre[0], post[0]
-    states[count, 0], states[count, 1] = pre[2], pre[3]
-    states[count, 2], states[count, 3] = post[2], post[3]
+    copy_into(branches[count, 0], pre[0])
+    copy_into(branches[count, 1], post[0])
+    copy_into(states[count, 0], pre[2])
+    copy_into(states[count, 1], pre[3])
+    copy_into(states[count, 2], post[2])
+    copy_into(states[count, 3], post[3])
     counter[0] = count + 1
 
 

@@ -53,7 +53,11 @@ def _compiled():
     def count(xs, x):
         return array_loops.count_at_or_below(xs, x)
 
-    return {"order": order, "unique": unique, "interp": interp, "count": count}
+    @numba.njit
+    def copy(target, source):
+        array_loops.copy_into(target, source)
+
+    return {"order": order, "unique": unique, "interp": interp, "count": count, "copy": copy}
 
 
 def _plain():
@@ -73,6 +77,7 @@ def _plain():
         "unique": plain(array_loops.sorted_unique),
         "interp": plain(array_loops.interp),
         "count": plain(array_loops.count_at_or_below),
+        "copy": plain(array_loops.copy_into),
     }
 
 
@@ -161,3 +166,12 @@ def test_sorted_unique_and_order_of_nothing_and_of_one(loops):
     assert loops["order"](np.empty(0)).tolist() == []
     assert loops["unique"](np.array([2.5])).tolist() == [2.5]
     assert loops["order"](np.array([2.5])).tolist() == [0]
+
+
+def test_copy_into_a_row_writes_through_and_refuses_another_length(loops):
+    table = np.zeros((3, 4))
+    loops["copy"](table[1], np.array([1.5, -2.0, 0.0, 7.0]))
+    assert table.tolist() == [[0.0] * 4, [1.5, -2.0, 0.0, 7.0], [0.0] * 4]
+    with pytest.raises(ValueError, match="different lengths"):
+        loops["copy"](table[2], np.ones(3))
+    assert table[2].tolist() == [0.0] * 4
