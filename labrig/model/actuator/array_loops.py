@@ -1,5 +1,6 @@
-"""numpy's stable argsort, unique, searchsorted and interp as the small loops the solver
-needs of them, one source for both modes (``labrig.model.actuator.jit``).
+"""numpy's stable argsort, unique, searchsorted and interp, and a row's assignment, as the
+small loops the solver needs of them, one source for both modes
+(``labrig.model.actuator.jit``).
 
 Why not numpy's own: compiled, each is numba's general implementation (sorts for every
 dtype, kind and layout, a searchsorted that takes its side as a string, an interp with
