@@ -8,7 +8,8 @@ scan's ``warm``), chunks of pairs, triples and quadruples with deflation (test_j
 and the reference path, whose Python calls compiled kernels with its own argument types
 (``--no-reference`` leaves it out). Then, per dispatcher that compiled: its signatures
 (more than one recompiles its whole call tree), its compile time with its callees'
-compiles (inclusive) and without (own), in wall seconds; and the process's CPU time.
+compiles (inclusive) and without (own), in wall seconds, and the functions that called
+it (numba's library functions, by which of labrig's); and the process's CPU time.
 
 With ``--levels 1,2,3`` it measures instead LLVM's optimisation level (``NUMBA_OPT``) as a
 lever: per level, in a fresh process of its own with an empty cache, the compile of the
@@ -55,13 +56,21 @@ class _Compiles:
         self.own: dict[str, float] = defaultdict(float)
         self.signatures: dict[str, list[str]] = defaultdict(list)
 
+        self.callers: dict[str, set[str]] = defaultdict(set)
+
+    @staticmethod
+    def _name(dispatcher) -> str:
+        return f"{dispatcher.py_func.__module__.rsplit('.', 1)[-1]}.{dispatcher.__name__}"
+
     def on_start(self, event) -> None:
+        if self.stack:  # which function's typing asked for it: numba's library's users
+            self.callers[self._name(event.data["dispatcher"])].add(self._name(self.stack[-1][0]))
         self.stack.append([event.data["dispatcher"], time.perf_counter(), 0.0])
 
     def on_end(self, event) -> None:
         dispatcher, started, children = self.stack.pop()
         elapsed = time.perf_counter() - started
-        name = f"{dispatcher.py_func.__module__.rsplit('.', 1)[-1]}.{dispatcher.__name__}"
+        name = self._name(dispatcher)
         self.inclusive[name] += elapsed
         self.own[name] += elapsed - children
         self.signatures[name].append(", ".join(str(a) for a in event.data["args"]))
@@ -316,6 +325,8 @@ def main() -> None:
         sigs = compiles.signatures[name]
         inclusive, own = compiles.inclusive[name], compiles.own[name]
         print(f"{name:40s} {len(sigs):4d} {inclusive:7.2f} {own:6.2f}")
+        if compiles.callers[name]:
+            print(f"    called by {', '.join(sorted(compiles.callers[name]))}")
         if len(sigs) > 1:
             for sig in sigs:
                 print(f"    ({sig})")

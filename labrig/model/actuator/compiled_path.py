@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 
+from labrig.model.actuator.array_loops import copy_into, sorted_unique, stable_order
 from labrig.model.actuator.curve_tables import (
     BRANCH_LAST,
     BRANCH_RISING,
@@ -320,7 +321,7 @@ def _settle_pair(tables, w):
     knots = np.concatenate((x[0, :m0], v - x[1, :m1]))
     lo, hi = _min(w[0], end), _max(w[0], end)
     inside = knots[(knots > lo) & (knots < hi)]
-    points = np.unique(np.concatenate((inside, np.array([end]))))
+    points = sorted_unique(np.concatenate((inside, np.array([end]))))
     if direction < 0:
         points = points[::-1]
     j = -1
@@ -417,11 +418,11 @@ def _combinations_near(tables, info, w, near_ml):
             digits[i] = 0
             i -= 1
     # sorted (stably) by how many positions differ from the first
-    distance = np.zeros(total, dtype=np.int64)
+    distance = np.zeros(total)  # float64: the one type ``stable_order`` is compiled for
     for row in range(total):
         for i in range(n):
             distance[row] += product[row, i] != product[0, i]
-    order = np.argsort(distance, kind="mergesort")
+    order = stable_order(distance)
     return product[order]
 
 
@@ -466,7 +467,8 @@ def _snap_from_fold(tables, info, fold, s_p, unit, flow_tol):
         for i in range(n):
             w0[i] = vs[i] + eta * u[i]
         post = _polish(tables, info, _settle(tables, w0, flow_tol, unit), v_fold, 0.0)
-        beyond = np.any(post[0] != b) or s_p * (post[1] - p) > 1e-9 * _max(1.0, abs(p))
+        moved = _lexicographic_less(post[0], b) or _lexicographic_less(b, post[0])
+        beyond = moved or s_p * (post[1] - p) > 1e-9 * _max(1.0, abs(p))
         if beyond and stable_slopes(post[3]):
             return _past_semi_stable(tables, info, post, fold, eta, flow_tol, unit)
     raise RuntimeError("no state to snap to from the fold")
@@ -535,7 +537,9 @@ def _cross(tables, info, end, at_limit, s_p, direction, unit, flow_tol):
     best_subset = np.zeros(0, dtype=np.int64)
     best_new = b.copy()
     for size in range(1, n_limit + 1):
-        index = np.arange(size)
+        index = np.empty(size, dtype=np.int64)  # np.arange, costly to compile
+        for j in range(size):
+            index[j] = j
         while True:  # itertools.combinations(at_limit, size), in order
             subset = at_limit[index]
             new = b.copy()
@@ -623,7 +627,7 @@ def _append_piece(timeline, start, end, direction):
     ints[count, 0], ints[count, 1] = PIECE, direction
     floats[count, 0], floats[count, 1] = start[1], end[1]
     floats[count, 2], floats[count, 3] = fsum(start[2]), fsum(end[2])
-    branches[count, 0] = start[0]
+    copy_into(branches[count, 0], start[0])
     counter[0] = count + 1
 
 
@@ -635,9 +639,12 @@ def _append_event(timeline, kind, cause, direction, pre, post):
         raise Unported("too many items on one path")
     ints[count, 0], ints[count, 1], ints[count, 2], ints[count, 3] = EVENT, direction, kind, cause
     floats[count, 0], floats[count, 1] = pre[1], post[1]
-    branches[count, 0], branches[count, 1] = pre[0], post[0]
-    states[count, 0], states[count, 1] = pre[2], pre[3]
-    states[count, 2], states[count, 3] = post[2], post[3]
+    copy_into(branches[count, 0], pre[0])
+    copy_into(branches[count, 1], post[0])
+    copy_into(states[count, 0], pre[2])
+    copy_into(states[count, 1], pre[3])
+    copy_into(states[count, 2], post[2])
+    copy_into(states[count, 3], post[3])
     counter[0] = count + 1
 
 
@@ -749,7 +756,9 @@ def default_end_volume(tables, info):
         p_end = 1.1 * highest
     else:
         for i in range(n):
-            top = np.max(tables[SAMPLES][i, : tables[LAST_PIECE][i] + 2])
+            top = tables[SAMPLES][i, 0]  # np.max, as a loop: numba's is costly to compile
+            for j in range(1, tables[LAST_PIECE][i] + 2):
+                top = _max(top, tables[SAMPLES][i, j])
             p_end = top if i == 0 else _max(p_end, top)
     volumes = np.empty(n)
     for i in range(n):

@@ -24,6 +24,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from labrig.model.actuator.array_loops import count_at_or_below, interp, sorted_unique
 from labrig.model.actuator.jit import INTERNAL, INTERNAL_LEAF, LEAF, njit
 
 # Newton on a branch's cubic piece stops when the step is below this fraction of the
@@ -539,17 +540,19 @@ def fold_screen(tables, profiles, branches, p_from, p_to, margin):
     m = 0
     for i in range(n):
         ps = profiles[PROFILE_P][i, branches[i], : profiles[PROFILE_COUNT][i, branches[i]]]
-        for j in range(np.searchsorted(ps, lo, side="right"), np.searchsorted(ps, hi)):
+        j = count_at_or_below(ps, lo)  # the profile's pressures above lo and below hi
+        while j < len(ps) and ps[j] < hi:
             candidates[m] = ps[j]
             m += 1
-    pressures = np.unique(candidates[:m])
+            j += 1
+    pressures = sorted_unique(candidates[:m])
     total = np.zeros(len(pressures))
     scale = np.zeros(len(pressures))
     for i in range(n):
         b = branches[i]
         ps = profiles[PROFILE_P][i, b, : profiles[PROFILE_COUNT][i, b]]
         gs = profiles[PROFILE_G][i, b, : profiles[PROFILE_COUNT][i, b]]
-        values = np.interp(pressures, ps, gs)
+        values = interp(pressures, ps, gs)
         for j in range(len(pressures)):
             distance = singular_distance(tables, i, b, pressures[j])
             if distance > 0.0:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from labrig.model.actuator.array_loops import copy_into
 from labrig.model.actuator.curve_tables import (
     BRANCH_RISING,
     BREAKPOINTS,
@@ -121,7 +122,8 @@ def find_fold(
         top = 0
         kinds[0, 0], ps[0, 0], vms[0, 0], ss[0, 0] = prev_kind, prev_p, prev_vm, prev_s
         kinds[0, 1], ps[0, 1], vms[0, 1], ss[0, 1] = cur_kind, cur_p, 0.0, cur_s
-        vs[0, 0, :], vs[0, 1, :] = prev_v, cur_v
+        copy_into(vs[0, 0], prev_v)
+        copy_into(vs[0, 1], cur_v)
         top = 1
         while top > 0:
             top -= 1
@@ -140,21 +142,23 @@ def find_fold(
                 pt_kind = np.empty(_SPLIT + 1, dtype=np.int64)
                 pt_p, pt_vm, pt_s = np.empty(_SPLIT + 1), np.empty(_SPLIT + 1), np.empty(_SPLIT + 1)
                 pt_v = np.empty((_SPLIT + 1, n))
-                pt_kind[0], pt_p[0], pt_vm[0], pt_s[0], pt_v[0] = a_kind, a_p, a_vm, a_s, a_v
+                pt_kind[0], pt_p[0], pt_vm[0], pt_s[0] = a_kind, a_p, a_vm, a_s
+                copy_into(pt_v[0], a_v)
                 pt_kind[_SPLIT], pt_p[_SPLIT], pt_vm[_SPLIT], pt_s[_SPLIT] = c_kind, c_p, c_vm, c_s
-                pt_v[_SPLIT] = c_v
+                copy_into(pt_v[_SPLIT], c_v)
                 for k in range(1, _SPLIT):
                     v_point = a_m + (c_m - a_m) * k / _SPLIT
                     p_point, v, k_point = at_volume_of(tables, branches, m, v_point)
                     pt_kind[k], pt_p[k], pt_vm[k] = AT_VOLUME, p_point, v_point
-                    pt_s[k], pt_v[k] = inverse_sum_of(tables, branches, k_point), v
+                    pt_s[k] = inverse_sum_of(tables, branches, k_point)
+                    copy_into(pt_v[k], v)
                 for i in range(_SPLIT):
                     slot = top + _SPLIT - 1 - i
                     for side in range(2):
                         j = i + side
                         kinds[slot, side], ps[slot, side] = pt_kind[j], pt_p[j]
                         vms[slot, side], ss[slot, side] = pt_vm[j], pt_s[j]
-                        vs[slot, side, :] = pt_v[j]
+                        copy_into(vs[slot, side], pt_v[j])
                 top += _SPLIT
                 continue
             if c_s >= 0:

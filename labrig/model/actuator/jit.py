@@ -24,8 +24,10 @@ and ``labrig.model.actuator.dispatcher`` has LLVM optimise and compile the whole
 tree once, in the library of the function Python calls (numba's own way compiles every
 function's machine code, then again within each caller's, five levels deep here). So
 the tree is kept small: no literal specialisations (constants passed between compiled
-functions), functions called from one place copied into their caller (``INLINE``), and
-no Python wrappers for those only compiled code calls (``INTERNAL``). ``python
+functions), functions called from one place copied into their caller (``INLINE``), no
+Python wrappers for those only compiled code calls (``INTERNAL``), and small loops where
+numba's general library functions would be typed and lowered for each type
+(``labrig.model.actuator.array_loops``). ``python
 tests/benchmarks/bench_compile.py`` measures it on an empty cache (docs/performance.md,
 "Compiling").
 """
