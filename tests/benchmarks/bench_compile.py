@@ -27,10 +27,12 @@ Run: python tests/benchmarks/bench_compile.py [--no-reference] [--passes] [--wri
 """
 
 import argparse
+import atexit
 import hashlib
 import json
 import os
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -199,11 +201,12 @@ def _measured(variants: dict[str, dict], rounds: int) -> dict[str, list[dict]]:
     for _ in range(rounds):
         for name, extra in variants.items():
             env = dict(os.environ, LABRIG_LEVEL_CHILD="1", **extra)
-            env["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(prefix="labrig-numba-cache-")
             env.pop("LABRIG_JIT", None)
-            done = subprocess.run(
-                [sys.executable, __file__], env=env, capture_output=True, text=True, check=True
-            )
+            with tempfile.TemporaryDirectory(prefix="labrig-numba-cache-") as cache:
+                env["NUMBA_CACHE_DIR"] = cache
+                done = subprocess.run(
+                    [sys.executable, __file__], env=env, capture_output=True, text=True, check=True
+                )
             one = json.loads(done.stdout.strip().splitlines()[-1]) | {"load": os.getloadavg()[0]}
             found[name].append(one)
             print(f"{name}: {one}", file=sys.stderr)
@@ -297,6 +300,7 @@ def main() -> None:
         return
     doc = script_doc(["compile"], args.write_docs)
     os.environ["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(prefix="labrig-numba-cache-")
+    atexit.register(shutil.rmtree, os.environ["NUMBA_CACHE_DIR"], ignore_errors=True)
     os.environ.pop("LABRIG_JIT", None)
     t0 = time.perf_counter()
     import numba
