@@ -91,7 +91,8 @@ PLOT_OPTION = plot_option(
     default="analytical",
     show_default=True,
     help="'analytical' (the 36 braided segments of the default library, bare names), "
-    "'paper', 'paper-r', 'calibrated' or 'si' (the 36 of that library, prefixed names), "
+    "'paper', 'paper-r', 'paper-gent', 'paper-clamped', 'calibrated' or 'si' (the 36 of that "
+    "library, prefixed names), "
     "'gent', or a folder of measured CSV curves.",
 )
 @click.option(

@@ -160,3 +160,13 @@ def test_rank_rejects_a_non_positive_top(tmp_path, capsys):
     )
     code, _, err = run(["model", "rank", str(out), "--top", "0"], capsys)
     assert code == 2 and "--top 0" in err
+
+
+def test_the_help_names_every_library_the_catalog_scans():
+    """The help is text written in the command (the catalog imports scipy, too slow for
+    ``--help``), so this keeps it from falling behind a library added to the catalog."""
+    from labrig.cli.model_scan import scan
+    from labrig.model.segments.catalog import LIBRARIES
+
+    (option,) = [p for p in scan.params if p.name == "library_spec"]
+    assert [name for name in LIBRARIES if f"'{name}'" not in option.help] == []
