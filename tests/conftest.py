@@ -13,8 +13,11 @@ fixture ``compiled_path_cached`` does that once, in that worker, before any scan
 worker processes start (each would compile it at the same time, two cores for one
 result; the cache written here is the one they load: measured, no new cache file).
 The paper's statements (the ``libraries`` group, on another worker) solve pairs by the
-same compiled functions: their worker takes the fixture too, behind a lock, and loads
-what the first worker compiled (a fresh clone compiled it in both at once).
+same compiled functions: their worker takes the fixture too. Every compile in the
+run's workers waits behind its function's lock (``_each_function_compiled_once``), so
+that a function is compiled by one worker and loaded by the others: on a fresh clone
+the analysis of every simulated run compiles the solver's kernels, and two workers
+compiled them side by side.
 
 Every module of labrig is imported before the first test (``_import_every_module``), in
 each process that runs tests (xdist's controller runs none, so it imports no labrig: the
@@ -26,7 +29,6 @@ as each finishes, on the host's speed. Seen: test_stress found two failing examp
 only when it ran after the compiled path's tests in their worker.
 """
 
-import contextlib
 import functools
 import importlib
 import os
@@ -215,36 +217,33 @@ def pytest_xdist_make_scheduler(config, log):
     return Groups(config, log)
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _each_function_compiled_once(tmp_path_factory):
+    """In each of the run's workers, before its first test: every compile behind its
+    function's lock, shared by the workers (their temporary folders' parent is the
+    run's), so that on an empty cache one worker compiles it and the others load it
+    (support/compile_once.py). One process needs none."""
+    from labrig.model.actuator import jit
+
+    if jit.COMPILED and os.environ.get("PYTEST_XDIST_WORKER"):
+        from support import compile_once
+
+        compile_once.install(tmp_path_factory.getbasetemp().parent)
+
+
 @pytest.fixture(scope="session")
-def compiled_path_cached(tmp_path_factory):
+def compiled_path_cached():
     """The compiled path compiled in this process for the scans' argument types, which
     writes numba's cache for every process after it (a no-op when the cache is warm).
-    One worker at a time: the first compiles, the others wait and load its cache."""
+    A function another worker compiles meanwhile is waited for and loaded
+    (``_each_function_compiled_once``)."""
     from labrig.model.actuator import jit
 
     if not jit.COMPILED:
         return
     from labrig.model.scan.background_compile import compile_solver
 
-    with _one_worker_at_a_time(tmp_path_factory, "compiled_path"):
-        compile_solver()
-
-
-@contextlib.contextmanager
-def _one_worker_at_a_time(tmp_path_factory, name: str):
-    """An exclusive lock shared by this run's workers (their temporary folders' parent
-    is the run's); a single process, or a system without fcntl, takes none."""
-    if not os.environ.get("PYTEST_XDIST_WORKER"):
-        yield
-        return
-    try:
-        import fcntl
-    except ImportError:
-        yield
-        return
-    with open(tmp_path_factory.getbasetemp().parent / f"{name}.lock", "a") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        yield  # released when the file closes
+    compile_solver()
 
 
 @pytest.fixture(autouse=True)
