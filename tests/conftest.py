@@ -12,9 +12,12 @@ tests/benchmarks/bench_compile.py; 1.5-3 min before: labrig.model.actuator.jit),
 fixture ``compiled_path_cached`` does that once, in that worker, before any scan's own
 worker processes start (each would compile it at the same time, two cores for one
 result; the cache written here is the one they load: measured, no new cache file).
-The paper's statements (the ``libraries`` group, on another worker) solve pairs by the
-same compiled functions: their worker takes the fixture too, behind a lock, and loads
-what the first worker compiled (a fresh clone compiled it in both at once).
+Every compile in the run's workers waits behind its function's lock
+(``_each_function_compiled_once``), so that a function is compiled by one worker and
+loaded by the others: on a fresh clone the analysis of every simulated run and the
+paper's statements (the ``libraries`` group) compile the reference path's kernels, and
+two or three workers compiled them side by side. Those need none of the compiled path,
+so they do not wait for its compile.
 
 Every module of labrig is imported before the first test (``_import_every_module``), in
 each process that runs tests (xdist's controller runs none, so it imports no labrig: the
@@ -26,7 +29,6 @@ as each finishes, on the host's speed. Seen: test_stress found two failing examp
 only when it ran after the compiled path's tests in their worker.
 """
 
-import contextlib
 import functools
 import importlib
 import os
@@ -44,30 +46,36 @@ from hypothesis import settings
 os.environ.setdefault("LABRIG_BACKGROUND_COMPILE", "0")
 
 # node ids (prefixes) of the longest work units, longest first (a group's tests count
-# together; seconds of wall time at load 9 on the 2-core machine, warm numba cache, from
-# --durations: about a quarter of that idle): these start first, in this order
-# (--no-loadscope-reorder: xdist would order by test count)
+# together; seconds of CPU on the 2-core machine with a warm numba cache, from
+# --cpu-profile; the live page's and the watcher's take three times that in wall time,
+# paced): these start first, in this order (--no-loadscope-reorder: xdist would order
+# by test count), so that none starts late and leaves its worker last
 LONG_FIRST = (
-    "tests/model/actuator/test_jit.py::",  # the compiled path's group: ~400, +250 cold
-    "tests/cli/test_model_paper.py::",  # the libraries' group: 360, four libraries' pairs
-    "tests/model/segments/test_paper_braided.py::",  # 110: the paper library, built once
-    "tests/rig/test_demo_run.py::",  # the demo's group: ~90
-    "tests/rig/test_video_and_frames.py::",  # 90
-    "tests/analysis/test_compare.py::",  # the simulated runs' group: ~70
-    "tests/api/test_tutorial.py::test_the_tutorial_runs_top_to_bottom",  # 55: 3 runs
-    "tests/rig/test_faults.py::",  # 55
-    "tests/model/segments/test_measured_curves.py::",  # 55
-    "tests/live/test_api_state.py::",  # 45
-    "tests/cli/test_model_scan.py::test_ctrl_c_keeps",  # 45
-    "tests/rig/test_experiments_run.py::",  # 40
-    "tests/run/test_endings.py::",  # 40
-    "tests/rig/test_device_deaths.py::",  # 40
-    "tests/model/baselines/test_nelder_mead.py::test_the_papers_named_combinations",  # 50
-    "tests/analysis/test_plot_marks.py::",  # 33: one simulated run for both tests
-    "tests/api/test_run.py::",  # the API's run: ~40 with test_matches_the_cli
-    "tests/model/segments/test_gent.py::",  # 29
-    "tests/live/test_watch.py::",  # 21
-    "tests/live/test_live_page.py::",  # 16
+    "tests/model/actuator/test_jit.py::",  # the compiled path's group: ~100, +60 cold
+    "tests/cli/test_model_paper.py::",  # the libraries' group: 55, four libraries' pairs
+    "tests/model/segments/test_free_bulge.py::",  # 35: Maxwell's conditions, twice
+    "tests/api/test_tutorial.py::test_the_tutorial_runs_top_to_bottom",  # 29: 3 runs
+    "tests/rig/test_demo_run.py::",  # the demo's group: 27
+    "tests/analysis/test_compare.py::",  # the simulated runs' group: ~25
+    "tests/api/test_run.py::",  # the API's run and scan: ~25
+    "tests/rig/test_video_and_frames.py::",  # 22
+    "tests/cli/test_model_scan.py::test_ctrl_c",  # 18
+    "tests/rig/test_experiments_run.py::test_the_blocked",  # 17
+    "tests/config/test_rig_bounds.py::test_the_stiffest",  # 16
+    "tests/live/test_live_page.py::",  # 14 (45 s of wall time)
+    "tests/docs/test_characterising_tutorial.py::test_the_tutorial_runs",  # 14
+    "tests/model/segments/test_paper_braided.py::",  # 13: the paper library, built once
+    "tests/model/segments/test_gent.py::",  # 13
+    "tests/live/test_api_state.py::",  # 12 (45 s of wall time)
+    "tests/rig/test_faults.py::",  # 13
+    "tests/rig/test_device_deaths.py::",  # 13
+    "tests/rig/test_experiments_run.py::",  # 11
+    "tests/run/test_endings.py::",  # 11
+    "tests/live/test_watch.py::",  # 8 (30 s of wall time)
+    "tests/model/segments/test_measured_curves.py::",  # 8
+    "tests/model/baselines/test_nelder_mead.py::test_the_papers_named_combinations",  # 11
+    "tests/sim/test_pump.py::test_a_flood",  # 7
+    "tests/analysis/test_plot_marks.py::",  # one simulated run for both tests
     "tests/model/baselines/test_nelder_mead.py::",
 )
 # tests that share something costly, each group run by one worker: the compiled path
@@ -76,10 +84,6 @@ LONG_FIRST = (
 # per process, so tests spread over two workers made it twice (seen: the video run, 3 s
 # of CPU each). A module with a module-scoped fixture is a group of its own (``_group``).
 COMPILED_GROUP = "compiled_path"
-# the groups whose first test would compile the compiled path on a fresh clone: each
-# takes ``compiled_path_cached`` first, so that one worker compiles and the other loads
-# what it wrote (both at once compiled it twice: the paper's statements 35 s of CPU)
-COMPILING_GROUPS = (COMPILED_GROUP, "libraries")
 GROUPS = {
     "tests/cli/test_benchmark.py::": COMPILED_GROUP,
     "tests/model/actuator/test_compiled_path.py::": COMPILED_GROUP,
@@ -215,41 +219,38 @@ def pytest_xdist_make_scheduler(config, log):
     return Groups(config, log)
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _each_function_compiled_once(tmp_path_factory):
+    """In each of the run's workers, before its first test: every compile behind its
+    function's lock, shared by the workers (their temporary folders' parent is the
+    run's), so that on an empty cache one worker compiles it and the others load it
+    (support/compile_once.py). One process needs none."""
+    from labrig.model.actuator import jit
+
+    if jit.COMPILED and os.environ.get("PYTEST_XDIST_WORKER"):
+        from support import compile_once
+
+        compile_once.install(tmp_path_factory.getbasetemp().parent)
+
+
 @pytest.fixture(scope="session")
-def compiled_path_cached(tmp_path_factory):
+def compiled_path_cached():
     """The compiled path compiled in this process for the scans' argument types, which
     writes numba's cache for every process after it (a no-op when the cache is warm).
-    One worker at a time: the first compiles, the others wait and load its cache."""
+    A function another worker compiles meanwhile is waited for and loaded
+    (``_each_function_compiled_once``)."""
     from labrig.model.actuator import jit
 
     if not jit.COMPILED:
         return
     from labrig.model.scan.background_compile import compile_solver
 
-    with _one_worker_at_a_time(tmp_path_factory, "compiled_path"):
-        compile_solver()
-
-
-@contextlib.contextmanager
-def _one_worker_at_a_time(tmp_path_factory, name: str):
-    """An exclusive lock shared by this run's workers (their temporary folders' parent
-    is the run's); a single process, or a system without fcntl, takes none."""
-    if not os.environ.get("PYTEST_XDIST_WORKER"):
-        yield
-        return
-    try:
-        import fcntl
-    except ImportError:
-        yield
-        return
-    with open(tmp_path_factory.getbasetemp().parent / f"{name}.lock", "a") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        yield  # released when the file closes
+    compile_solver()
 
 
 @pytest.fixture(autouse=True)
 def _compiled_path_first(request):
-    if _group(request.node.nodeid) in COMPILING_GROUPS:
+    if _group(request.node.nodeid) == COMPILED_GROUP:
         request.getfixturevalue("compiled_path_cached")
 
 

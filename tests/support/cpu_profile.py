@@ -6,16 +6,20 @@ suite's order and groups (tests/conftest.py) are balanced on.
 
 Each worker measures its tests (setup, call and teardown together) and sends the figure
 to the controller in the teardown report's ``user_properties``; the controller prints
-each worker's total and the slowest tests at the end. A child reaped during a later test
+each worker's total, when its last test ended (minutes:seconds of wall time after the
+session started: the workers should end together, tests/conftest.py's order) and the
+slowest tests at the end. A child reaped during a later test
 counts there (a module fixture's processes, stopped after the module's last test)."""
 
 from __future__ import annotations
 
 import resource
+import time
 
 import pytest
 
 KEY = "cpu_s"
+END = "end_s"  # the wall clock (time.time()) as the test's teardown ended
 SHOWN = 30  # the slowest tests listed
 
 
@@ -35,21 +39,32 @@ def pytest_runtest_protocol(item, nextitem):
 def pytest_runtest_makereport(item, call):
     outcome = yield
     if call.when == "teardown" and _START in item.stash:
-        outcome.get_result().user_properties.append((KEY, _cpu_s() - item.stash[_START]))
+        properties = outcome.get_result().user_properties
+        properties.append((KEY, _cpu_s() - item.stash[_START]))
+        properties.append((END, time.time()))
 
 
 _START = pytest.StashKey[float]()
 _MEASURED: list[tuple[float, str, str]] = []  # (CPU s, worker, node id), in the controller
+_ENDED: dict[str, float] = {}  # worker: the wall clock as its last test ended
+_STARTED = time.time()  # the session's start, near enough: this plugin is loaded then
+
+
+def pytest_sessionstart(session):
+    global _STARTED
+    _STARTED = time.time()
 
 
 def pytest_runtest_logreport(report):
     if report.when != "teardown":
         return
+    node = getattr(report, "node", None)  # xdist's worker, in its controller
+    worker = node.gateway.id if node is not None else "main"
     for key, value in report.user_properties:
         if key == KEY:
-            node = getattr(report, "node", None)  # xdist's worker, in its controller
-            worker = node.gateway.id if node is not None else "main"
             _MEASURED.append((value, worker, report.nodeid))
+        elif key == END:
+            _ENDED[worker] = max(value, _ENDED.get(worker, value))
 
 
 def pytest_terminal_summary(terminalreporter):
@@ -60,7 +75,9 @@ def pytest_terminal_summary(terminalreporter):
     workers = sorted({w for _, w, _ in _MEASURED})
     for worker in workers:
         spent = [cpu for cpu, w, _ in _MEASURED if w == worker]
-        write(f"{worker}: {sum(spent):7.1f} in {len(spent)} tests")
+        minutes, seconds = divmod(round(_ENDED.get(worker, _STARTED) - _STARTED), 60)
+        ended = f"{minutes}:{seconds:02d}"
+        write(f"{worker}: {sum(spent):7.1f} in {len(spent)} tests, the last ended at {ended}")
     write(f"all: {sum(cpu for cpu, _, _ in _MEASURED):7.1f}; the {SHOWN} slowest:")
     for cpu, worker, nodeid in sorted(_MEASURED, reverse=True)[:SHOWN]:
         write(f"{cpu:7.2f} {worker} {nodeid}")
