@@ -48,6 +48,15 @@ def _table(outcomes, title: str) -> None:
     Console().print(table)
 
 
+def _evaluated(name: str, evaluate):
+    """``evaluate(name)`` with the step it is at on a spinner on stderr (seconds to a
+    minute and a half); on a stderr that is not a terminal, nothing is shown."""
+    from rich.console import Console
+
+    with Console(stderr=True).status(f"checking the {name} library against the paper") as shown:
+        return evaluate(name, progress=lambda step: shown.update(f"the {name} library: {step}"))
+
+
 def _fitted(library: str) -> dict | None:
     """The library's fitted constants, None where it fits none."""
     from labrig.model.segments.calibrated import CALIBRATION
@@ -79,7 +88,7 @@ def paper(as_json: bool, library: str | None, si: bool, plot_png: Path | None) -
     if si and library not in (None, "si"):
         raise click.UsageError("--si is --library si: give one of them")
     name = "si" if si else (library or DEFAULT_LIBRARY).lower()
-    outcomes = evaluate(name)
+    outcomes = _evaluated(name, evaluate)
     holding = int(sum(bool(o.holds) for o in outcomes))
     fitted = _fitted(name)
     if plot_png is not None:

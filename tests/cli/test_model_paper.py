@@ -54,6 +54,24 @@ def paper_doc():
     return {o.key: o for o in evaluate("paper")}
 
 
+def test_the_check_tells_each_step_and_each_segment_as_it_starts(paper_doc):
+    from labrig.paper.checker import evaluate
+
+    steps = []
+    outcomes = evaluate("paper", progress=steps.append)
+    assert {o.key for o in outcomes} == set(paper_doc)
+    segments = [step for step in steps if step.startswith("segment ")]
+    assert segments[0] == "segment 1 of 36: paper:B40-T20"
+    assert [int(step.split()[1]) for step in segments] == list(range(1, 37))
+    others = [step for step in steps if not step.startswith("segment ")]
+    assert others == [
+        "the segments (Fig. 1C, 1D, S4)",
+        "the 630 pairs (Movies S3-S6, Fig. 3, Fig. 4)",
+        "Movie S7's simulated plumbing",
+    ]
+    assert steps.index(others[0]) < steps.index(segments[0])
+
+
 def test_json_gives_every_statement_with_tolerance_role_and_library(capsys):
     doc = document("paper", capsys)
     assert doc["library"] == "paper" and doc["default_library"] == DEFAULT_LIBRARY
