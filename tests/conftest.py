@@ -321,3 +321,26 @@ def killed_file(tmp_path):
     from support.simulated_runs import killed_run
 
     return killed_run(tmp_path)
+
+
+@pytest.fixture(autouse=True)
+def _signal_handlers_restored():
+    """Each test starts with the worker's own Ctrl-C and SIGTERM handlers: one left
+    behind by an earlier test (a run's stop handler) would make Ctrl-C stop raising
+    KeyboardInterrupt in every later test of its worker. A test that leaves one is
+    named in the run's warnings, for the leak to be found where it happens."""
+    import signal
+    import warnings
+
+    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    yield
+    left = {s: signal.getsignal(s) for s, h in before.items() if signal.getsignal(s) is not h}
+    for signum in left:
+        signal.signal(signum, before[signum])
+    if left:
+        warnings.warn(
+            "the test left its own handler behind (put back): "
+            + ", ".join(f"{s.name}: {getattr(h, '__qualname__', h)!r}" for s, h in left.items()),
+            pytest.PytestWarning,
+            stacklevel=1,
+        )
