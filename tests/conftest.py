@@ -340,7 +340,14 @@ def _signal_handlers_restored():
     if left:
         warnings.warn(
             "the test left its own handler behind (put back): "
-            + ", ".join(f"{s.name}: {getattr(h, '__qualname__', h)!r}" for s, h in left.items()),
+            + ", ".join(
+                f"{s.name}: {_handler_name(h)} where it began with {_handler_name(before[s])}"
+                for s, h in left.items()
+            ),
             pytest.PytestWarning,
             stacklevel=1,
         )
+
+
+def _handler_name(handler) -> str:
+    return f"{getattr(handler, '__module__', '')}.{getattr(handler, '__qualname__', handler)}"

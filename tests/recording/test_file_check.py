@@ -104,9 +104,15 @@ def test_ctrl_c_while_a_file_is_walked_ends_the_walk(tmp_path, monkeypatch):
     monkeypatch.setattr(file_check, "_child_command", lambda paths: ["sleep", "600"])
     path = tmp_path / "a.h5"
     path.write_bytes(b"x")
-    threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT)).start()
-    with pytest.raises(KeyboardInterrupt):
-        file_check.check_files([path])
+    # Python's own Ctrl-C handler, which a shell running the tests in the background
+    # replaces by "ignore" for the whole process
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT)).start()
+        with pytest.raises(KeyboardInterrupt):
+            file_check.check_files([path])
+    finally:
+        signal.signal(signal.SIGINT, previous)
     (child,) = started
     assert child.returncode is not None  # killed and waited for
 
