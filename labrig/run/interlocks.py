@@ -248,14 +248,21 @@ class SpecimenPressure(Interlock):
         self._suction_run = 0  # samples in a row below -LEAK_SUCTION_KPA
 
     def check_pressure(self, block: PressureBlock) -> str | None:
-        finite = np.isfinite(block.pressure_kpa)
+        t, p = block.t_s, block.pressure_kpa
+        finite = np.isfinite(p)
         good = finite & ~block.out_of_range
-        t, p = block.t_s[good], block.pressure_kpa[good]
+        # a block of good samples (nearly every one) is judged as it is, without copies
+        if not finite.all():
+            t_finite, p_finite = t[finite], p[finite]
+        else:
+            t_finite, p_finite = t, p
+        if not good.all():
+            t, p = t[good], p[good]
         with self._lock:
             if len(t):
                 self._add_to_bins(t, p)
             # suction may run past the sensor's low range end: every finite sample
-            return self._suction(block.t_s[finite], block.pressure_kpa[finite]) or self._burst()
+            return self._suction(t_finite, p_finite) or self._burst()
 
     def check_pump(self, status: PumpStatus, volume_ml: float) -> str | None:
         with self._lock:
@@ -273,13 +280,15 @@ class SpecimenPressure(Interlock):
     def _add_to_bins(self, t: np.ndarray, p: np.ndarray) -> None:
         k = np.floor(t / SPECIMEN_BIN_S).astype(np.int64)
         index, total, count = self._bin
-        starts = np.flatnonzero(np.diff(k, prepend=k[0] - 1))
-        for first, last in zip(starts, [*starts[1:], len(k)], strict=True):
-            if k[first] != index:
+        # the block's stretches of one bin (two or three a block): where k changes
+        starts = [0, *(np.flatnonzero(k[1:] != k[:-1]) + 1).tolist()]
+        ends = [*starts[1:], len(k)]
+        for key, first, last in zip(k[starts].tolist(), starts, ends, strict=True):
+            if key != index:
                 if count:
                     self._bins.append((index * SPECIMEN_BIN_S, total / count))
-                index, total, count = int(k[first]), 0.0, 0
-            total += float(np.sum(p[first:last]))
+                index, total, count = key, 0.0, 0
+            total += float(p[first:last].sum())
             count += last - first
         self._bin = (index, total, count)
 
