@@ -29,7 +29,7 @@ PARTS = (
     ("labrig.run.dry_run", None, "dry_run_report", "dry run (protocol check, model peak)"),
     ("labrig.rig.assembly", None, "build_rig", "rig build (plant tables, camera noise)"),
     ("labrig.cli.run", None, "_analyse", "analysis and summary after the run"),
-    ("labrig.sim.plant", "Plant", "advance_to", "plant: integration"),
+    ("labrig.sim.plant", "Plant", "_step", "plant: integration"),
     ("labrig.sim.plant", "Plant", "_interpolate", "plant: queries"),
     ("labrig.sim.plant", "Plant", "_interpolate_one", "plant: queries"),
     ("labrig.sim.daq", "SimDaqTask", "_read_into", "DAQ simulation (samples, sensor)"),
