@@ -1,5 +1,5 @@
-"""numpy's stable argsort, unique, searchsorted and interp, and a row's assignment, as the
-small loops the solver needs of them, one source for both modes
+"""numpy's stable argsort, unique, searchsorted, interp and array_equal, and a row's
+assignment, as the small loops the solver needs of them, one source for both modes
 (``labrig.model.actuator.jit``).
 
 Why not numpy's own: compiled, each is numba's general implementation (sorts for every
@@ -131,3 +131,14 @@ def interp(x, xp, fp):
                     y = fp[j]
             out[i] = y
     return out
+
+
+@njit(**INTERNAL_LEAF)
+def differs(a, b):
+    """``not np.array_equal(a, b)`` of 1-D arrays: another length or another element."""
+    if len(a) != len(b):
+        return True
+    i = 0
+    while i < len(a) and a[i] == b[i]:
+        i += 1
+    return i < len(a)

@@ -29,7 +29,12 @@ import math
 
 import numpy as np
 
-from labrig.model.actuator.array_loops import copy_into, sorted_unique, stable_order
+from labrig.model.actuator.array_loops import (
+    copy_into,
+    differs,
+    sorted_unique,
+    stable_order,
+)
 from labrig.model.actuator.curve_tables import (
     BRANCH_LAST,
     BRANCH_RISING,
@@ -467,7 +472,7 @@ def _snap_from_fold(tables, info, fold, s_p, unit, flow_tol):
         for i in range(n):
             w0[i] = vs[i] + eta * u[i]
         post = _polish(tables, info, _settle(tables, w0, flow_tol, unit), v_fold, 0.0)
-        moved = _lexicographic_less(post[0], b) or _lexicographic_less(b, post[0])
+        moved = differs(post[0], b)
         beyond = moved or s_p * (post[1] - p) > 1e-9 * _max(1.0, abs(p))
         if beyond and stable_slopes(post[3]):
             return _past_semi_stable(tables, info, post, fold, eta, flow_tol, unit)

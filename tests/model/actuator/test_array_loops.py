@@ -1,7 +1,8 @@
-"""The solver's loops for numpy's stable argsort, unique, searchsorted and interp
-(``labrig.model.actuator.array_loops``) give numpy's results bit for bit, on generated
-input with ties, single elements, sorted and reversed runs and points outside the
-samples: as the plain Python they are written in and, in a compiling process, compiled."""
+"""The solver's loops for numpy's stable argsort, unique, searchsorted, interp and
+array_equal (``labrig.model.actuator.array_loops``) give numpy's results bit for bit,
+on generated input with ties, single elements, sorted and reversed runs and points outside
+the samples: as the plain Python they are written in and, in a compiling process,
+compiled."""
 
 import types
 
@@ -57,7 +58,18 @@ def _compiled():
     def copy(target, source):
         array_loops.copy_into(target, source)
 
-    return {"order": order, "unique": unique, "interp": interp, "count": count, "copy": copy}
+    @numba.njit
+    def differs(a, b):
+        return array_loops.differs(a, b)
+
+    return {
+        "order": order,
+        "unique": unique,
+        "interp": interp,
+        "count": count,
+        "copy": copy,
+        "differs": differs,
+    }
 
 
 def _plain():
@@ -78,6 +90,7 @@ def _plain():
         "interp": plain(array_loops.interp),
         "count": plain(array_loops.count_at_or_below),
         "copy": plain(array_loops.copy_into),
+        "differs": plain(array_loops.differs),
     }
 
 
@@ -175,3 +188,18 @@ def test_copy_into_a_row_writes_through_and_refuses_another_length(loops):
     with pytest.raises(ValueError, match="different lengths"):
         loops["copy"](table[2], np.ones(3))
     assert table[2].tolist() == [0.0] * 4
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    a=st.lists(st.integers(-1, 3), max_size=8),
+    b=st.lists(st.integers(-1, 3), max_size=8),
+    same=st.booleans(),
+)
+def test_differs_is_not_numpys_array_equal(loops, a, b, same):
+    """Branch rows of the lengths an actuator has: often equal (``same``), else of another
+    length or content."""
+    first = np.array(a, dtype=np.int64)
+    second = first.copy() if same else np.array(b, dtype=np.int64)
+    assert loops["differs"](first, second) == (not np.array_equal(first, second))
+    assert loops["differs"](second, first) == (not np.array_equal(first, second))
