@@ -30,8 +30,10 @@ import math
 import numpy as np
 
 from labrig.model.actuator.array_loops import (
+    arange,
     copy_into,
     differs,
+    largest,
     sorted_unique,
     stable_order,
 )
@@ -542,9 +544,7 @@ def _cross(tables, info, end, at_limit, s_p, direction, unit, flow_tol):
     best_subset = np.zeros(0, dtype=np.int64)
     best_new = b.copy()
     for size in range(1, n_limit + 1):
-        index = np.empty(size, dtype=np.int64)  # np.arange, costly to compile
-        for j in range(size):
-            index[j] = j
+        index = arange(size)
         while True:  # itertools.combinations(at_limit, size), in order
             subset = at_limit[index]
             new = b.copy()
@@ -761,9 +761,7 @@ def default_end_volume(tables, info):
         p_end = 1.1 * highest
     else:
         for i in range(n):
-            top = tables[SAMPLES][i, 0]  # np.max, as a loop: numba's is costly to compile
-            for j in range(1, tables[LAST_PIECE][i] + 2):
-                top = _max(top, tables[SAMPLES][i, j])
+            top = largest(tables[SAMPLES][i, : tables[LAST_PIECE][i] + 2])
             p_end = top if i == 0 else _max(p_end, top)
     volumes = np.empty(n)
     for i in range(n):

@@ -1,5 +1,5 @@
-"""The solver's loops for numpy's stable argsort, unique, searchsorted, interp and
-array_equal (``labrig.model.actuator.array_loops``) give numpy's results bit for bit,
+"""The solver's loops for numpy's stable argsort, unique, searchsorted, interp, max, arange
+and array_equal (``labrig.model.actuator.array_loops``) give numpy's results bit for bit,
 on generated input with ties, single elements, sorted and reversed runs and points outside
 the samples: as the plain Python they are written in and, in a compiling process,
 compiled."""
@@ -59,6 +59,14 @@ def _compiled():
         array_loops.copy_into(target, source)
 
     @numba.njit
+    def largest(values):
+        return array_loops.largest(values)
+
+    @numba.njit
+    def arange(n):
+        return array_loops.arange(n)
+
+    @numba.njit
     def differs(a, b):
         return array_loops.differs(a, b)
 
@@ -68,6 +76,8 @@ def _compiled():
         "interp": interp,
         "count": count,
         "copy": copy,
+        "largest": largest,
+        "arange": arange,
         "differs": differs,
     }
 
@@ -90,6 +100,8 @@ def _plain():
         "interp": plain(array_loops.interp),
         "count": plain(array_loops.count_at_or_below),
         "copy": plain(array_loops.copy_into),
+        "largest": plain(array_loops.largest),
+        "arange": plain(array_loops.arange),
         "differs": plain(array_loops.differs),
     }
 
@@ -188,6 +200,29 @@ def test_copy_into_a_row_writes_through_and_refuses_another_length(loops):
     with pytest.raises(ValueError, match="different lengths"):
         loops["copy"](table[2], np.ones(3))
     assert table[2].tolist() == [0.0] * 4
+
+
+@settings(max_examples=300, deadline=None)
+@given(values=st.lists(st.one_of(_FEW, _ANY), min_size=1, max_size=60), arrangement=_ARRANGEMENTS)
+def test_largest_is_numpys_max(loops, values, arrangement):
+    values = _arranged(values, arrangement)
+    got, expected = loops["largest"](values), np.max(values)
+    assert got == expected
+    if expected != 0.0:  # 0.0 and -0.0 tie: the loop keeps the first, numpy either
+        assert _same_bits(np.float64(got), expected)
+
+
+def test_largest_of_a_tables_row_prefix_and_of_nothing(loops):
+    table = np.array([[1.0, 7.5, -3.0, 7.5, np.inf], [0.0, 0.0, 0.0, 0.0, 0.0]])
+    assert loops["largest"](table[0, :4]) == 7.5  # the padding past it not read
+    with pytest.raises(ValueError, match="empty"):
+        loops["largest"](np.empty(0))
+
+
+@settings(max_examples=100, deadline=None)
+@given(n=st.integers(0, 300))
+def test_arange_is_numpys_arange(loops, n):
+    assert _same_bits(loops["arange"](n), np.arange(n, dtype=np.int64))
 
 
 @settings(max_examples=300, deadline=None)
