@@ -344,7 +344,7 @@ def _settle_pair(tables, w):
     else:
         a = w[0] if j == 0 else points[j - 1]
         b = points[j]
-    no_branches = np.zeros(0, dtype=np.int64)
+    no_branches = np.empty(0, dtype=np.int64)
     w1 = bracketed_root(PAIR_IMBALANCE, tables, no_branches, v, a, b, math.nan, math.nan, XTOL)
     out = np.empty(2)
     out[0], out[1] = w1, v - w1
@@ -410,10 +410,11 @@ def _combinations_near(tables, info, w, near_ml):
                 count += 1
         counts[i] = count
     total = 1
+    digits = np.empty(n, dtype=np.int64)
     for i in range(n):
         total *= counts[i]
+        digits[i] = 0
     product = np.empty((total, n), dtype=np.int64)
-    digits = np.zeros(n, dtype=np.int64)
     for row in range(total):  # itertools.product: the last position turns fastest
         for i in range(n):
             product[row, i] = options[i, digits[i]]
@@ -425,10 +426,12 @@ def _combinations_near(tables, info, w, near_ml):
             digits[i] = 0
             i -= 1
     # sorted (stably) by how many positions differ from the first
-    distance = np.zeros(total)  # float64: the one type ``stable_order`` is compiled for
+    distance = np.empty(total)  # float64: the one type ``stable_order`` is compiled for
     for row in range(total):
+        differing = 0.0
         for i in range(n):
-            distance[row] += product[row, i] != product[0, i]
+            differing += product[row, i] != product[0, i]
+        distance[row] = differing
     order = stable_order(distance)
     return product[order]
 
@@ -541,7 +544,7 @@ def _cross(tables, info, end, at_limit, s_p, direction, unit, flow_tol):
     n_limit = len(at_limit)
     has_best = False
     best_moved = 0.0
-    best_subset = np.zeros(0, dtype=np.int64)
+    best_subset = np.empty(0, dtype=np.int64)
     best_new = b.copy()
     for size in range(1, n_limit + 1):
         index = arange(size)
@@ -619,7 +622,8 @@ def _new_timeline(n):
     floats = np.empty((_CAPACITY, 4))
     branches = np.empty((_CAPACITY, 2, n), dtype=np.int64)
     states = np.empty((_CAPACITY, 4, n))
-    count = np.zeros(1, dtype=np.int64)  # the items so far
+    count = np.empty(1, dtype=np.int64)  # the items so far
+    count[0] = 0
     return ints, floats, branches, states, count
 
 
@@ -838,15 +842,18 @@ def trace_transitions(
     tables, profiles, info = _select(library, library_profiles, library_info, combo)
     params = (unit, margin, flow_tol)
     timeline = _new_timeline(n)
-    start = _at(tables, np.zeros(n, dtype=np.int64), 0.0)
+    first_branches = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        first_branches[i] = 0
+    start = _at(tables, first_branches, 0.0)
     v_end = default_end_volume(tables, info)
     end = _follow(tables, profiles, info, timeline, start, INFLATE, v_end, params)
     if deflate:
         _follow(tables, profiles, info, timeline, end, DEFLATE, 0.0, params)
     ints, _, branches, _, counter = timeline
     count = counter[0]
-    out_ints = np.zeros((count, 4), dtype=np.int64)
-    out_floats = np.zeros((count, 5))
+    out_ints = np.empty((count, 4), dtype=np.int64)  # the rows returned are all written
+    out_floats = np.empty((count, 5))
     rows = 0
     for t in range(count):
         if ints[t, 0] != EVENT:
