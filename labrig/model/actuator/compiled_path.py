@@ -287,8 +287,11 @@ def _fold_residual(k):
             return math.inf
     if soft != 1:
         return math.inf
-    inverse = 1.0 / k
-    return abs(fsum(inverse)) / fsum(np.abs(inverse))
+    inverse, size = np.empty(len(k)), np.empty(len(k))
+    for i in range(len(k)):
+        inverse[i] = 1.0 / k[i]
+        size[i] = abs(inverse[i])
+    return abs(fsum(inverse)) / fsum(size)
 
 
 # --- the flow and where it ends ----------------------------------------------------------
@@ -325,10 +328,16 @@ def _settle_pair(tables, w):
     end = 0.0 if direction < 0 else v
     x = tables[BREAKPOINTS]
     m0, m1 = tables[LAST_PIECE][0] + 2, tables[LAST_PIECE][1] + 2
-    knots = np.concatenate((x[0, :m0], v - x[1, :m1]))
     lo, hi = _min(w[0], end), _max(w[0], end)
-    inside = knots[(knots > lo) & (knots < hi)]
-    points = sorted_unique(np.concatenate((inside, np.array([end]))))
+    candidates = np.empty(m0 + m1 + 1)  # either curve's knots strictly inside, and the end
+    m = 0
+    for j in range(m0 + m1):
+        knot = x[0, j] if j < m0 else v - x[1, j - m0]
+        if lo < knot < hi:
+            candidates[m] = knot
+            m += 1
+    candidates[m] = end
+    points = sorted_unique(candidates[: m + 1])
     if direction < 0:
         points = points[::-1]
     j = -1
@@ -493,11 +502,15 @@ def _past_semi_stable(tables, info, post, fold, eta, flow_tol, unit):
     for _ in range(8):
         if not _fold_residual(post[3]) <= zero:
             return post
-        u = 1.0 / post[3]
+        u = np.empty(n)
+        for i in range(n):
+            u[i] = 1.0 / post[3][i]  # no slope is 0: the residual above is finite
         mean = fsum(u) / n
-        u = u - mean
-        came = post[2] - origin[2]
-        sign = 1.0 if fsum(u * came) >= 0 else -1.0
+        along = np.empty(n)  # u against the way the state came
+        for i in range(n):
+            u[i] = u[i] - mean
+            along[i] = u[i] * (post[2][i] - origin[2][i])
+        sign = 1.0 if fsum(along) >= 0 else -1.0
         largest = abs(u[0])
         for i in range(1, n):
             largest = _max(largest, abs(u[i]))

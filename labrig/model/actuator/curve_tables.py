@@ -564,8 +564,13 @@ def fold_screen(tables, profiles, branches, p_from, p_to, margin):
                 value = values[j] / math.sqrt(distance)
                 total[j] += value
                 scale[j] += abs(value)
-    flagged = pressures[total >= -margin * scale]
-    return flagged[::-1] if p_to < p_from else flagged
+    flagged = np.empty(len(pressures))
+    m = 0
+    for j in range(len(pressures)):
+        if total[j] >= -margin * scale[j]:
+            flagged[m] = pressures[j]
+            m += 1
+    return flagged[:m][::-1] if p_to < p_from else flagged[:m]
 
 
 # The functions whose roots the solver seeks (``labrig.model.actuator.roots``), by number: a
