@@ -224,7 +224,7 @@ def _with_volume(tables, info, state, v):
     return True, (b, p, volumes, slopes)
 
 
-@njit(**INLINE)
+@njit(**INTERNAL)
 def _reach_between(tables, info, b, p_a, p_b, v_target, f_a, f_b):
     p = bracketed_root(EXCESS_VOLUME, tables, b, v_target, p_a, p_b, f_a, f_b, XTOL)
     found, reached = _with_volume(tables, info, _at(tables, b, p), v_target)
@@ -640,7 +640,7 @@ def _new_timeline(n):
     return ints, floats, branches, states, count
 
 
-@njit(**INLINE)
+@njit(**INTERNAL_LEAF)
 def _append_piece(timeline, start, end, direction):
     ints, floats, branches, _, counter = timeline
     count = counter[0]
@@ -653,7 +653,7 @@ def _append_piece(timeline, start, end, direction):
     counter[0] = count + 1
 
 
-@njit(**INLINE)
+@njit(**INTERNAL_LEAF)
 def _append_event(timeline, kind, cause, direction, pre, post):
     ints, floats, branches, states, counter = timeline
     count = counter[0]
@@ -787,7 +787,7 @@ def default_end_volume(tables, info):
     return fsum(volumes)
 
 
-@njit(**INLINE)
+@njit(**INTERNAL)
 def _state_on_piece(tables, info, timeline, t, v_ml):
     """``path.state_on_piece`` on the timeline's piece t (its fallback left to the
     reference)."""
