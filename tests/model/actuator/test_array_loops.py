@@ -33,53 +33,28 @@ def _arranged(values: list[float], arrangement: str) -> np.ndarray:
 _ARRANGEMENTS = st.sampled_from(["as drawn", "sorted", "reversed", "runs"])
 
 
+# the fixture's names for the loops
+_LOOPS = {
+    "order": "stable_order",
+    "unique": "sorted_unique",
+    "interp": "interp",
+    "count": "count_at_or_below",
+    "copy": "copy_into",
+    "largest": "largest",
+    "arange": "arange",
+    "differs": "differs",
+}
+
+
 def _compiled():
     """The loops compiled, called through compiled code as the solver calls them (they
     are internal: Python cannot call them directly)."""
     import numba
 
-    @numba.njit
-    def order(keys):
-        return array_loops.stable_order(keys)
+    def through_compiled(loop):
+        return numba.njit(lambda *args: loop(*args))
 
-    @numba.njit
-    def unique(values):
-        return array_loops.sorted_unique(values)
-
-    @numba.njit
-    def interp(x, xp, fp):
-        return array_loops.interp(x, xp, fp)
-
-    @numba.njit
-    def count(xs, x):
-        return array_loops.count_at_or_below(xs, x)
-
-    @numba.njit
-    def copy(target, source):
-        array_loops.copy_into(target, source)
-
-    @numba.njit
-    def largest(values):
-        return array_loops.largest(values)
-
-    @numba.njit
-    def arange(n):
-        return array_loops.arange(n)
-
-    @numba.njit
-    def differs(a, b):
-        return array_loops.differs(a, b)
-
-    return {
-        "order": order,
-        "unique": unique,
-        "interp": interp,
-        "count": count,
-        "copy": copy,
-        "largest": largest,
-        "arange": arange,
-        "differs": differs,
-    }
+    return {key: through_compiled(getattr(array_loops, name)) for key, name in _LOOPS.items()}
 
 
 def _plain():
@@ -94,16 +69,7 @@ def _plain():
         }
         return types.FunctionType(function.__code__, names, function.__name__)
 
-    return {
-        "order": plain(array_loops.stable_order),
-        "unique": plain(array_loops.sorted_unique),
-        "interp": plain(array_loops.interp),
-        "count": plain(array_loops.count_at_or_below),
-        "copy": plain(array_loops.copy_into),
-        "largest": plain(array_loops.largest),
-        "arange": plain(array_loops.arange),
-        "differs": plain(array_loops.differs),
-    }
+    return {key: plain(getattr(array_loops, name)) for key, name in _LOOPS.items()}
 
 
 @pytest.fixture(scope="module", params=["python"] + (["compiled"] if jit.COMPILED else []))
