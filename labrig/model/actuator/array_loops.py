@@ -1,5 +1,5 @@
-"""numpy's stable argsort, unique, searchsorted and interp, and a row's assignment, as the
-small loops the solver needs of them, one source for both modes
+"""numpy's stable argsort, unique, searchsorted, interp, max, arange and array_equal, and a
+row's assignment, as the small loops the solver needs of them, one source for both modes
 (``labrig.model.actuator.jit``).
 
 Why not numpy's own: compiled, each is numba's general implementation (sorts for every
@@ -14,7 +14,8 @@ The same bits as numpy's, on NaN-free input: a stable order is unique; ``sorted_
 keeps the first of equal values in sorted order, where numpy keeps whichever its unstable
 sort puts first (only 0.0 and -0.0 can tell them apart); ``interp`` is numpy's arithmetic
 (numpy/_core/src/multiarray/compiled_base.c, ``arr_interp``), and its search finds the
-only index numpy's can find in increasing sample points. tests/model/actuator/
+only index numpy's can find in increasing sample points; ``largest`` keeps the first of
+equal values (only 0.0 and -0.0 can tell). tests/model/actuator/
 test_array_loops.py holds each to numpy's on generated input, in both modes.
 """
 
@@ -131,3 +132,35 @@ def interp(x, xp, fp):
                     y = fp[j]
             out[i] = y
     return out
+
+
+@njit(**INTERNAL_LEAF)
+def largest(values):
+    """``np.max(values)`` of a 1-D array: the first of equal largest values."""
+    if len(values) == 0:
+        raise ValueError("largest: an empty array has no largest value")
+    top = values[0]
+    for i in range(1, len(values)):
+        if values[i] > top:
+            top = values[i]
+    return top
+
+
+@njit(**INTERNAL)
+def arange(n):
+    """``np.arange(n)``: 0 to n - 1, int64."""
+    out = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        out[i] = i
+    return out
+
+
+@njit(**INTERNAL_LEAF)
+def differs(a, b):
+    """``not np.array_equal(a, b)`` of 1-D arrays: another length or another element."""
+    if len(a) != len(b):
+        return True
+    i = 0
+    while i < len(a) and a[i] == b[i]:
+        i += 1
+    return i < len(a)

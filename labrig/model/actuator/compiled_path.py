@@ -29,7 +29,14 @@ import math
 
 import numpy as np
 
-from labrig.model.actuator.array_loops import copy_into, sorted_unique, stable_order
+from labrig.model.actuator.array_loops import (
+    arange,
+    copy_into,
+    differs,
+    largest,
+    sorted_unique,
+    stable_order,
+)
 from labrig.model.actuator.curve_tables import (
     BRANCH_LAST,
     BRANCH_RISING,
@@ -217,7 +224,7 @@ def _with_volume(tables, info, state, v):
     return True, (b, p, volumes, slopes)
 
 
-@njit(**INLINE)
+@njit(**INTERNAL)
 def _reach_between(tables, info, b, p_a, p_b, v_target, f_a, f_b):
     p = bracketed_root(EXCESS_VOLUME, tables, b, v_target, p_a, p_b, f_a, f_b, XTOL)
     found, reached = _with_volume(tables, info, _at(tables, b, p), v_target)
@@ -280,8 +287,11 @@ def _fold_residual(k):
             return math.inf
     if soft != 1:
         return math.inf
-    inverse = 1.0 / k
-    return abs(fsum(inverse)) / fsum(np.abs(inverse))
+    inverse, size = np.empty(len(k)), np.empty(len(k))
+    for i in range(len(k)):
+        inverse[i] = 1.0 / k[i]
+        size[i] = abs(inverse[i])
+    return abs(fsum(inverse)) / fsum(size)
 
 
 # --- the flow and where it ends ----------------------------------------------------------
@@ -318,10 +328,16 @@ def _settle_pair(tables, w):
     end = 0.0 if direction < 0 else v
     x = tables[BREAKPOINTS]
     m0, m1 = tables[LAST_PIECE][0] + 2, tables[LAST_PIECE][1] + 2
-    knots = np.concatenate((x[0, :m0], v - x[1, :m1]))
     lo, hi = _min(w[0], end), _max(w[0], end)
-    inside = knots[(knots > lo) & (knots < hi)]
-    points = sorted_unique(np.concatenate((inside, np.array([end]))))
+    candidates = np.empty(m0 + m1 + 1)  # either curve's knots strictly inside, and the end
+    m = 0
+    for j in range(m0 + m1):
+        knot = x[0, j] if j < m0 else v - x[1, j - m0]
+        if lo < knot < hi:
+            candidates[m] = knot
+            m += 1
+    candidates[m] = end
+    points = sorted_unique(candidates[: m + 1])
     if direction < 0:
         points = points[::-1]
     j = -1
@@ -337,7 +353,7 @@ def _settle_pair(tables, w):
     else:
         a = w[0] if j == 0 else points[j - 1]
         b = points[j]
-    no_branches = np.zeros(0, dtype=np.int64)
+    no_branches = np.empty(0, dtype=np.int64)
     w1 = bracketed_root(PAIR_IMBALANCE, tables, no_branches, v, a, b, math.nan, math.nan, XTOL)
     out = np.empty(2)
     out[0], out[1] = w1, v - w1
@@ -403,10 +419,11 @@ def _combinations_near(tables, info, w, near_ml):
                 count += 1
         counts[i] = count
     total = 1
+    digits = np.empty(n, dtype=np.int64)
     for i in range(n):
         total *= counts[i]
+        digits[i] = 0
     product = np.empty((total, n), dtype=np.int64)
-    digits = np.zeros(n, dtype=np.int64)
     for row in range(total):  # itertools.product: the last position turns fastest
         for i in range(n):
             product[row, i] = options[i, digits[i]]
@@ -418,10 +435,12 @@ def _combinations_near(tables, info, w, near_ml):
             digits[i] = 0
             i -= 1
     # sorted (stably) by how many positions differ from the first
-    distance = np.zeros(total)  # float64: the one type ``stable_order`` is compiled for
+    distance = np.empty(total)  # float64: the one type ``stable_order`` is compiled for
     for row in range(total):
+        differing = 0.0
         for i in range(n):
-            distance[row] += product[row, i] != product[0, i]
+            differing += product[row, i] != product[0, i]
+        distance[row] = differing
     order = stable_order(distance)
     return product[order]
 
@@ -467,7 +486,7 @@ def _snap_from_fold(tables, info, fold, s_p, unit, flow_tol):
         for i in range(n):
             w0[i] = vs[i] + eta * u[i]
         post = _polish(tables, info, _settle(tables, w0, flow_tol, unit), v_fold, 0.0)
-        moved = _lexicographic_less(post[0], b) or _lexicographic_less(b, post[0])
+        moved = differs(post[0], b)
         beyond = moved or s_p * (post[1] - p) > 1e-9 * _max(1.0, abs(p))
         if beyond and stable_slopes(post[3]):
             return _past_semi_stable(tables, info, post, fold, eta, flow_tol, unit)
@@ -483,11 +502,15 @@ def _past_semi_stable(tables, info, post, fold, eta, flow_tol, unit):
     for _ in range(8):
         if not _fold_residual(post[3]) <= zero:
             return post
-        u = 1.0 / post[3]
+        u = np.empty(n)
+        for i in range(n):
+            u[i] = 1.0 / post[3][i]  # no slope is 0: the residual above is finite
         mean = fsum(u) / n
-        u = u - mean
-        came = post[2] - origin[2]
-        sign = 1.0 if fsum(u * came) >= 0 else -1.0
+        along = np.empty(n)  # u against the way the state came
+        for i in range(n):
+            u[i] = u[i] - mean
+            along[i] = u[i] * (post[2][i] - origin[2][i])
+        sign = 1.0 if fsum(along) >= 0 else -1.0
         largest = abs(u[0])
         for i in range(1, n):
             largest = _max(largest, abs(u[i]))
@@ -534,12 +557,10 @@ def _cross(tables, info, end, at_limit, s_p, direction, unit, flow_tol):
     n_limit = len(at_limit)
     has_best = False
     best_moved = 0.0
-    best_subset = np.zeros(0, dtype=np.int64)
+    best_subset = np.empty(0, dtype=np.int64)
     best_new = b.copy()
     for size in range(1, n_limit + 1):
-        index = np.empty(size, dtype=np.int64)  # np.arange, costly to compile
-        for j in range(size):
-            index[j] = j
+        index = arange(size)
         while True:  # itertools.combinations(at_limit, size), in order
             subset = at_limit[index]
             new = b.copy()
@@ -614,11 +635,12 @@ def _new_timeline(n):
     floats = np.empty((_CAPACITY, 4))
     branches = np.empty((_CAPACITY, 2, n), dtype=np.int64)
     states = np.empty((_CAPACITY, 4, n))
-    count = np.zeros(1, dtype=np.int64)  # the items so far
+    count = np.empty(1, dtype=np.int64)  # the items so far
+    count[0] = 0
     return ints, floats, branches, states, count
 
 
-@njit(**INLINE)
+@njit(**INTERNAL_LEAF)
 def _append_piece(timeline, start, end, direction):
     ints, floats, branches, _, counter = timeline
     count = counter[0]
@@ -631,7 +653,7 @@ def _append_piece(timeline, start, end, direction):
     counter[0] = count + 1
 
 
-@njit(**INLINE)
+@njit(**INTERNAL_LEAF)
 def _append_event(timeline, kind, cause, direction, pre, post):
     ints, floats, branches, states, counter = timeline
     count = counter[0]
@@ -756,9 +778,7 @@ def default_end_volume(tables, info):
         p_end = 1.1 * highest
     else:
         for i in range(n):
-            top = tables[SAMPLES][i, 0]  # np.max, as a loop: numba's is costly to compile
-            for j in range(1, tables[LAST_PIECE][i] + 2):
-                top = _max(top, tables[SAMPLES][i, j])
+            top = largest(tables[SAMPLES][i, : tables[LAST_PIECE][i] + 2])
             p_end = top if i == 0 else _max(p_end, top)
     volumes = np.empty(n)
     for i in range(n):
@@ -767,7 +787,7 @@ def default_end_volume(tables, info):
     return fsum(volumes)
 
 
-@njit(**INLINE)
+@njit(**INTERNAL)
 def _state_on_piece(tables, info, timeline, t, v_ml):
     """``path.state_on_piece`` on the timeline's piece t (its fallback left to the
     reference)."""
@@ -835,15 +855,18 @@ def trace_transitions(
     tables, profiles, info = _select(library, library_profiles, library_info, combo)
     params = (unit, margin, flow_tol)
     timeline = _new_timeline(n)
-    start = _at(tables, np.zeros(n, dtype=np.int64), 0.0)
+    first_branches = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        first_branches[i] = 0
+    start = _at(tables, first_branches, 0.0)
     v_end = default_end_volume(tables, info)
     end = _follow(tables, profiles, info, timeline, start, INFLATE, v_end, params)
     if deflate:
         _follow(tables, profiles, info, timeline, end, DEFLATE, 0.0, params)
     ints, _, branches, _, counter = timeline
     count = counter[0]
-    out_ints = np.zeros((count, 4), dtype=np.int64)
-    out_floats = np.zeros((count, 5))
+    out_ints = np.empty((count, 4), dtype=np.int64)  # the rows returned are all written
+    out_floats = np.empty((count, 5))
     rows = 0
     for t in range(count):
         if ints[t, 0] != EVENT:

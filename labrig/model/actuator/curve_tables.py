@@ -172,9 +172,13 @@ def piece_integral(c, i, j, t):
 def _energies(x, c, last_piece):
     """The PIECE_ENERGY and CUMULATIVE_ENERGY tables."""
     n, width = x.shape
-    pieces = np.zeros((n, width - 1))
-    cumulative = np.zeros((n, width))
+    pieces = np.empty((n, width - 1))
+    cumulative = np.empty((n, width))
     for i in range(n):
+        cumulative[i, 0] = 0.0
+        for j in range(width - 1):  # 0 past the last piece
+            pieces[i, j] = 0.0
+            cumulative[i, j + 1] = 0.0
         for j in range(last_piece[i] + 1):
             pieces[i, j] = piece_integral(c, i, j, x[i, j + 1] - x[i, j])
             cumulative[i, j + 1] = cumulative[i, j] + pieces[i, j]
@@ -546,8 +550,9 @@ def fold_screen(tables, profiles, branches, p_from, p_to, margin):
             m += 1
             j += 1
     pressures = sorted_unique(candidates[:m])
-    total = np.zeros(len(pressures))
-    scale = np.zeros(len(pressures))
+    total, scale = np.empty(len(pressures)), np.empty(len(pressures))
+    for j in range(len(pressures)):
+        total[j] = scale[j] = 0.0
     for i in range(n):
         b = branches[i]
         ps = profiles[PROFILE_P][i, b, : profiles[PROFILE_COUNT][i, b]]
@@ -559,8 +564,13 @@ def fold_screen(tables, profiles, branches, p_from, p_to, margin):
                 value = values[j] / math.sqrt(distance)
                 total[j] += value
                 scale[j] += abs(value)
-    flagged = pressures[total >= -margin * scale]
-    return flagged[::-1] if p_to < p_from else flagged
+    flagged = np.empty(len(pressures))
+    m = 0
+    for j in range(len(pressures)):
+        if total[j] >= -margin * scale[j]:
+            flagged[m] = pressures[j]
+            m += 1
+    return flagged[:m][::-1] if p_to < p_from else flagged[:m]
 
 
 # The functions whose roots the solver seeks (``labrig.model.actuator.roots``), by number: a

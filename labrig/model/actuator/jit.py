@@ -25,9 +25,12 @@ tree once, in the library of the function Python calls (numba's own way compiles
 function's machine code, then again within each caller's, five levels deep here). So
 the tree is kept small: no literal specialisations (constants passed between compiled
 functions), functions called from one place copied into their caller (``INLINE``), no
-Python wrappers for those only compiled code calls (``INTERNAL``), and small loops where
+Python wrappers for those only compiled code calls (``INTERNAL``), small loops where
 numba's general library functions would be typed and lowered for each type
-(``labrig.model.actuator.array_loops``). ``python
+(``labrig.model.actuator.array_loops``), and arrays made by ``np.empty`` alone, its dtype
+omitted for float64 and ``np.int64`` for integers: numba compiles a constructor once per
+type of its shape and of its dtype argument, and ``np.zeros`` compiles an ``np.empty`` and
+a fill of its own besides. ``python
 tests/benchmarks/bench_compile.py`` measures it on an empty cache (docs/performance.md,
 "Compiling").
 """

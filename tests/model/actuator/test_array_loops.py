@@ -1,7 +1,8 @@
-"""The solver's loops for numpy's stable argsort, unique, searchsorted and interp
-(``labrig.model.actuator.array_loops``) give numpy's results bit for bit, on generated
-input with ties, single elements, sorted and reversed runs and points outside the
-samples: as the plain Python they are written in and, in a compiling process, compiled."""
+"""The solver's loops for numpy's stable argsort, unique, searchsorted, interp, max, arange
+and array_equal (``labrig.model.actuator.array_loops``) give numpy's results bit for bit,
+on generated input with ties, single elements, sorted and reversed runs and points outside
+the samples: as the plain Python they are written in and, in a compiling process,
+compiled."""
 
 import types
 
@@ -32,32 +33,28 @@ def _arranged(values: list[float], arrangement: str) -> np.ndarray:
 _ARRANGEMENTS = st.sampled_from(["as drawn", "sorted", "reversed", "runs"])
 
 
+# the fixture's names for the loops
+_LOOPS = {
+    "order": "stable_order",
+    "unique": "sorted_unique",
+    "interp": "interp",
+    "count": "count_at_or_below",
+    "copy": "copy_into",
+    "largest": "largest",
+    "arange": "arange",
+    "differs": "differs",
+}
+
+
 def _compiled():
     """The loops compiled, called through compiled code as the solver calls them (they
     are internal: Python cannot call them directly)."""
     import numba
 
-    @numba.njit
-    def order(keys):
-        return array_loops.stable_order(keys)
+    def through_compiled(loop):
+        return numba.njit(lambda *args: loop(*args))
 
-    @numba.njit
-    def unique(values):
-        return array_loops.sorted_unique(values)
-
-    @numba.njit
-    def interp(x, xp, fp):
-        return array_loops.interp(x, xp, fp)
-
-    @numba.njit
-    def count(xs, x):
-        return array_loops.count_at_or_below(xs, x)
-
-    @numba.njit
-    def copy(target, source):
-        array_loops.copy_into(target, source)
-
-    return {"order": order, "unique": unique, "interp": interp, "count": count, "copy": copy}
+    return {key: through_compiled(getattr(array_loops, name)) for key, name in _LOOPS.items()}
 
 
 def _plain():
@@ -72,13 +69,7 @@ def _plain():
         }
         return types.FunctionType(function.__code__, names, function.__name__)
 
-    return {
-        "order": plain(array_loops.stable_order),
-        "unique": plain(array_loops.sorted_unique),
-        "interp": plain(array_loops.interp),
-        "count": plain(array_loops.count_at_or_below),
-        "copy": plain(array_loops.copy_into),
-    }
+    return {key: plain(getattr(array_loops, name)) for key, name in _LOOPS.items()}
 
 
 @pytest.fixture(scope="module", params=["python"] + (["compiled"] if jit.COMPILED else []))
@@ -175,3 +166,41 @@ def test_copy_into_a_row_writes_through_and_refuses_another_length(loops):
     with pytest.raises(ValueError, match="different lengths"):
         loops["copy"](table[2], np.ones(3))
     assert table[2].tolist() == [0.0] * 4
+
+
+@settings(max_examples=300, deadline=None)
+@given(values=st.lists(st.one_of(_FEW, _ANY), min_size=1, max_size=60), arrangement=_ARRANGEMENTS)
+def test_largest_is_numpys_max(loops, values, arrangement):
+    values = _arranged(values, arrangement)
+    got, expected = loops["largest"](values), np.max(values)
+    assert got == expected
+    if expected != 0.0:  # 0.0 and -0.0 tie: the loop keeps the first, numpy either
+        assert _same_bits(np.float64(got), expected)
+
+
+def test_largest_of_a_tables_row_prefix_and_of_nothing(loops):
+    table = np.array([[1.0, 7.5, -3.0, 7.5, np.inf], [0.0, 0.0, 0.0, 0.0, 0.0]])
+    assert loops["largest"](table[0, :4]) == 7.5  # the padding past it not read
+    with pytest.raises(ValueError, match="empty"):
+        loops["largest"](np.empty(0))
+
+
+@settings(max_examples=100, deadline=None)
+@given(n=st.integers(0, 300))
+def test_arange_is_numpys_arange(loops, n):
+    assert _same_bits(loops["arange"](n), np.arange(n, dtype=np.int64))
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    a=st.lists(st.integers(-1, 3), max_size=8),
+    b=st.lists(st.integers(-1, 3), max_size=8),
+    same=st.booleans(),
+)
+def test_differs_is_not_numpys_array_equal(loops, a, b, same):
+    """Branch rows of the lengths an actuator has: often equal (``same``), else of another
+    length or content."""
+    first = np.array(a, dtype=np.int64)
+    second = first.copy() if same else np.array(b, dtype=np.int64)
+    assert loops["differs"](first, second) == (not np.array_equal(first, second))
+    assert loops["differs"](second, first) == (not np.array_equal(first, second))
