@@ -8,11 +8,15 @@ Each worker measures its tests (setup, call and teardown together) and sends the
 to the controller in the teardown report's ``user_properties``; the controller prints
 each worker's total, when its last test ended (minutes:seconds of wall time after the
 session started: the workers should end together, tests/conftest.py's order) and the
-slowest tests at the end. A child reaped during a later test
-counts there (a module fixture's processes, stopped after the module's last test)."""
+slowest tests at the end, with the load average at the start and at the end (the
+suite's own workers count in it); every test's figure is kept in pytest's cache
+(``.pytest_cache/v/labrig/cpu_profile``, JSON), for two runs to be compared test by test.
+A child reaped during a later test counts there (a module fixture's processes, stopped
+after the module's last test)."""
 
 from __future__ import annotations
 
+import os
 import resource
 import time
 
@@ -48,11 +52,13 @@ _START = pytest.StashKey[float]()
 _MEASURED: list[tuple[float, str, str]] = []  # (CPU s, worker, node id), in the controller
 _ENDED: dict[str, float] = {}  # worker: the wall clock as its last test ended
 _STARTED = time.time()  # the session's start, near enough: this plugin is loaded then
+_LOAD: list[float] = []  # the 1-minute load average at the session's start
 
 
 def pytest_sessionstart(session):
     global _STARTED
     _STARTED = time.time()
+    _LOAD[:] = [os.getloadavg()[0]]
 
 
 def pytest_runtest_logreport(report):
@@ -67,11 +73,16 @@ def pytest_runtest_logreport(report):
             _ENDED[worker] = max(value, _ENDED.get(worker, value))
 
 
-def pytest_terminal_summary(terminalreporter):
+def pytest_terminal_summary(terminalreporter, config):
     if not _MEASURED:
         return
     write = terminalreporter.write_line
     terminalreporter.section("CPU time of the tests (s, with the processes they reaped)")
+    load = f"{_LOAD[0]:.1f}" if _LOAD else "?"
+    write(f"load average (1 min): {load} at the start, {os.getloadavg()[0]:.1f} at the end")
+    cache = getattr(config, "cache", None)  # None with -p no:cacheprovider
+    if cache is not None:
+        cache.set("labrig/cpu_profile", {nodeid: round(cpu, 3) for cpu, _, nodeid in _MEASURED})
     workers = sorted({w for _, w, _ in _MEASURED})
     for worker in workers:
         spent = [cpu for cpu, w, _ in _MEASURED if w == worker]
