@@ -373,17 +373,24 @@ def test_settings_answered_with_text_still_connect(clock):
         assert pump.force_limit_pct() == 40
 
 
-def test_a_disconnect(pump, clock, emulator):
-    start_run(pump, clock, rate_ml_min=6.0)
-    emulator.disconnect()
-    with pytest.raises(PumpDisconnected, match="may still be running"):
-        pump.status()
-    pump.reconnect_s = 0.3  # a pump that never comes back
-    with pytest.raises(PumpDisconnected, match=r"lost earlier .* did not come back within"):
-        pump.stop()
-    # As with a pulled cable, the plunger goes on.
-    now_s = clock.now()
-    assert emulator.net_volume_ml(now_s + 10.0) > emulator.net_volume_ml(now_s)
+def test_a_disconnect(clock, tmp_path):
+    # through a by-id link, as a rig file names the pump: the raw /dev/pts/N a pulled
+    # cable frees can be handed to another program's terminal within the driver's wait
+    # for the pump to come back, and the driver would find that one
+    with (
+        PumpEmulator(clock, by_id=tmp_path / "usb-Harvard_PHD_ULTRA") as emulator,
+        PhdUltra.open(emulator.port, clock=clock, timeout_s=TIMEOUT_S) as pump,
+    ):
+        start_run(pump, clock, rate_ml_min=6.0)
+        emulator.disconnect()
+        with pytest.raises(PumpDisconnected, match="may still be running"):
+            pump.status()
+        pump.reconnect_s = 0.3  # a pump that never comes back
+        with pytest.raises(PumpDisconnected, match=r"lost earlier .* did not come back within"):
+            pump.stop()
+        # As with a pulled cable, the plunger goes on.
+        now_s = clock.now()
+        assert emulator.net_volume_ml(now_s + 10.0) > emulator.net_volume_ml(now_s)
 
 
 def test_an_injected_stall(pump, clock, emulator):
