@@ -328,12 +328,12 @@ class NiDaqPressure:
     def _sighted(self, k: int, seen_s: float) -> None:
         """Sample ``k`` was counted by ``seen_s``: kept if it is this interval's least
         delayed sighting (its stamp closest to, or past, the moment it was seen)."""
-        lead_s = self._stamp(np.array([k]))[0] - seen_s
+        lead_s = self._stamp(k) - seen_s
         if self._sighting is None or lead_s > self._lead_s(self._sighting):
             self._sighting = (k, seen_s)
 
     def _lead_s(self, sighting: tuple[int, float]) -> float:
-        return self._stamp(np.array([sighting[0]]))[0] - sighting[1]
+        return self._stamp(sighting[0]) - sighting[1]
 
     def _check_drift(self, now_s: float) -> None:
         """Judge the sample period on the host clock from the intervals' least delayed
@@ -344,7 +344,7 @@ class NiDaqPressure:
             self._sighting = None
         self._period_s = self._fitted_period_s()
         k_next = self._n_read
-        t_next_s = self._stamp(np.array([k_next]))[0]
+        t_next_s = self._stamp(k_next)
         error_s = self._t_start_s + k_next * self._period_s - t_next_s
         # below a nanosecond it is the rounding of the anchors, not time
         error_s = 0.0 if abs(error_s) < 1e-9 else error_s
@@ -375,7 +375,9 @@ class NiDaqPressure:
             return self._period_s
         return nominal_s if abs(period_s - nominal_s) <= known_s else float(period_s)
 
-    def _stamp(self, k: np.ndarray) -> np.ndarray:
+    def _stamp(self, k):
+        """The times of samples ``k`` (an array, or one number: the same arithmetic on
+        Python floats, without a numpy call's cost for one sample)."""
         return self._anchor_t_s + (k - self._anchor_k) * self._s_per_sample
 
     def _read_samples(self, n: int, timeout_s: float) -> np.ndarray:
@@ -403,14 +405,11 @@ class NiDaqPressure:
         range as DAQmx set it up (not the narrower range asked for)."""
         sensor_rows = 2 if self.supply_channel is not None else 1
         v_supply = data[1] if sensor_rows == 2 else self.supply_v
-        adc_flags = np.zeros(data.shape[1], dtype=bool)
-        for row, (low_v, high_v), bits in zip(
-            data[:sensor_rows],
-            self.adc_ranges_v[:sensor_rows],
-            self.adc_bits[:sensor_rows],
-            strict=True,
-        ):
-            adc_flags |= mpx5100.beyond_adc_range(row, low_v, high_v, bits)
+        (low_v, high_v), bits = self.adc_ranges_v[0], self.adc_bits[0]
+        adc_flags = mpx5100.beyond_adc_range(data[0], low_v, high_v, bits)
+        if sensor_rows == 2:
+            (low_v, high_v), bits = self.adc_ranges_v[1], self.adc_bits[1]
+            adc_flags |= mpx5100.beyond_adc_range(data[1], low_v, high_v, bits)
         return mpx5100.pressure_kpa(data[0], v_supply), adc_flags
 
     def _block(self, data: np.ndarray) -> PressureBlock:

@@ -11,6 +11,7 @@ path (exit code 2); any other exception (a bug) too, as one line with exit code 
 from __future__ import annotations
 
 import atexit
+import contextlib
 import gc
 import importlib
 import os
@@ -60,7 +61,9 @@ class LazyGroup(click.Group):
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
         if cmd_name in self.lazy_commands:
             module_name, attribute = self.lazy_commands[cmd_name]
-            return getattr(importlib.import_module(module_name), attribute)
+            with start_up_uncollected():
+                module = importlib.import_module(module_name)
+            return getattr(module, attribute)
         return super().get_command(ctx, cmd_name)
 
 
@@ -79,7 +82,30 @@ def cli(debug: bool) -> None:
     _SETTINGS["debug"] = debug
 
 
-_SETTINGS = {"debug": False}
+# whole_process: the process is the command (run from the shell), and ends with it
+_SETTINGS = {"debug": False, "whole_process": False}
+
+
+@contextlib.contextmanager
+def start_up_uncollected():
+    """A command's start-up (its imports: a few hundred thousand objects that live to
+    the process's end) without the garbage collector's passes over them, about a
+    twentieth of the simulated demo's start-up; at the end they are frozen
+    (``gc.freeze``), out of every later pass's walk, and the collector is on again for
+    what the command does next. A run's collections see what they saw before: the run
+    freezes what it finds at its start anyway (``labrig.run.runner``).
+
+    Only in a process that is the command: frozen objects are never collected, which a
+    caller that goes on (a test, a notebook) must not have done to its own."""
+    if not (_SETTINGS["whole_process"] and gc.isenabled()):
+        yield
+        return
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.freeze()
+        gc.enable()
 
 
 def _one_line(exc: BaseException) -> str:
@@ -112,6 +138,7 @@ def main(argv: list[str] | None = None) -> None:
     if argv is None and _solves_one_actuator(sys.argv[1:]):
         os.environ.setdefault("LABRIG_JIT", "python")
     if argv is None:
+        _SETTINGS["whole_process"] = True
         # the process ends with the command: the interpreter's collections at exit would
         # walk every object left (after a simulated run, ~0.3 s of a busy machine) only
         # to free memory that the process gives back whole

@@ -98,13 +98,16 @@ def run(
     live_hold: float,
 ) -> None:
     """Run PROTOCOL_FILE on the rig and record it in one HDF5 file."""
-    from labrig.config.protocol import load_protocol
-    from labrig.config.rig_file import load_rig_config
-    from labrig.run.dry_run import dry_run_report
+    from labrig.cli import start_up_uncollected
 
-    loaded = load_protocol(protocol_file)
-    rig_config = load_rig_config(loaded, force_sim=sim, speed=speed, seed=seed)
-    report = dry_run_report(loaded.protocol, rig_config)
+    with start_up_uncollected():  # mostly the imports the checks need (scipy's)
+        from labrig.config.protocol import load_protocol
+        from labrig.config.rig_file import load_rig_config
+        from labrig.run.dry_run import dry_run_report
+
+        loaded = load_protocol(protocol_file)
+        rig_config = load_rig_config(loaded, force_sim=sim, speed=speed, seed=seed)
+        report = dry_run_report(loaded.protocol, rig_config)
     click.echo(report.text)
     if not report.ok:
         raise click.exceptions.Exit(2)
@@ -132,16 +135,19 @@ def run(
 
 
 def _run(loaded, rig_config, out_path: Path, live_view=None) -> None:
-    from rich.console import Console
-    from rich.progress import BarColumn, Progress, TextColumn
+    from labrig.cli import start_up_uncollected
 
-    from labrig.rig.assembly import build_rig
-    from labrig.run.keep_awake import system_kept_awake
-    from labrig.run.pump_stop import PUMP_STOP_NOT_CONFIRMED
-    from labrig.run.runner import Runner, Timing
+    with start_up_uncollected():  # mostly the drivers' imports (OpenCV, h5py, nidaqmx)
+        from rich.console import Console
+        from rich.progress import BarColumn, Progress, TextColumn
 
-    console = Console(stderr=True)
-    rig = build_rig(loaded.protocol, rig_config)
+        from labrig.rig.assembly import build_rig
+        from labrig.run.keep_awake import system_kept_awake
+        from labrig.run.pump_stop import PUMP_STOP_NOT_CONFIRMED
+        from labrig.run.runner import Runner, Timing
+
+        console = Console(stderr=True)
+        rig = build_rig(loaded.protocol, rig_config)
     columns = (
         TextColumn("rep {task.fields[rep]}"),
         TextColumn("[bold]{task.fields[step]:<16}"),

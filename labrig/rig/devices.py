@@ -10,6 +10,7 @@ device's own units. Every timestamp is on the run's shared clock (``labrig.time.
 from __future__ import annotations
 
 import enum
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
@@ -99,6 +100,12 @@ class PressureBlock:
 
     def __len__(self) -> int:
         return len(self.t_s)
+
+    @functools.cached_property
+    def all_good(self) -> bool:
+        """Every sample a finite reading within range (nearly every block): what each
+        interlock asks first, answered once a block."""
+        return bool(np.isfinite(self.pressure_kpa).all() and not self.out_of_range.any())
 
 
 @runtime_checkable

@@ -10,10 +10,8 @@ exactly."""
 from __future__ import annotations
 
 import math
-import tempfile
 from contextlib import ExitStack
 from dataclasses import dataclass
-from pathlib import Path
 
 from labrig.config.protocol import Protocol
 from labrig.config.rig_file import (
@@ -27,6 +25,7 @@ from labrig.config.rig_file import (
 from labrig.errors import InputError
 from labrig.rig.connect import needs_technician, pressure_driver, set_up_pump
 from labrig.rig.devices import Rig
+from labrig.rig.serial_link_folder import new_link_folder
 
 # The simulated camera's sensor (px) when the rig file has no camera section: a small
 # monochrome camera, so a simulated run's video (every frame rendered whole and encoded)
@@ -62,7 +61,7 @@ def build_simulated_rig(protocol: Protocol, config: RigConfig, before_connect=No
     plant_box: list[Plant] = []
     # the pump is opened by a stable link, like udev's /dev/serial/by-id/... one, which
     # follows it when it re-enumerates as another pseudo-terminal
-    link_dir = Path(tempfile.mkdtemp(prefix="labrig-sim-serial-"))
+    link_dir = new_link_folder()
     emulator = PumpEmulator(
         clock,
         by_id=link_dir / "usb-Harvard_Apparatus_PHD_ULTRA_SIM-if00",

@@ -72,6 +72,8 @@ class PressureSignal(Interlock):
     outcome = "faulted"
 
     def check_pressure(self, block: PressureBlock) -> str | None:
+        if block.all_good:
+            return None
         p = block.pressure_kpa
         bad = np.flatnonzero(~np.isfinite(p) | block.out_of_range)
         if len(bad) == 0:
@@ -133,8 +135,10 @@ class PressureFrozen(Interlock):
         self._run_n = 0  # and how many samples it has
 
     def check_pressure(self, block: PressureBlock) -> str | None:
-        good = np.isfinite(block.pressure_kpa)
-        t, p = block.t_s[good], block.pressure_kpa[good]
+        t, p = block.t_s, block.pressure_kpa
+        if not block.all_good:  # else every sample is finite: no copies
+            good = np.isfinite(p)
+            t, p = t[good], p[good]
         if len(t):
             self._extend_run(t, p)
             self._blocks.append((t, p))
@@ -249,15 +253,15 @@ class SpecimenPressure(Interlock):
 
     def check_pressure(self, block: PressureBlock) -> str | None:
         t, p = block.t_s, block.pressure_kpa
-        finite = np.isfinite(p)
-        good = finite & ~block.out_of_range
+        t_finite, p_finite = t, p
         # a block of good samples (nearly every one) is judged as it is, without copies
-        if not finite.all():
-            t_finite, p_finite = t[finite], p[finite]
-        else:
-            t_finite, p_finite = t, p
-        if not good.all():
-            t, p = t[good], p[good]
+        if not block.all_good:
+            finite = np.isfinite(p)
+            good = finite & ~block.out_of_range
+            if not finite.all():
+                t_finite, p_finite = t[finite], p[finite]
+            if not good.all():
+                t, p = t[good], p[good]
         with self._lock:
             if len(t):
                 self._add_to_bins(t, p)

@@ -3,7 +3,8 @@ nothing: run the same protocol and seed before and after, then compare the files
 
 Every dataset (dtype, shape, bytes) and every attribute is compared; what records when
 and by which code the file was written (the file and analysis dates, the run's start
-and end time, the git commit) is left out. Prints each difference and exits 1 if any.
+and end time, the git commit) and the pump's port (a temporary path on the simulated
+rig) are left out. Prints each difference and exits 1 if any.
 Run: ``python tests/benchmarks/compare_run_files.py BEFORE.h5 AFTER.h5``.
 """
 
@@ -14,14 +15,17 @@ import sys
 import h5py
 import numpy as np
 
-# (object, attribute): wall-clock stamps and the code's identity, not data; an
-# attribute of None leaves the dataset itself out
+# (object, attribute): wall-clock stamps, the code's identity and the host's device
+# names, not data; an attribute of None leaves the dataset itself out. The pump's port
+# is the path the driver opened: on the simulated rig a link in a temporary folder
+# whose name is new in every run.
 NOT_DATA = {
     ("/", "file_time"),
     ("entry/analysis", "date"),
     ("entry/start_time", None),
     ("entry/end_time", None),
     ("entry/versions/git_commit", None),
+    ("entry/pump_identity/port", None),
 }
 
 

@@ -12,6 +12,7 @@ writes the parts' CPU seconds and call counts to JSON.
 """
 
 import atexit
+import gc
 import json
 import resource
 import sys
@@ -109,7 +110,16 @@ def main() -> None:
     protocol, out, report = sys.argv[1:4]
     import labrig.cli
 
-    _install()  # imports the rig's modules too: what the run command imports first
+    # _install imports the rig's modules too, what the run command imports first: as the
+    # command does, the collector paused for them and they frozen after, in a checkout
+    # whose command does so (labrig.cli.start_up_uncollected)
+    paused = hasattr(labrig.cli, "start_up_uncollected")
+    if paused:
+        gc.disable()
+    _install()
+    if paused:
+        gc.freeze()
+        gc.enable()
     start_up_cpu_s = time.process_time()
     _LOCAL.stack = [["main thread: rest", 0.0]]
     main_t0 = time.thread_time()
