@@ -126,14 +126,18 @@ def _parsed_by_pandas(lines: list[str]) -> np.ndarray:
 
     import pandas as pd
 
+    # pandas from 3.1 reads every float exactly and deprecates the choice; before it,
+    # only the round-trip converter does
+    major_minor = tuple(int(part) for part in pd.__version__.split(".")[:2])
+    exact = {} if major_minor >= (3, 1) else {"float_precision": "round_trip"}
     try:
         table = pd.read_csv(
             io.StringIO("\n".join(lines)),
             header=None,
             dtype=float,
             engine="c",
-            float_precision="round_trip",
             skip_blank_lines=False,
+            **exact,
         )
     except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise ValueError(str(exc)) from None
