@@ -116,7 +116,7 @@ def _file_locked_elsewhere(path: Path) -> bool:
 
 class RunFileLock:
     """The locks of one run file, its name's (the sidecar) and the file's own, held by
-    this process from ``acquire`` (or ``create_file``) to ``release`` (also a context
+    this process from ``acquire`` (or ``hold_new_file``) to ``release`` (also a context
     manager). ``purpose`` ("run", "recover", ...) is written into the sidecar so that a
     refused process can say who holds the file."""
 
@@ -144,15 +144,15 @@ class RunFileLock:
             break
         return self  # no file yet, or none that can be opened: its user says why
 
-    def create_file(self, refusal: str) -> None:
-        """Create the run file empty and lock it (under the name's lock);
-        FileExistsError if a file is already there."""
-        fd = os.open(self.run_path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644)
-        self._hold_file(fd, refusal, writable=True)
+    def hold_new_file(self, made_fd: int, refusal: str) -> None:
+        """Lock the run file that ``made_fd`` (HDF5's handle, under the name's lock) has
+        just created, through that same open file: no path is looked up again, so what
+        is locked is the file that was made, whatever the path names meanwhile."""
+        self._hold_file(os.dup(made_fd), refusal, writable=True)
 
     def file_identity(self) -> tuple[int, int]:
-        """(device, inode) of the file ``create_file`` made and holds: what the path
-        must still name for the run to write, truncate or remove it."""
+        """(device, inode) of the file ``hold_new_file`` locked: what the path must still
+        name for the run to remove it."""
         held = os.fstat(self._file_fd)
         return held.st_dev, held.st_ino
 

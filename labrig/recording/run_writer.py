@@ -167,48 +167,32 @@ class RunWriter:
         self._claim = RunFileLock(self.path, "run").acquire("choose another --out")
         created: h5py.File | None = None
         try:
-            self._claim_new_file()
-        except BaseException:
-            self._claim.release()
-            raise
-        self._identity = self._claim.file_identity()
-        try:
-            self._file = created = self._open_new_file()
+            self._file = created = self._create_file()
+            self._claim.hold_new_file(created.id.get_vfd_handle(), "choose another --out")
+            self._identity = self._claim.file_identity()
             self._create_layout(title, protocol_text, protocol_path, rig_config_text)
             self._file.swmr_mode = True
         except BaseException:
             if created is not None:
+                made = os.fstat(created.id.get_vfd_handle())
                 created.close()
-            if _identity_at(self.path) == self._identity:
-                self.path.unlink()  # this writer's own new file, half laid out
+                if _identity_at(self.path) == (made.st_dev, made.st_ino):
+                    self.path.unlink()  # this writer's own new file, half laid out
             self._claim.release()
             raise
         self._last_flush = time.monotonic()
 
-    def _claim_new_file(self) -> None:
-        """The new, empty file, made and locked itself (under the name's lock);
-        InputError if one is already there."""
+    def _create_file(self) -> h5py.File:
+        """The new run file, made by HDF5 only if nothing is at the path (its exclusive
+        create, ``O_EXCL``): an existing file, a finished run or another program's, is
+        never truncated, whatever moves onto the path at any moment."""
         try:
-            self._claim.create_file("choose another --out")
+            return h5py.File(self.path, "x", libver="latest")
         except FileExistsError:
             raise InputError(
                 f"{self.path}: a file is already there; a run never writes over one "
                 "(labrig run --overwrite moves it aside first)"
             ) from None
-        except OSError as exc:
-            raise InputError(f"{self.path}: cannot create the run file ({exc.strerror})") from None
-
-    def _open_new_file(self) -> h5py.File:
-        """HDF5's handle on the file just made, still empty."""
-        there = _stat_or_none(self.path)
-        if there is None or (there.st_dev, there.st_ino) != self._identity or there.st_size:
-            raise InputError(
-                f"{self.path}: the file made for this run was replaced or written to by "
-                "another program before the run opened it; nothing was written over"
-            )
-        try:
-            # "w" truncates: only the empty file this run made and holds, checked above
-            return h5py.File(self.path, "w", libver="latest")
         except OSError as exc:
             raise InputError(f"{self.path}: cannot create the run file ({exc})") from None
 

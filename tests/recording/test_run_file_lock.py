@@ -23,7 +23,7 @@ from labrig.recording.run_file_lock import (
     lock_path,
 )
 from labrig.recording.run_reader import open_run, read_log
-from labrig.recording.run_writer import RunWriter
+from labrig.recording.run_writer import RunFileFailed, RunWriter
 from labrig.rig.assembly import build_rig
 from labrig.run.runner import Runner
 from tests.support.simrig import short_protocol
@@ -33,7 +33,7 @@ LIVE_WRITER = textwrap.dedent(
     """
     import sys, time
     import numpy as np
-    from labrig.recording.run_writer import RunWriter
+    from labrig.recording.run_writer import RunFileFailed, RunWriter
     writer = RunWriter(sys.argv[1], title="live", protocol_text=open(sys.argv[2]).read(),
                        protocol_path="tiny.yaml", rig_config_text="", repetitions=1,
                        with_length=False, flush_interval_s=0.05)
@@ -121,22 +121,45 @@ def test_a_writer_never_replaces_an_existing_file(tmp_path):
     assert not lock_path(path).exists()
 
 
-def test_a_file_put_at_the_path_after_the_claim_is_never_truncated(tmp_path, monkeypatch):
-    """HDF5 makes its file by truncating: between the claim's empty file and HDF5's open,
-    another program's file moved onto the path must come out as it went in."""
+def test_a_file_put_at_the_path_before_the_run_makes_its_own_is_never_truncated(
+    tmp_path, monkeypatch
+):
+    """Between the name's claim and HDF5's create, another program's file moved onto the
+    path must come out as it went in: HDF5 creates only where nothing is."""
     path = tmp_path / "run.h5"
     theirs = tmp_path / "theirs.bin"
     theirs.write_bytes(b"another program's data")
-    create_file = RunFileLock.create_file
+    create_file = RunWriter._create_file
 
-    def create_then_replaced(self, refusal):
-        create_file(self, refusal)
+    def replaced_then_created(self):
         os.replace(theirs, path)
+        return create_file(self)
 
-    monkeypatch.setattr(RunFileLock, "create_file", create_then_replaced)
-    with pytest.raises(InputError, match="replaced or written to by another program"):
+    monkeypatch.setattr(RunWriter, "_create_file", replaced_then_created)
+    with pytest.raises(InputError, match="a file is already there"):
         make_writer(path)
     assert path.read_bytes() == b"another program's data"
+    assert not lock_path(path).exists()
+
+
+def test_a_file_put_at_the_path_after_the_run_made_its_own_is_never_touched(tmp_path, monkeypatch):
+    """Moved onto the path once the run's file exists, another program's file is
+    neither written nor removed; the run says its own file is gone."""
+    path = tmp_path / "run.h5"
+    theirs = tmp_path / "theirs.bin"
+    theirs.write_bytes(b"another program's data")
+    hold_new_file = RunFileLock.hold_new_file
+
+    def held_then_replaced(self, made_fd, refusal):
+        hold_new_file(self, made_fd, refusal)
+        os.replace(theirs, path)
+
+    monkeypatch.setattr(RunFileLock, "hold_new_file", held_then_replaced)
+    writer = make_writer(path)
+    with pytest.raises(RunFileFailed, match="the run file is gone"):
+        writer.finalise("complete")
+    assert path.read_bytes() == b"another program's data"
+    assert not lock_path(path).exists()
 
 
 def test_a_file_held_open_elsewhere_is_never_touched(tmp_path):
