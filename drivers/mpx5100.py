@@ -41,10 +41,13 @@ def pressure_kpa(v_out: np.ndarray, v_supply: np.ndarray | float = NOMINAL_SUPPL
     NaN where the supply is lost (below ``SUPPLY_LOST_V``)."""
     v_supply = np.asarray(v_supply, dtype=float)
     powered = v_supply >= SUPPLY_LOST_V
-    if powered.all():  # as below, without the two selections (a block's usual case)
-        return (np.asarray(v_out, dtype=float) / v_supply - OFFSET_RATIO) / SENSITIVITY_PER_KPA
-    ratio = np.asarray(v_out, dtype=float) / np.where(powered, v_supply, 1.0)
-    return np.where(powered, (ratio - OFFSET_RATIO) / SENSITIVITY_PER_KPA, np.nan)
+    # a block's usual case, every sample powered, needs neither selection
+    all_powered = bool(powered.all())
+    ratio = np.asarray(v_out, dtype=float) / (
+        v_supply if all_powered else np.where(powered, v_supply, 1.0)
+    )
+    kpa = (ratio - OFFSET_RATIO) / SENSITIVITY_PER_KPA
+    return kpa if all_powered else np.where(powered, kpa, np.nan)
 
 
 def output_v(p_kpa: np.ndarray, v_supply: np.ndarray | float = NOMINAL_SUPPLY_V) -> np.ndarray:

@@ -405,11 +405,11 @@ class NiDaqPressure:
         range as DAQmx set it up (not the narrower range asked for)."""
         sensor_rows = 2 if self.supply_channel is not None else 1
         v_supply = data[1] if sensor_rows == 2 else self.supply_v
-        (low_v, high_v), bits = self.adc_ranges_v[0], self.adc_bits[0]
-        adc_flags = mpx5100.beyond_adc_range(data[0], low_v, high_v, bits)
-        if sensor_rows == 2:
-            (low_v, high_v), bits = self.adc_ranges_v[1], self.adc_bits[1]
-            adc_flags |= mpx5100.beyond_adc_range(data[1], low_v, high_v, bits)
+        adc_flags = None  # the first row's flags are the start: no array of zeros
+        for row in range(sensor_rows):
+            (low_v, high_v), bits = self.adc_ranges_v[row], self.adc_bits[row]
+            beyond = mpx5100.beyond_adc_range(data[row], low_v, high_v, bits)
+            adc_flags = beyond if adc_flags is None else adc_flags | beyond
         return mpx5100.pressure_kpa(data[0], v_supply), adc_flags
 
     def _block(self, data: np.ndarray) -> PressureBlock:
