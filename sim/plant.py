@@ -252,7 +252,7 @@ class Plant:
         # with the same operations in the same order as the textbook form
         # (max |r|, min |diagonal|, the sums from the first segment on)
         for _ in range(30):
-            evaluated = list(map(ScalarCurve.pressure_and_slope, self._curves, w))
+            evaluated = self._evaluate(w)
             p_m = self._inlet_kpa(flow, [p for p, _ in evaluated])
             largest_r = smallest_d = None
             sum_u = sum_r = 0.0
@@ -299,8 +299,7 @@ class Plant:
             if t.size == 0:
                 return np.empty_like(t)
             t_lo, t_hi = float(t.min()), float(t.max())
-            if self._t < t_hi - 1e-12:
-                self.advance_to(t_hi)
+            self.advance_to(t_hi)
             history_t = self._history_t
             if t_lo < history_t[0] - 1e-9:
                 raise ValueError(
@@ -317,8 +316,7 @@ class Plant:
         """One time (the camera asks 30 times a second): linear between the two steps
         around it, without numpy's per-call cost."""
         with self._lock:
-            if self._t < t_s - 1e-12:  # most queries are of a time already integrated
-                self.advance_to(t_s)
+            self.advance_to(t_s)
             history_t = self._history_t
             if t_s < history_t[0] - 1e-9:
                 raise ValueError(
