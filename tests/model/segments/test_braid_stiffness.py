@@ -3,7 +3,7 @@ the work a spring takes, and a wall that becomes a finite slope."""
 
 import numpy as np
 import pytest
-from scipy.integrate import quad
+from support.piecewise_quadrature import integral_of_pressure
 
 from labrig.model.segments.braid_stiffness import with_braid_stiffness
 from labrig.model.segments.catalog import analytical_segment
@@ -40,11 +40,10 @@ def test_the_braids_store_the_energy_of_a_spring():
     i = np.flatnonzero(curve.v_ml > curve.valley.v_ml)[-5]
     p, p_v = curve.p_kpa[i], curve.valley.p_kpa
 
-    def work(c, v_end):
-        return quad(lambda v: float(c.pressure_kpa(v)), 0.0, v_end, limit=800)[0]
-
     # the spring takes dv = dp / K from the valley on: int p dp / K = (p^2 - p_v^2) / 2K
-    extra = work(stiff, stiff.v_ml[i]) - work(curve, curve.v_ml[i])
+    extra = integral_of_pressure(stiff, 0.0, stiff.v_ml[i]) - integral_of_pressure(
+        curve, 0.0, curve.v_ml[i]
+    )
     assert extra == pytest.approx((p**2 - p_v**2) / (2 * K), rel=2e-2)
 
 
