@@ -3,6 +3,7 @@ library of measured CSV curves, the summary and ranking tables, the Fig. 4 plot,
 on a real process pool and --resume, and bad input as one line with exit code 2."""
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -110,6 +111,7 @@ def test_ctrl_c_keeps_the_finished_chunks_and_resume_completes(tmp_path, capsys)
     code, text, err = run([*argv, "--resume", "--workers", "2"], capsys)
     assert code == 0, err
     assert "495 of 495 actuators (complete)" in text
+    assert re.search(r",\s+\d{1,3}(,\d{3})+\s+transitions", text)  # thousands separated
     resumed = read_scan(out)
     fresh = tmp_path / "fresh.h5"
     code, _, _ = run([*argv[:-1], str(fresh), "--workers", "1"], capsys)
