@@ -82,6 +82,7 @@ CAUSE_FOLD, CAUSE_COINCIDENT, CAUSE_BRANCH_END, CAUSE_COINCIDENT_ENDS = range(4)
 INFLATE, DEFLATE = 1, -1
 # timeline items one direction may hold here (the reference allows 10,000 events)
 _CAPACITY = 256
+_HEAD = 4  # the timeline's columns before an item's branches and states
 _MAX_FLOW_STEPS = 200_000  # ``descent.settle``'s default
 
 
@@ -639,53 +640,64 @@ def _cross(tables, end, at_limit, s_p, direction, unit, flow_tol):
 # --- the timeline ------------------------------------------------------------------
 @njit(**INLINE)
 def _new_timeline(n):
-    """Items: type, direction, event kind, cause (int64); pressures a, b and volumes
-    a, b of a piece (float64, an event's are its states' pressures); branches a, b and
-    an event's volumes and slopes before and after (rows of n)."""
-    ints = np.empty((_CAPACITY, 4), dtype=np.int64)
-    floats = np.empty((_CAPACITY, 4))
-    branches = np.empty((_CAPACITY, 2, n), dtype=np.int64)
-    states = np.empty((_CAPACITY, 4, n))
-    count = np.empty(1, dtype=np.int64)  # the items so far
-    count[0] = 0
-    return ints, floats, branches, states, count
+    """Items, as two arrays (each array a compiled call passes costs code at every
+    call): integers (capacity + 1, _HEAD + 2n), an item's type, direction, event kind
+    and cause, then branches a and b, and the count of items so far in the last row;
+    floats (capacity, _HEAD + 4n), a piece's pressures a, b and volumes a, b (an
+    event's are its states' pressures), then an event's volumes and slopes before and
+    after."""
+    ints = np.empty((_CAPACITY + 1, _HEAD + 2 * n), dtype=np.int64)
+    floats = np.empty((_CAPACITY, _HEAD + 4 * n))
+    ints[_CAPACITY, 0] = 0
+    return ints, floats
 
 
 @njit(**INTERNAL_LEAF)
 def _append_piece(timeline, start, end, direction):
-    ints, floats, branches, _, counter = timeline
-    count = counter[0]
+    ints, floats = timeline
+    count = ints[_CAPACITY, 0]
     if count >= _CAPACITY:
         raise Unported("too many items on one path")
     ints[count, 0], ints[count, 1] = PIECE, direction
     floats[count, 0], floats[count, 1] = start[1], end[1]
     floats[count, 2], floats[count, 3] = fsum(start[2]), fsum(end[2])
-    copy_into(branches[count, 0], start[0])
-    counter[0] = count + 1
+    copy_into(ints[count, _HEAD : _HEAD + len(start[0])], start[0])
+    ints[_CAPACITY, 0] = count + 1
 
 
 @njit(**INTERNAL_LEAF)
 def _append_event(timeline, kind, cause, direction, pre, post):
-    ints, floats, branches, states, counter = timeline
-    count = counter[0]
+    ints, floats = timeline
+    count = ints[_CAPACITY, 0]
     if count >= _CAPACITY:
         raise Unported("too many items on one path")
     ints[count, 0], ints[count, 1], ints[count, 2], ints[count, 3] = EVENT, direction, kind, cause
     floats[count, 0], floats[count, 1] = pre[1], post[1]
-    copy_into(branches[count, 0], pre[0])
-    copy_into(branches[count, 1], post[0])
-    copy_into(states[count, 0], pre[2])
-    copy_into(states[count, 1], pre[3])
-    copy_into(states[count, 2], post[2])
-    copy_into(states[count, 3], post[3])
-    counter[0] = count + 1
+    n = len(pre[0])
+    copy_into(ints[count, _HEAD : _HEAD + n], pre[0])
+    copy_into(ints[count, _HEAD + n : _HEAD + 2 * n], post[0])
+    copy_into(floats[count, _HEAD : _HEAD + n], pre[2])
+    copy_into(floats[count, _HEAD + n : _HEAD + 2 * n], pre[3])
+    copy_into(floats[count, _HEAD + 2 * n : _HEAD + 3 * n], post[2])
+    copy_into(floats[count, _HEAD + 3 * n : _HEAD + 4 * n], post[3])
+    ints[_CAPACITY, 0] = count + 1
+
+
+@njit(**INTERNAL)
+def _branches_at(timeline, t, side):
+    """Item t's branches a (side 0) or b (1), a view (returned with its reference)."""
+    ints = timeline[0]
+    n = (ints.shape[1] - _HEAD) // 2
+    return ints[t, _HEAD + side * n : _HEAD + (side + 1) * n]
 
 
 @njit(**INTERNAL)
 def _event_state(timeline, t, side):
-    _, floats, branches, states, _ = timeline
-    return (branches[t, side].copy(), floats[t, side], states[t, 2 * side].copy(),
-            states[t, 2 * side + 1].copy())  # fmt: skip
+    floats = timeline[1]
+    n = (floats.shape[1] - _HEAD) // 4
+    v = floats[t, _HEAD + 2 * side * n : _HEAD + (2 * side + 1) * n].copy()
+    k = floats[t, _HEAD + (2 * side + 1) * n : _HEAD + (2 * side + 2) * n].copy()
+    return _branches_at(timeline, t, side).copy(), floats[t, side], v, k
 
 
 @njit(**INTERNAL_LEAF)
@@ -696,8 +708,8 @@ def _event_cause(timeline, t):
 @njit(**INTERNAL_LEAF)
 def _touched(timeline, first):
     """``path._touched`` on the items from ``first`` on (this direction's)."""
-    ints, floats, _, _, counter = timeline
-    count = counter[0]
+    ints, floats = timeline
+    count = ints[_CAPACITY, 0]
     if count - first < 2:
         return False
     if not (ints[count - 2, 0] == EVENT and ints[count - 2, 2] == SNAP):
@@ -713,7 +725,7 @@ def _touched(timeline, first):
 def _follow(tables, profiles, timeline, state, direction, v_target, params):
     """``_Tracer.follow``: appends to the timeline; the final state."""
     unit, margin, flow_tol = params
-    first = timeline[4][0]
+    first = timeline[0][_CAPACITY, 0]
     n = len(state[0])
     limits = np.empty(n)
     while True:
@@ -762,10 +774,10 @@ def _follow(tables, profiles, timeline, state, direction, v_target, params):
                     j += 1
             kind, cause, post = _cross(tables, end, at_limit, s_p, direction, unit, flow_tol)
         if kind == SNAP and _touched(timeline, first):
-            snap = timeline[4][0] - 2
+            snap = timeline[0][_CAPACITY, 0] - 2
             merged_cause = _event_cause(timeline, snap)
             merged_pre = _event_state(timeline, snap, 0)
-            timeline[4][0] = snap
+            timeline[0][_CAPACITY, 0] = snap
             _append_event(timeline, kind, merged_cause, direction, merged_pre, post)
         else:
             _append_event(timeline, kind, cause, direction, pre, post)
@@ -803,8 +815,8 @@ def default_end_volume(tables):
 def _state_on_piece(tables, timeline, t, v_ml):
     """``path.state_on_piece`` on the timeline's piece t (its fallback left to the
     reference)."""
-    _, floats, branches, _, _ = timeline
-    b = branches[t, 0].copy()
+    floats = timeline[1]
+    b = _branches_at(timeline, t, 0).copy()
     p_from, p_to, v_from, v_to = floats[t, 0], floats[t, 1], floats[t, 2], floats[t, 3]
     lo, hi = (v_from, v_to) if v_from <= v_to else (v_to, v_from)
     v = _min(_max(v_ml, lo), hi)
@@ -869,8 +881,8 @@ def trace_transitions(
     end = _follow(tables, profiles, timeline, start, INFLATE, v_end, params)
     if deflate:
         _follow(tables, profiles, timeline, end, DEFLATE, 0.0, params)
-    ints, _, branches, _, counter = timeline
-    count = counter[0]
+    ints = timeline[0]
+    count = ints[_CAPACITY, 0]
     out_ints = np.empty((count, 4), dtype=np.int64)  # the rows returned are all written
     out_floats = np.empty((count, 5))
     rows = 0
@@ -878,7 +890,8 @@ def trace_transitions(
         if ints[t, 0] != EVENT:
             continue
         direction = ints[t, 1]
-        alpha, beta = _alpha(tables, branches[t, 0]), _alpha(tables, branches[t, 1])
+        alpha = _alpha(tables, _branches_at(timeline, t, 0))
+        beta = _alpha(tables, _branches_at(timeline, t, 1))
         item_pre = _event_state(timeline, t, 0)
         if ints[t, 2] == SNAP:
             pre, post, stable = item_pre, _event_state(timeline, t, 1), False
