@@ -41,10 +41,17 @@ from labrig.model.actuator.curve_tables import (
     BRANCH_LAST,
     BRANCH_RISING,
     BREAKPOINTS,
+    ENDS,
     EXCESS_VOLUME,
+    FLOAT_ROWS,
+    FLOATS,
+    INT_ROWS,
+    INTS,
     LAST_PIECE,
     PAIR_IMBALANCE,
     SAMPLES,
+    V_FIRST,
+    V_LAST,
     excess_volume_at,
     inverse_sum_of,
     pair_imbalance,
@@ -63,8 +70,11 @@ from labrig.model.actuator.jit import INLINE, INTERNAL, INTERNAL_LEAF, njit
 from labrig.model.actuator.roots import XTOL, bracketed_root
 from labrig.model.actuator.rosenbrock_flow import MAX_STEPS, SETTLED, settle_flow
 
-# the per-segment branch facts the tables do not hold (``branch_tables``), by index
-P_LO, P_HI, V_LO, V_HI, N_BRANCHES, PEAK_BRANCH = range(6)
+# the rows ``library_tables`` adds to the tables: per segment, the pressure and volume
+# range of each branch (floats), and the number of branches and the peak's branch (-1
+# without a peak; integers, column 0)
+P_LO, P_HI, V_LO, V_HI = range(FLOAT_ROWS, FLOAT_ROWS + 4)
+N_BRANCHES, PEAK_BRANCH = INT_ROWS, INT_ROWS + 1
 # timeline items and the events' kinds (``labrig.model.actuator.path.Event``)
 PIECE, EVENT = 0, 1
 SNAP, CROSSING = 0, 1
@@ -72,6 +82,7 @@ CAUSE_FOLD, CAUSE_COINCIDENT, CAUSE_BRANCH_END, CAUSE_COINCIDENT_ENDS = range(4)
 INFLATE, DEFLATE = 1, -1
 # timeline items one direction may hold here (the reference allows 10,000 events)
 _CAPACITY = 256
+_HEAD = 4  # the timeline's columns before an item's branches and states
 _MAX_FLOW_STEPS = 200_000  # ``descent.settle``'s default
 
 
@@ -79,23 +90,22 @@ class Unported(RuntimeError):
     """A state the compiled path leaves to the reference (see the module docstring)."""
 
 
-def branch_tables(kernels) -> tuple:
-    """Per segment: the pressure and volume range of each branch (P_LO..V_HI, (n, B)),
-    the number of branches and the peak's branch (-1 without a peak)."""
-    n = len(kernels)
-    width = max(3, *(k.n_branches for k in kernels))
-    ranges = [np.zeros((n, width)) for _ in range(4)]
-    n_branches = np.empty(n, dtype=np.int64)
-    peak = np.empty(n, dtype=np.int64)
+def library_tables(kernels: tuple) -> tuple:
+    """(tables, profiles) of every kernel of a library, stacked: what
+    ``trace_transitions`` selects an actuator's rows from. The tables carry the branch
+    facts besides (P_LO..PEAK_BRANCH), so that the compiled path passes one pair of
+    arrays for all it reads of the curves."""
+    floats, ints = tables_of(kernels)
+    n, _, width = floats.shape
+    branches = ints.shape[2]
+    facts = np.zeros((n, 4, width))
+    counts = np.zeros((n, 2, branches), dtype=np.int64)
     for i, kern in enumerate(kernels):
         for j, b in enumerate(kern.branches):
-            for table, value in zip(
-                ranges, (b.p_lo_kpa, b.p_hi_kpa, b.v_lo_ml, b.v_hi_ml), strict=True
-            ):
-                table[i, j] = value
-        n_branches[i] = kern.n_branches
-        peak[i] = -1 if kern.peak_branch is None else kern.peak_branch
-    return (*ranges, n_branches, peak)
+            facts[i, :, j] = (b.p_lo_kpa, b.p_hi_kpa, b.v_lo_ml, b.v_hi_ml)
+        counts[i, :, 0] = kern.n_branches, -1 if kern.peak_branch is None else kern.peak_branch
+    tables = (np.concatenate((floats, facts), axis=1), np.concatenate((ints, counts), axis=1))
+    return tables, profiles_of(kernels)
 
 
 # --- Python's arithmetic, exactly ------------------------------------------------------
@@ -180,26 +190,26 @@ def _at(tables, b, p):
 
 @njit(**INTERNAL_LEAF)
 def _rising(tables, i, branch):
-    return tables[BRANCH_RISING][i, branch]
+    return tables[INTS][i, BRANCH_RISING, branch]
 
 
 @njit(**INTERNAL_LEAF)
-def _branch_of(info, i, v):
+def _branch_of(tables, i, v):
     """``CurveKernel.branch_of``."""
-    for index in range(info[N_BRANCHES][i] - 1):
-        if v <= info[V_HI][i, index]:
+    for index in range(tables[INTS][i, N_BRANCHES, 0] - 1):
+        if v <= tables[FLOATS][i, V_HI, index]:
             return index
-    return info[N_BRANCHES][i] - 1
+    return tables[INTS][i, N_BRANCHES, 0] - 1
 
 
 @njit(**INTERNAL_LEAF)
 def _spacing_near(tables, i, v):
     j = piece_index(tables, i, v)
-    return tables[BREAKPOINTS][i, j + 1] - tables[BREAKPOINTS][i, j]
+    return tables[FLOATS][i, BREAKPOINTS, j + 1] - tables[FLOATS][i, BREAKPOINTS, j]
 
 
 @njit(**INTERNAL)
-def _with_volume(tables, info, state, v):
+def _with_volume(tables, state, v):
     """``_Tracer._with_volume``: (found, state)."""
     b, p, vs, ks = state
     residual = v - fsum(vs)
@@ -209,7 +219,7 @@ def _with_volume(tables, info, state, v):
     best_change, best_i, best_v, best_k = 0.0, -1, 0.0, 0.0
     for i in range(len(b)):
         v_i = vs[i] + residual
-        if not info[V_LO][i, b[i]] <= v_i <= info[V_HI][i, b[i]]:
+        if not tables[FLOATS][i, V_LO, b[i]] <= v_i <= tables[FLOATS][i, V_HI, b[i]]:
             continue
         p_i, k_i = pressure_and_slope(tables, i, v_i)
         change = abs(p_i - p)
@@ -225,16 +235,16 @@ def _with_volume(tables, info, state, v):
 
 
 @njit(**INTERNAL)
-def _reach_between(tables, info, b, p_a, p_b, v_target, f_a, f_b):
+def _reach_between(tables, b, p_a, p_b, v_target, f_a, f_b):
     p = bracketed_root(EXCESS_VOLUME, tables, b, v_target, p_a, p_b, f_a, f_b, XTOL)
-    found, reached = _with_volume(tables, info, _at(tables, b, p), v_target)
+    found, reached = _with_volume(tables, _at(tables, b, p), v_target)
     if not found:
         raise RuntimeError("no equilibrium at the target volume")
     return reached
 
 
 @njit(**INLINE)
-def _reach(tables, info, state, v_target, has_end, end, s_p):
+def _reach(tables, state, v_target, has_end, end, s_p):
     b, p, vs, _ = state
     v_state = fsum(vs)
     if v_state == v_target:
@@ -246,9 +256,9 @@ def _reach(tables, info, state, v_target, has_end, end, s_p):
         while (excess_volume_at(p_far, tables, b, v_target) > 0) == (f_start > 0):
             step *= 2.0
             p_far = p + s_p * step
-        return _reach_between(tables, info, b, p, p_far, v_target, f_start, math.nan)
+        return _reach_between(tables, b, p, p_far, v_target, f_start, math.nan)
     f_end = fsum(end[2]) - v_target
-    return _reach_between(tables, info, b, p, end[1], v_target, f_start, f_end)
+    return _reach_between(tables, b, p, end[1], v_target, f_start, f_end)
 
 
 # --- folds -------------------------------------------------------------------------
@@ -264,8 +274,9 @@ def _find_fold(tables, profiles, state, m, p_stop, direction, margin):
         state = _at(tables, b, state[1] - direction * step)
         s_start = inverse_sum_of(tables, b, state[3])
     if not math.isfinite(p_stop):
-        ends = tables[3]  # ENDS: V_FIRST, V_LAST in columns 0, 1
-        p_stop = pressure_and_slope(tables, m, ends[m, 1] + (ends[m, 1] - ends[m, 0]))[0]
+        f = tables[FLOATS]
+        v_last = f[m, ENDS, V_LAST]
+        p_stop = pressure_and_slope(tables, m, v_last + (v_last - f[m, ENDS, V_FIRST]))[0]
     kind, p, v_m = find_fold(
         tables, profiles, b, m, direction, margin, state[1], state[2], s_start, p_stop
     )
@@ -326,13 +337,13 @@ def _settle_pair(tables, w):
         return w
     direction = -1.0 if g0 > 0 else 1.0
     end = 0.0 if direction < 0 else v
-    x = tables[BREAKPOINTS]
-    m0, m1 = tables[LAST_PIECE][0] + 2, tables[LAST_PIECE][1] + 2
+    f, ints = tables
+    m0, m1 = ints[0, LAST_PIECE, 0] + 2, ints[1, LAST_PIECE, 0] + 2
     lo, hi = _min(w[0], end), _max(w[0], end)
     candidates = np.empty(m0 + m1 + 1)  # either curve's knots strictly inside, and the end
     m = 0
     for j in range(m0 + m1):
-        knot = x[0, j] if j < m0 else v - x[1, j - m0]
+        knot = f[0, BREAKPOINTS, j] if j < m0 else v - f[1, BREAKPOINTS, j - m0]
         if lo < knot < hi:
             candidates[m] = knot
             m += 1
@@ -361,13 +372,13 @@ def _settle_pair(tables, w):
 
 
 @njit(**INTERNAL)
-def _equilibrium_on(tables, info, b, w, v):
+def _equilibrium_on(tables, b, w, v):
     """``_Tracer._equilibrium_on``: (found, state)."""
     n = len(b)
-    p_lo, p_hi = info[P_LO][0, b[0]], info[P_HI][0, b[0]]
+    p_lo, p_hi = tables[FLOATS][0, P_LO, b[0]], tables[FLOATS][0, P_HI, b[0]]
     for i in range(1, n):
-        p_lo = _max(p_lo, info[P_LO][i, b[i]])
-        p_hi = _min(p_hi, info[P_HI][i, b[i]])
+        p_lo = _max(p_lo, tables[FLOATS][i, P_LO, b[i]])
+        p_hi = _min(p_hi, tables[FLOATS][i, P_HI, b[i]])
     empty = (b, 0.0, w, w)
     if p_lo > p_hi:
         return False, empty
@@ -393,27 +404,28 @@ def _equilibrium_on(tables, info, b, w, v):
             f = excess_volume_at(q, tables, b, v)
             if (f > 0) != (f0 > 0):
                 root = bracketed_root(EXCESS_VOLUME, tables, b, v, p0, q, f0, f, XTOL)
-                return _with_volume(tables, info, _at(tables, b, root), v)
+                return _with_volume(tables, _at(tables, b, root), v)
         if p0 - width <= p_lo and p0 + width >= p_hi:
             return False, empty
         width *= 4.0
 
 
 @njit(**INTERNAL)
-def _combinations_near(tables, info, w, near_ml):
+def _combinations_near(tables, w, near_ml):
     """``_Tracer._combinations_near``: the combinations as rows, in the same order."""
     n = len(w)
+    f = tables[FLOATS]
     options = np.empty((n, 3), dtype=np.int64)
     counts = np.empty(n, dtype=np.int64)
     for i in range(n):
-        b = _branch_of(info, i, w[i])
+        b = _branch_of(tables, i, w[i])
         options[i, 0] = b
         count = 1
         tol = _max(1e-6 * _spacing_near(tables, i, w[i]), near_ml)
         for other in (b - 1, b + 1):
             if (
-                0 <= other < info[N_BRANCHES][i]
-                and info[V_LO][i, other] - tol <= w[i] <= info[V_HI][i, other] + tol
+                0 <= other < tables[INTS][i, N_BRANCHES, 0]
+                and f[i, V_LO, other] - tol <= w[i] <= f[i, V_HI, other] + tol
             ):
                 options[i, count] = other
                 count += 1
@@ -446,14 +458,14 @@ def _combinations_near(tables, info, w, near_ml):
 
 
 @njit(**INTERNAL)
-def _polish(tables, info, w, v, near_ml):
+def _polish(tables, w, v, near_ml):
     """``_Tracer.polish``."""
-    combos = _combinations_near(tables, info, w, near_ml)
+    combos = _combinations_near(tables, w, near_ml)
     found_any = False
     first_found = (combos[0].copy(), 0.0, w, w)
     for row in range(len(combos)):
         b = combos[row].copy()
-        found, state = _equilibrium_on(tables, info, b, w, v)
+        found, state = _equilibrium_on(tables, b, w, v)
         if found and stable_slopes(state[3]):
             return state
         if found and not found_any:
@@ -464,7 +476,7 @@ def _polish(tables, info, w, v, near_ml):
 
 
 @njit(**INTERNAL)
-def _snap_from_fold(tables, info, fold, s_p, unit, flow_tol):
+def _snap_from_fold(tables, fold, s_p, unit, flow_tol):
     """``_Tracer._snap_from_fold``."""
     b, p, vs, ks = fold
     n = len(ks)
@@ -485,16 +497,16 @@ def _snap_from_fold(tables, info, fold, s_p, unit, flow_tol):
         w0 = np.empty(n)
         for i in range(n):
             w0[i] = vs[i] + eta * u[i]
-        post = _polish(tables, info, _settle(tables, w0, flow_tol, unit), v_fold, 0.0)
+        post = _polish(tables, _settle(tables, w0, flow_tol, unit), v_fold, 0.0)
         moved = differs(post[0], b)
         beyond = moved or s_p * (post[1] - p) > 1e-9 * _max(1.0, abs(p))
         if beyond and stable_slopes(post[3]):
-            return _past_semi_stable(tables, info, post, fold, eta, flow_tol, unit)
+            return _past_semi_stable(tables, post, fold, eta, flow_tol, unit)
     raise RuntimeError("no state to snap to from the fold")
 
 
 @njit(**INLINE)
-def _past_semi_stable(tables, info, post, fold, eta, flow_tol, unit):
+def _past_semi_stable(tables, post, fold, eta, flow_tol, unit):
     """``_Tracer._past_semi_stable``."""
     zero = _max(10.0 * _fold_residual(fold[3]), 1e-9)
     origin = fold
@@ -519,23 +531,23 @@ def _past_semi_stable(tables, info, post, fold, eta, flow_tol, unit):
         for i in range(n):
             w0[i] = post[2][i] + eta * u[i] * scale
         settled = _settle(tables, w0, flow_tol, unit)
-        origin, post = post, _polish(tables, info, settled, fsum(post[2]), 0.0)
+        origin, post = post, _polish(tables, settled, fsum(post[2]), 0.0)
     return post
 
 
 @njit(**INLINE)
-def _fold_snap(tables, info, fold, s_p, unit, flow_tol):
+def _fold_snap(tables, fold, s_p, unit, flow_tol):
     """The snap from a fold, as ``_cross`` returns its event: (kind, cause, post)."""
-    return SNAP, CAUSE_FOLD, _snap_from_fold(tables, info, fold, s_p, unit, flow_tol)
+    return SNAP, CAUSE_FOLD, _snap_from_fold(tables, fold, s_p, unit, flow_tol)
 
 
 # --- branch ends -------------------------------------------------------------------
 @njit(**INTERNAL_LEAF)
-def _switched(tables, info, i, branch, s_p):
+def _switched(tables, i, branch, s_p):
     """``_Tracer._switched``; -1 for None."""
     forward = _rising(tables, i, branch) == (s_p > 0)
     new = branch + (1 if forward else -1)
-    return new if 0 <= new < info[N_BRANCHES][i] else -1
+    return new if 0 <= new < tables[INTS][i, N_BRANCHES, 0] else -1
 
 
 @njit(**INTERNAL_LEAF)
@@ -548,7 +560,7 @@ def _lexicographic_less(a, b):
 
 
 @njit(**INTERNAL)
-def _cross(tables, info, end, at_limit, s_p, direction, unit, flow_tol):
+def _cross(tables, end, at_limit, s_p, direction, unit, flow_tol):
     """``_Tracer._cross``: (kind, cause, post)."""
     b, p_end, v_end, k_end = end
     n = len(b)
@@ -566,7 +578,7 @@ def _cross(tables, info, end, at_limit, s_p, direction, unit, flow_tol):
             new = b.copy()
             possible = True
             for i in subset:
-                switched = _switched(tables, info, i, b[i], s_p)
+                switched = _switched(tables, i, b[i], s_p)
                 if switched < 0:
                     possible = False
                 new[i] = switched
@@ -579,9 +591,9 @@ def _cross(tables, info, end, at_limit, s_p, direction, unit, flow_tol):
                     room = math.inf
                     for i in range(n):
                         if s_p < 0:
-                            r = info[P_HI][i, new[i]] - p_end
+                            r = tables[FLOATS][i, P_HI, new[i]] - p_end
                         else:
-                            r = p_end - info[P_LO][i, new[i]]
+                            r = p_end - tables[FLOATS][i, P_LO, new[i]]
                         room = r if i == 0 else _min(room, r)
                     if room > 0:
                         probe = _at(tables, new, p_end - s_p * _min(delta, 0.5 * room))
@@ -610,7 +622,7 @@ def _cross(tables, info, end, at_limit, s_p, direction, unit, flow_tol):
         return CROSSING, cause, (best_new, p_end, v_end, k)
     none_on = True
     for i in at_limit:
-        if _switched(tables, info, i, b[i], s_p) >= 0:
+        if _switched(tables, i, b[i], s_p) >= 0:
             none_on = False
     if none_on:
         raise RuntimeError("the path runs past the end of a curve")
@@ -619,7 +631,7 @@ def _cross(tables, info, end, at_limit, s_p, direction, unit, flow_tol):
         for i in at_limit:
             w0[i] += direction * extra / n_limit
         settled = _settle(tables, w0, flow_tol, unit)
-        post = _polish(tables, info, settled, v_end_total, 2.0 * extra)
+        post = _polish(tables, settled, v_end_total, 2.0 * extra)
         if stable_slopes(post[3]):
             return SNAP, CAUSE_COINCIDENT, post
     raise RuntimeError("the flow from coincident branch ends did not settle")
@@ -628,53 +640,64 @@ def _cross(tables, info, end, at_limit, s_p, direction, unit, flow_tol):
 # --- the timeline ------------------------------------------------------------------
 @njit(**INLINE)
 def _new_timeline(n):
-    """Items: type, direction, event kind, cause (int64); pressures a, b and volumes
-    a, b of a piece (float64, an event's are its states' pressures); branches a, b and
-    an event's volumes and slopes before and after (rows of n)."""
-    ints = np.empty((_CAPACITY, 4), dtype=np.int64)
-    floats = np.empty((_CAPACITY, 4))
-    branches = np.empty((_CAPACITY, 2, n), dtype=np.int64)
-    states = np.empty((_CAPACITY, 4, n))
-    count = np.empty(1, dtype=np.int64)  # the items so far
-    count[0] = 0
-    return ints, floats, branches, states, count
+    """Items, as two arrays (each array a compiled call passes costs code at every
+    call): integers (capacity + 1, _HEAD + 2n), an item's type, direction, event kind
+    and cause, then branches a and b, and the count of items so far in the last row;
+    floats (capacity, _HEAD + 4n), a piece's pressures a, b and volumes a, b (an
+    event's are its states' pressures), then an event's volumes and slopes before and
+    after."""
+    ints = np.empty((_CAPACITY + 1, _HEAD + 2 * n), dtype=np.int64)
+    floats = np.empty((_CAPACITY, _HEAD + 4 * n))
+    ints[_CAPACITY, 0] = 0
+    return ints, floats
 
 
 @njit(**INTERNAL_LEAF)
 def _append_piece(timeline, start, end, direction):
-    ints, floats, branches, _, counter = timeline
-    count = counter[0]
+    ints, floats = timeline
+    count = ints[_CAPACITY, 0]
     if count >= _CAPACITY:
         raise Unported("too many items on one path")
     ints[count, 0], ints[count, 1] = PIECE, direction
     floats[count, 0], floats[count, 1] = start[1], end[1]
     floats[count, 2], floats[count, 3] = fsum(start[2]), fsum(end[2])
-    copy_into(branches[count, 0], start[0])
-    counter[0] = count + 1
+    copy_into(ints[count, _HEAD : _HEAD + len(start[0])], start[0])
+    ints[_CAPACITY, 0] = count + 1
 
 
 @njit(**INTERNAL_LEAF)
 def _append_event(timeline, kind, cause, direction, pre, post):
-    ints, floats, branches, states, counter = timeline
-    count = counter[0]
+    ints, floats = timeline
+    count = ints[_CAPACITY, 0]
     if count >= _CAPACITY:
         raise Unported("too many items on one path")
     ints[count, 0], ints[count, 1], ints[count, 2], ints[count, 3] = EVENT, direction, kind, cause
     floats[count, 0], floats[count, 1] = pre[1], post[1]
-    copy_into(branches[count, 0], pre[0])
-    copy_into(branches[count, 1], post[0])
-    copy_into(states[count, 0], pre[2])
-    copy_into(states[count, 1], pre[3])
-    copy_into(states[count, 2], post[2])
-    copy_into(states[count, 3], post[3])
-    counter[0] = count + 1
+    n = len(pre[0])
+    copy_into(ints[count, _HEAD : _HEAD + n], pre[0])
+    copy_into(ints[count, _HEAD + n : _HEAD + 2 * n], post[0])
+    copy_into(floats[count, _HEAD : _HEAD + n], pre[2])
+    copy_into(floats[count, _HEAD + n : _HEAD + 2 * n], pre[3])
+    copy_into(floats[count, _HEAD + 2 * n : _HEAD + 3 * n], post[2])
+    copy_into(floats[count, _HEAD + 3 * n : _HEAD + 4 * n], post[3])
+    ints[_CAPACITY, 0] = count + 1
+
+
+@njit(**INTERNAL)
+def _branches_at(timeline, t, side):
+    """Item t's branches a (side 0) or b (1), a view (returned with its reference)."""
+    ints = timeline[0]
+    n = (ints.shape[1] - _HEAD) // 2
+    return ints[t, _HEAD + side * n : _HEAD + (side + 1) * n]
 
 
 @njit(**INTERNAL)
 def _event_state(timeline, t, side):
-    _, floats, branches, states, _ = timeline
-    return (branches[t, side].copy(), floats[t, side], states[t, 2 * side].copy(),
-            states[t, 2 * side + 1].copy())  # fmt: skip
+    floats = timeline[1]
+    n = (floats.shape[1] - _HEAD) // 4
+    v = floats[t, _HEAD + 2 * side * n : _HEAD + (2 * side + 1) * n].copy()
+    k = floats[t, _HEAD + (2 * side + 1) * n : _HEAD + (2 * side + 2) * n].copy()
+    return _branches_at(timeline, t, side).copy(), floats[t, side], v, k
 
 
 @njit(**INTERNAL_LEAF)
@@ -685,8 +708,8 @@ def _event_cause(timeline, t):
 @njit(**INTERNAL_LEAF)
 def _touched(timeline, first):
     """``path._touched`` on the items from ``first`` on (this direction's)."""
-    ints, floats, _, _, counter = timeline
-    count = counter[0]
+    ints, floats = timeline
+    count = ints[_CAPACITY, 0]
     if count - first < 2:
         return False
     if not (ints[count - 2, 0] == EVENT and ints[count - 2, 2] == SNAP):
@@ -699,10 +722,10 @@ def _touched(timeline, first):
 
 
 @njit(**INTERNAL)
-def _follow(tables, profiles, info, timeline, state, direction, v_target, params):
+def _follow(tables, profiles, timeline, state, direction, v_target, params):
     """``_Tracer.follow``: appends to the timeline; the final state."""
     unit, margin, flow_tol = params
-    first = timeline[4][0]
+    first = timeline[0][_CAPACITY, 0]
     n = len(state[0])
     limits = np.empty(n)
     while True:
@@ -715,7 +738,7 @@ def _follow(tables, profiles, info, timeline, state, direction, v_target, params
                 n_falling += 1
         s_p = direction if n_falling == 0 else -direction
         for i in range(n):
-            limits[i] = info[P_HI][i, b[i]] if s_p > 0 else info[P_LO][i, b[i]]
+            limits[i] = tables[FLOATS][i, P_HI if s_p > 0 else P_LO, b[i]]
         p_stop = limits[0]
         for i in range(1, n):
             p_stop = _min(p_stop, limits[i]) if s_p > 0 else _max(p_stop, limits[i])
@@ -731,13 +754,13 @@ def _follow(tables, profiles, info, timeline, state, direction, v_target, params
             else:
                 has_end = False
         if not has_end or direction * (fsum(end[2]) - v_target) >= 0:
-            final = _reach(tables, info, state, v_target, has_end, end, s_p)
+            final = _reach(tables, state, v_target, has_end, end, s_p)
             _append_piece(timeline, state, final, direction)
             return final
         _append_piece(timeline, state, end, direction)
         pre = end
         if has_fold:
-            kind, cause, post = _fold_snap(tables, info, fold, s_p, unit, flow_tol)
+            kind, cause, post = _fold_snap(tables, fold, s_p, unit, flow_tol)
         else:
             tol = 1e-14 * _max(1.0, abs(p_stop))
             n_limit = 0
@@ -749,12 +772,12 @@ def _follow(tables, profiles, info, timeline, state, direction, v_target, params
                 if abs(limits[i] - p_stop) <= tol:
                     at_limit[j] = i
                     j += 1
-            kind, cause, post = _cross(tables, info, end, at_limit, s_p, direction, unit, flow_tol)
+            kind, cause, post = _cross(tables, end, at_limit, s_p, direction, unit, flow_tol)
         if kind == SNAP and _touched(timeline, first):
-            snap = timeline[4][0] - 2
+            snap = timeline[0][_CAPACITY, 0] - 2
             merged_cause = _event_cause(timeline, snap)
             merged_pre = _event_state(timeline, snap, 0)
-            timeline[4][0] = snap
+            timeline[0][_CAPACITY, 0] = snap
             _append_event(timeline, kind, merged_cause, direction, merged_pre, post)
         else:
             _append_event(timeline, kind, cause, direction, pre, post)
@@ -763,14 +786,14 @@ def _follow(tables, profiles, info, timeline, state, direction, v_target, params
 
 # --- the path and its transitions ---------------------------------------------------------
 @njit(**INLINE)
-def default_end_volume(tables, info):
+def default_end_volume(tables):
     """``path.default_end_volume_ml``."""
-    n = len(info[N_BRANCHES])
+    n = len(tables[INTS])
     has_extremum = False
     highest = 0.0
     for i in range(n):
-        for j in range(info[N_BRANCHES][i] - 1):
-            value = tables[SAMPLES][i, tables[BRANCH_LAST][i, j]]
+        for j in range(tables[INTS][i, N_BRANCHES, 0] - 1):
+            value = tables[FLOATS][i, SAMPLES, tables[INTS][i, BRANCH_LAST, j]]
             highest = value if not has_extremum else _max(highest, value)
             has_extremum = True
     p_end = 0.0
@@ -778,21 +801,22 @@ def default_end_volume(tables, info):
         p_end = 1.1 * highest
     else:
         for i in range(n):
-            top = largest(tables[SAMPLES][i, : tables[LAST_PIECE][i] + 2])
+            top = largest(tables[FLOATS][i, SAMPLES, : tables[INTS][i, LAST_PIECE, 0] + 2])
             p_end = top if i == 0 else _max(p_end, top)
     volumes = np.empty(n)
     for i in range(n):
-        last = info[N_BRANCHES][i] - 1
-        volumes[i] = volume_on_branch(tables, i, last, _max(p_end, info[P_LO][i, last]))[0]
+        last = tables[INTS][i, N_BRANCHES, 0] - 1
+        p_lo = tables[FLOATS][i, P_LO, last]
+        volumes[i] = volume_on_branch(tables, i, last, _max(p_end, p_lo))[0]
     return fsum(volumes)
 
 
 @njit(**INTERNAL)
-def _state_on_piece(tables, info, timeline, t, v_ml):
+def _state_on_piece(tables, timeline, t, v_ml):
     """``path.state_on_piece`` on the timeline's piece t (its fallback left to the
     reference)."""
-    _, floats, branches, _, _ = timeline
-    b = branches[t, 0].copy()
+    floats = timeline[1]
+    b = _branches_at(timeline, t, 0).copy()
     p_from, p_to, v_from, v_to = floats[t, 0], floats[t, 1], floats[t, 2], floats[t, 3]
     lo, hi = (v_from, v_to) if v_from <= v_to else (v_to, v_from)
     v = _min(_max(v_ml, lo), hi)
@@ -803,7 +827,7 @@ def _state_on_piece(tables, info, timeline, t, v_ml):
     p = _bracketed_or_nan(tables, b, v, p_from, p_to)
     if math.isnan(p):
         raise Unported("state_on_piece's fallback")
-    found, reached = _with_volume(tables, info, _at(tables, b, p), v)
+    found, reached = _with_volume(tables, _at(tables, b, p), v)
     if not found:
         raise Unported("state_on_piece's fallback")
     return reached
@@ -820,51 +844,45 @@ def _bracketed_or_nan(tables, b, v, p_a, p_b):
 
 
 @njit(**INLINE)
-def _select(library, library_profiles, library_info, combo):
+def _select(library, library_profiles, combo):
     """The rows of ``combo``'s segments: the actuator's tables (their padding to the
     library's widest segment changes no number)."""
-    t = library
-    tables = (
-        t[0][combo], t[1][combo], t[2][combo], t[3][combo], t[4][combo], t[5][combo],
-        t[6][combo], t[7][combo], t[8][combo], t[9][combo], t[10][combo],
-    )  # fmt: skip
+    tables = (library[FLOATS][combo], library[INTS][combo])
     q = library_profiles
     profiles = (q[0][combo], q[1][combo], q[2][combo])
-    r = library_info
-    info = (r[0][combo], r[1][combo], r[2][combo], r[3][combo], r[4][combo], r[5][combo])
-    return tables, profiles, info
+    return tables, profiles
 
 
 @njit(**INTERNAL_LEAF)
-def _alpha(info, branches):
+def _alpha(tables, branches):
     total = 0
     for i in range(len(branches)):
-        peak = info[PEAK_BRANCH][i]
+        peak = tables[INTS][i, PEAK_BRANCH, 0]
         total += peak >= 0 and branches[i] >= peak
     return total
 
 
 @njit(cache=True)
 def trace_transitions(
-    library, library_profiles, library_info, combo, deflate, unit, margin, flow_tol, window_ml
+    library, library_profiles, combo, deflate, unit, margin, flow_tol, window_ml
 ):  # fmt: skip
     """``transitions(quasi_static_path(actuator, deflate=deflate))`` of the actuator
     made of segments ``combo`` of a library (its ``library_tables``), as arrays: ints
     (m, 4) direction, alpha, beta, stable and floats (m, 5) v_ml, dE, dv, dl, dp."""
     n = len(combo)
-    tables, profiles, info = _select(library, library_profiles, library_info, combo)
+    tables, profiles = _select(library, library_profiles, combo)
     params = (unit, margin, flow_tol)
     timeline = _new_timeline(n)
     first_branches = np.empty(n, dtype=np.int64)
     for i in range(n):
         first_branches[i] = 0
     start = _at(tables, first_branches, 0.0)
-    v_end = default_end_volume(tables, info)
-    end = _follow(tables, profiles, info, timeline, start, INFLATE, v_end, params)
+    v_end = default_end_volume(tables)
+    end = _follow(tables, profiles, timeline, start, INFLATE, v_end, params)
     if deflate:
-        _follow(tables, profiles, info, timeline, end, DEFLATE, 0.0, params)
-    ints, _, branches, _, counter = timeline
-    count = counter[0]
+        _follow(tables, profiles, timeline, end, DEFLATE, 0.0, params)
+    ints = timeline[0]
+    count = ints[_CAPACITY, 0]
     out_ints = np.empty((count, 4), dtype=np.int64)  # the rows returned are all written
     out_floats = np.empty((count, 5))
     rows = 0
@@ -872,15 +890,16 @@ def trace_transitions(
         if ints[t, 0] != EVENT:
             continue
         direction = ints[t, 1]
-        alpha, beta = _alpha(info, branches[t, 0]), _alpha(info, branches[t, 1])
+        alpha = _alpha(tables, _branches_at(timeline, t, 0))
+        beta = _alpha(tables, _branches_at(timeline, t, 1))
         item_pre = _event_state(timeline, t, 0)
         if ints[t, 2] == SNAP:
             pre, post, stable = item_pre, _event_state(timeline, t, 1), False
         elif alpha != beta:
             v = fsum(item_pre[2])
             half = 0.5 * window_ml * direction
-            pre = _state_on_piece(tables, info, timeline, t - 1, v - half)
-            post = _state_on_piece(tables, info, timeline, t + 1, v + half)
+            pre = _state_on_piece(tables, timeline, t - 1, v - half)
+            post = _state_on_piece(tables, timeline, t + 1, v + half)
             stable = True
         else:
             continue
@@ -898,9 +917,3 @@ def trace_transitions(
         out_floats[rows, 4] = (post[1] - pre[1]) / pre[1]
         rows += 1
     return out_ints[:rows], out_floats[:rows]
-
-
-def library_tables(kernels: tuple) -> tuple:
-    """(tables, profiles, branch facts) of every kernel of a library, stacked: what
-    ``trace_transitions`` selects an actuator's rows from."""
-    return tables_of(kernels), profiles_of(kernels), branch_tables(kernels)

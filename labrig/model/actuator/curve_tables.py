@@ -7,8 +7,8 @@ CPython spends ~6 us on one branch inversion, so these run compiled (numba): ~0.
 plus ~0.6 us to call from Python.
 
 ``pack`` copies the PCHIP pieces of one or more segments into arrays padded to one
-length (a tuple of arrays, ``pack``); ``CurveKernel`` holds the tables of its own segment, a path
-solver those of its actuator (``tables_of``), and the post-snap flow
+length (a pair of arrays, floats and integers); ``CurveKernel`` holds the tables of its
+own segment, a path solver those of its actuator (``tables_of``), and the post-snap flow
 (``labrig.model.actuator.rosenbrock_flow``) reads the same arrays. The numbers are those of
 ``SegmentCurve``: the same cubic pieces, the same linear continuation past both ends.
 
@@ -35,24 +35,28 @@ T_TOL = 1e-13
 V_FIRST, V_LAST, P_FIRST, P_LAST, SLOPE_FIRST, SLOPE_LAST = range(6)
 
 
-# The tables are a plain tuple of arrays, for n segments padded to one length W
-# (compiled code takes it as one argument; a plain tuple crosses from Python to
-# compiled code in half the time of a NamedTuple, and these calls are the solver's
-# hottest). Its fields, by index:
-BREAKPOINTS = 0  # (n, W) breakpoints x, +inf past a segment's last
-COEFFS = 1  # (n, 4, W-1) coefficients c3..c0 of each piece in powers of (v - x_j)
-SAMPLES = 2  # (n, W) pressures at the breakpoints
-ENDS = 3  # (n, 6) columns V_FIRST..SLOPE_LAST: the linear continuations past the ends
-LAST_PIECE = 4  # (n,)
-BRANCH_FIRST = 5  # (n, B) first sample index of each monotone branch
-BRANCH_LAST = 6  # (n, B) last sample index of each monotone branch
-BRANCH_RISING = 7  # (n, B)
-# (n, W-1) the exact integral of p over each piece, and (n, W) their running sum from
-# the first sample: energy differences are sums of small numbers rather than
-# differences of large ones (~10^3 mJ)
-PIECE_ENERGY = 8
-CUMULATIVE_ENERGY = 9
-LENGTH_COEFFS = 10  # (n, 4, W-1) the length's cubic pieces
+# The tables are a pair of arrays (compiled code takes them as one argument), for n
+# segments padded to W samples and B branches: the floats (n, FLOAT_ROWS, W) and the
+# integers (n, INT_ROWS, B). Two arrays rather than one per field: every compiled call
+# passes each array field by field (data, shape, strides and a reference count), and
+# numba lowers that passing, in Python, for every call and every variable: the compile
+# of the solver is most of a first scan. Rows of the floats, by index:
+BREAKPOINTS = 0  # breakpoints x, +inf past a segment's last
+SAMPLES = 1  # pressures at the breakpoints
+# the exact integral of p over each piece (W-1 columns), and their running sum from the
+# first sample: energy differences are sums of small numbers rather than differences of
+# large ones (~10^3 mJ)
+PIECE_ENERGY = 2
+CUMULATIVE_ENERGY = 3
+C3, C2, C1, C0 = 4, 5, 6, 7  # each piece's coefficients in powers of (v - x_j) (W-1 columns)
+LC3, LC2, LC1, LC0 = 8, 9, 10, 11  # the length's cubic pieces (W-1 columns)
+ENDS = 12  # columns V_FIRST..SLOPE_LAST: the linear continuations past the ends
+FLOAT_ROWS = 13
+# rows of the integers: each monotone branch's first and last sample index and whether
+# it rises (1) or falls (0), and the last piece (column 0)
+BRANCH_FIRST, BRANCH_LAST, BRANCH_RISING, LAST_PIECE = range(4)
+INT_ROWS = 4
+FLOATS, INTS = 0, 1
 
 
 def pack(kernels: Sequence) -> tuple:
@@ -61,30 +65,22 @@ def pack(kernels: Sequence) -> tuple:
     n = len(kernels)
     width = _capacity(max(len(k.x) for k in kernels))
     n_branches = max(MAX_BRANCHES, *(len(k.branches) for k in kernels))
-    x = np.full((n, width), np.inf)
-    c = np.zeros((n, 4, width - 1))
-    samples = np.zeros((n, width))
-    ends = np.empty((n, 6))
-    last_piece = np.empty(n, dtype=np.int64)
-    branch_first = np.zeros((n, n_branches), dtype=np.int64)
-    branch_last = np.zeros((n, n_branches), dtype=np.int64)
-    branch_rising = np.zeros((n, n_branches), dtype=np.bool_)
-    lc = np.zeros((n, 4, width - 1))
+    floats = np.zeros((n, FLOAT_ROWS, width))
+    floats[:, BREAKPOINTS] = np.inf
+    ints = np.zeros((n, INT_ROWS, n_branches), dtype=np.int64)
     for i, k in enumerate(kernels):
         m = len(k.x)
-        x[i, :m] = k.x
-        c[i, :, : m - 1] = (k.c3, k.c2, k.c1, k.c0)
-        samples[i, :m] = k.samples
-        ends[i] = (k.v_first, k.v_last, k.p_first, k.p_last, k.slope_first, k.slope_last)
-        last_piece[i] = k.last_piece
-        lc[i, :, : m - 1] = (k.lc3, k.lc2, k.lc1, k.lc0)
+        floats[i, BREAKPOINTS, :m] = k.x
+        floats[i, SAMPLES, :m] = k.samples
+        floats[i, C3 : C0 + 1, : m - 1] = (k.c3, k.c2, k.c1, k.c0)
+        floats[i, LC3 : LC0 + 1, : m - 1] = (k.lc3, k.lc2, k.lc1, k.lc0)
+        ends = (k.v_first, k.v_last, k.p_first, k.p_last, k.slope_first, k.slope_last)
+        floats[i, ENDS, : len(ends)] = ends
+        ints[i, LAST_PIECE, 0] = k.last_piece
         for j, b in enumerate(k.branches):
-            branch_first[i, j], branch_last[i, j], branch_rising[i, j] = b.first, b.last, b.rising
-    piece_energy, cumulative_energy = _energies(x, c, last_piece)
-    return (
-        x, c, samples, ends, last_piece, branch_first, branch_last, branch_rising,
-        piece_energy, cumulative_energy, lc,
-    )  # fmt: skip
+            ints[i, BRANCH_FIRST : BRANCH_RISING + 1, j] = (b.first, b.last, b.rising)
+    _energies(floats, ints)
+    return floats, ints
 
 
 # A segment's tables are padded to a multiple of this many samples, and to this many
@@ -93,23 +89,27 @@ def pack(kernels: Sequence) -> tuple:
 _CAPACITY_STEP = 64
 MAX_BRANCHES = 3
 # what pads each table past a segment's own length (x: +inf keeps bisection inside)
-_PADDING = {BREAKPOINTS: np.inf}
+_PADDING = {FLOATS: (BREAKPOINTS, np.inf)}
 
 
 def _capacity(size: int) -> int:
     return -(-size // _CAPACITY_STEP) * _CAPACITY_STEP
 
 
-def _stacked(parts: list[tuple], padding: dict[int, float]) -> tuple:
+def _stacked(parts: list[tuple], padding: dict[int, tuple[int, float]]) -> tuple:
     """One table per field from the one-row tables of ``parts``: concatenated where
-    their shapes agree, else padded to the largest with ``padding[field]`` (or 0)."""
+    their shapes agree, else padded to the largest with 0, or with ``value`` in the row
+    of a field where ``padding[field]`` is (row, value)."""
     out = []
     for field, rows in enumerate(zip(*parts, strict=True)):
         if all(r.shape == rows[0].shape for r in rows):
             out.append(np.concatenate(rows))
             continue
         shape = tuple(max(sizes) for sizes in zip(*(r.shape for r in rows), strict=True))
-        table = np.full((len(rows), *shape[1:]), padding.get(field, 0), dtype=rows[0].dtype)
+        table = np.zeros((len(rows), *shape[1:]), dtype=rows[0].dtype)
+        if field in padding:
+            row, value = padding[field]
+            table[:, row] = value
         for i, row in enumerate(rows):
             table[(i, *(slice(0, size) for size in row.shape[1:]))] = row[0]
         out.append(table)
@@ -149,60 +149,59 @@ def profiles_of(kernels: tuple) -> tuple:
 @njit(**LEAF)
 def piece_index(tables, i, v):
     """The piece of segment i that holds v (bisect_right - 1, clamped to the pieces)."""
-    x = tables[BREAKPOINTS]
-    lo, hi = 0, tables[LAST_PIECE][i] + 2
+    f = tables[FLOATS]
+    last_piece = tables[INTS][i, LAST_PIECE, 0]
+    lo, hi = 0, last_piece + 2
     while lo < hi:
         mid = (lo + hi) // 2
-        if v < x[i, mid]:
+        if v < f[i, BREAKPOINTS, mid]:
             hi = mid
         else:
             lo = mid + 1
-    return min(max(lo - 1, 0), tables[LAST_PIECE][i])
+    return min(max(lo - 1, 0), last_piece)
 
 
 @njit(**LEAF)
-def piece_integral(c, i, j, t):
-    """Integral of segment i's pressure over its piece j from its start to t in."""
+def piece_integral(f, i, j, t):
+    """Integral of segment i's pressure over its piece j from its start to t in (``f``
+    the floats of the tables)."""
     return (
-        ((c[i, 0, j] * 0.25 * t + c[i, 1, j] / 3.0) * t + c[i, 2, j] * 0.5) * t + c[i, 3, j]
+        ((f[i, C3, j] * 0.25 * t + f[i, C2, j] / 3.0) * t + f[i, C1, j] * 0.5) * t + f[i, C0, j]
     ) * t
 
 
 @njit(cache=True)
-def _energies(x, c, last_piece):
-    """The PIECE_ENERGY and CUMULATIVE_ENERGY tables."""
-    n, width = x.shape
-    pieces = np.empty((n, width - 1))
-    cumulative = np.empty((n, width))
+def _energies(f, ints):
+    """Fills the PIECE_ENERGY and CUMULATIVE_ENERGY rows of the floats ``f`` (zero past
+    each segment's last piece)."""
+    n, _, width = f.shape
     for i in range(n):
-        cumulative[i, 0] = 0.0
+        f[i, CUMULATIVE_ENERGY, 0] = 0.0
         for j in range(width - 1):  # 0 past the last piece
-            pieces[i, j] = 0.0
-            cumulative[i, j + 1] = 0.0
-        for j in range(last_piece[i] + 1):
-            pieces[i, j] = piece_integral(c, i, j, x[i, j + 1] - x[i, j])
-            cumulative[i, j + 1] = cumulative[i, j] + pieces[i, j]
-    return pieces, cumulative
+            f[i, PIECE_ENERGY, j] = 0.0
+            f[i, CUMULATIVE_ENERGY, j + 1] = 0.0
+        for j in range(ints[i, LAST_PIECE, 0] + 1):
+            h = f[i, BREAKPOINTS, j + 1] - f[i, BREAKPOINTS, j]
+            f[i, PIECE_ENERGY, j] = piece_integral(f, i, j, h)
+            f[i, CUMULATIVE_ENERGY, j + 1] = f[i, CUMULATIVE_ENERGY, j] + f[i, PIECE_ENERGY, j]
 
 
 @njit(**LEAF)
 def energy(tables, i, v):
     """E(v) = integral of p from the first sample (Eq. 1), mJ."""
-    ends = tables[ENDS]
-    if v > ends[i, V_LAST]:
-        d = v - ends[i, V_LAST]
+    f = tables[FLOATS]
+    if v > f[i, ENDS, V_LAST]:
+        d = v - f[i, ENDS, V_LAST]
         return (
-            tables[CUMULATIVE_ENERGY][i, tables[LAST_PIECE][i] + 1]
-            + ends[i, P_LAST] * d
-            + 0.5 * ends[i, SLOPE_LAST] * d * d
+            f[i, CUMULATIVE_ENERGY, tables[INTS][i, LAST_PIECE, 0] + 1]
+            + f[i, ENDS, P_LAST] * d
+            + 0.5 * f[i, ENDS, SLOPE_LAST] * d * d
         )
-    if v < ends[i, V_FIRST]:
-        d = v - ends[i, V_FIRST]
-        return ends[i, P_FIRST] * d + 0.5 * ends[i, SLOPE_FIRST] * d * d
+    if v < f[i, ENDS, V_FIRST]:
+        d = v - f[i, ENDS, V_FIRST]
+        return f[i, ENDS, P_FIRST] * d + 0.5 * f[i, ENDS, SLOPE_FIRST] * d * d
     j = piece_index(tables, i, v)
-    return tables[CUMULATIVE_ENERGY][i, j] + piece_integral(
-        tables[COEFFS], i, j, v - tables[BREAKPOINTS][i, j]
-    )
+    return f[i, CUMULATIVE_ENERGY, j] + piece_integral(f, i, j, v - f[i, BREAKPOINTS, j])
 
 
 @njit(**LEAF)
@@ -214,34 +213,34 @@ def energy_between(tables, i, v_from, v_to):
     sign = 1.0
     if v_to < v_from:
         v_from, v_to, sign = v_to, v_from, -1.0
-    ends = tables[ENDS]
+    f = tables[FLOATS]
+    v_first, v_last = f[i, ENDS, V_FIRST], f[i, ENDS, V_LAST]
     total = 0.0
     compensation = 0.0
-    if v_from < ends[i, V_FIRST]:  # the linear continuation below the table
-        a = v_from - ends[i, V_FIRST]
-        b = min(v_to, ends[i, V_FIRST]) - ends[i, V_FIRST]
-        term = ends[i, P_FIRST] * (b - a) + 0.5 * ends[i, SLOPE_FIRST] * (b * b - a * a)
+    if v_from < v_first:  # the linear continuation below the table
+        a = v_from - v_first
+        b = min(v_to, v_first) - v_first
+        term = f[i, ENDS, P_FIRST] * (b - a) + 0.5 * f[i, ENDS, SLOPE_FIRST] * (b * b - a * a)
         total, compensation = _neumaier_add(total, compensation, term)
-    if v_to > ends[i, V_LAST]:  # the linear continuation past the table
-        a = max(v_from, ends[i, V_LAST]) - ends[i, V_LAST]
-        b = v_to - ends[i, V_LAST]
-        term = ends[i, P_LAST] * (b - a) + 0.5 * ends[i, SLOPE_LAST] * (b * b - a * a)
+    if v_to > v_last:  # the linear continuation past the table
+        a = max(v_from, v_last) - v_last
+        b = v_to - v_last
+        term = f[i, ENDS, P_LAST] * (b - a) + 0.5 * f[i, ENDS, SLOPE_LAST] * (b * b - a * a)
         total, compensation = _neumaier_add(total, compensation, term)
-    lo = max(v_from, ends[i, V_FIRST])
-    hi = min(v_to, ends[i, V_LAST])
+    lo = max(v_from, v_first)
+    hi = min(v_to, v_last)
     if hi > lo:
-        x, c = tables[BREAKPOINTS], tables[COEFFS]
         ja, jb = piece_index(tables, i, lo), piece_index(tables, i, hi)
-        head = piece_integral(c, i, ja, lo - x[i, ja])
+        head = piece_integral(f, i, ja, lo - f[i, BREAKPOINTS, ja])
         if ja == jb:
-            term = piece_integral(c, i, ja, hi - x[i, ja]) - head
+            term = piece_integral(f, i, ja, hi - f[i, BREAKPOINTS, ja]) - head
             total, compensation = _neumaier_add(total, compensation, term)
         else:
-            pieces = tables[PIECE_ENERGY]
-            total, compensation = _neumaier_add(total, compensation, pieces[i, ja] - head)
+            term = f[i, PIECE_ENERGY, ja] - head
+            total, compensation = _neumaier_add(total, compensation, term)
             for j in range(ja + 1, jb):
-                total, compensation = _neumaier_add(total, compensation, pieces[i, j])
-            term = piece_integral(c, i, jb, hi - x[i, jb])
+                total, compensation = _neumaier_add(total, compensation, f[i, PIECE_ENERGY, j])
+            term = piece_integral(f, i, jb, hi - f[i, BREAKPOINTS, jb])
             total, compensation = _neumaier_add(total, compensation, term)
     return sign * (total + compensation)
 
@@ -265,11 +264,11 @@ def reduced_energy_change(x, tables, previous, v):
 @njit(**LEAF)
 def length(tables, i, v):
     """l(v) in mm; constant past the table's ends."""
-    v = min(max(v, tables[ENDS][i, V_FIRST]), tables[ENDS][i, V_LAST])
+    f = tables[FLOATS]
+    v = min(max(v, f[i, ENDS, V_FIRST]), f[i, ENDS, V_LAST])
     j = piece_index(tables, i, v)
-    t = v - tables[BREAKPOINTS][i, j]
-    lc = tables[LENGTH_COEFFS]
-    return ((lc[i, 0, j] * t + lc[i, 1, j]) * t + lc[i, 2, j]) * t + lc[i, 3, j]
+    t = v - f[i, BREAKPOINTS, j]
+    return ((f[i, LC3, j] * t + f[i, LC2, j]) * t + f[i, LC1, j]) * t + f[i, LC0, j]
 
 
 @njit(**LEAF)
@@ -293,19 +292,17 @@ def total_length(tables, v):
 @njit(**LEAF)
 def pressure_and_slope(tables, i, v):
     """(p, dp/dv) of segment i at volume v."""
-    ends = tables[ENDS]
-    if v > ends[i, V_LAST]:
-        return ends[i, P_LAST] + ends[i, SLOPE_LAST] * (v - ends[i, V_LAST]), ends[i, SLOPE_LAST]
-    if v < ends[i, V_FIRST]:
-        return (
-            ends[i, P_FIRST] + ends[i, SLOPE_FIRST] * (v - ends[i, V_FIRST]),
-            ends[i, SLOPE_FIRST],
-        )
+    f = tables[FLOATS]
+    if v > f[i, ENDS, V_LAST]:
+        slope = f[i, ENDS, SLOPE_LAST]
+        return f[i, ENDS, P_LAST] + slope * (v - f[i, ENDS, V_LAST]), slope
+    if v < f[i, ENDS, V_FIRST]:
+        slope = f[i, ENDS, SLOPE_FIRST]
+        return f[i, ENDS, P_FIRST] + slope * (v - f[i, ENDS, V_FIRST]), slope
     j = piece_index(tables, i, v)
-    t = v - tables[BREAKPOINTS][i, j]
-    c = tables[COEFFS]
-    c3, c2, c1 = c[i, 0, j], c[i, 1, j], c[i, 2, j]
-    return ((c3 * t + c2) * t + c1) * t + c[i, 3, j], (3.0 * c3 * t + 2.0 * c2) * t + c1
+    t = v - f[i, BREAKPOINTS, j]
+    c3, c2, c1 = f[i, C3, j], f[i, C2, j], f[i, C1, j]
+    return ((c3 * t + c2) * t + c1) * t + f[i, C0, j], (3.0 * c3 * t + 2.0 * c2) * t + c1
 
 
 @njit(**LEAF)
@@ -313,44 +310,44 @@ def volume_on_branch(tables, i, branch, p):
     """(v, dp/dv) of segment i on ``branch`` at pressure ``p``; values outside the
     branch's pressure range are clamped to its ends (the caller keeps p inside), except
     past the table's last sample, where the linear continuation is inverted."""
-    first = tables[BRANCH_FIRST][i, branch]
-    last = tables[BRANCH_LAST][i, branch]
-    rising = tables[BRANCH_RISING][i, branch]
-    samples = tables[SAMPLES]
-    ends = tables[ENDS]
-    last_sample = tables[LAST_PIECE][i] + 1
-    if last == last_sample and ((p > ends[i, P_LAST]) if rising else (p < ends[i, P_LAST])):
-        return ends[i, V_LAST] + (p - ends[i, P_LAST]) / ends[i, SLOPE_LAST], ends[i, SLOPE_LAST]
+    f, ints = tables
+    first = ints[i, BRANCH_FIRST, branch]
+    last = ints[i, BRANCH_LAST, branch]
+    rising = ints[i, BRANCH_RISING, branch]
+    last_sample = ints[i, LAST_PIECE, 0] + 1
+    p_last = f[i, ENDS, P_LAST]
+    if last == last_sample and ((p > p_last) if rising else (p < p_last)):
+        slope = f[i, ENDS, SLOPE_LAST]
+        return f[i, ENDS, V_LAST] + (p - p_last) / slope, slope
     # position = bisect_right(branch samples in ascending order, p) - 1
     lo, hi = 0, last - first + 1
     while lo < hi:
         mid = (lo + hi) // 2
-        value = samples[i, first + mid] if rising else samples[i, last - mid]
+        value = f[i, SAMPLES, first + mid] if rising else f[i, SAMPLES, last - mid]
         if p < value:
             hi = mid
         else:
             lo = mid + 1
     position = min(max(lo - 1, 0), last - first - 1)
     j = first + position if rising else last - 1 - position
-    c = tables[COEFFS]
-    c3, c2, c1, c0 = c[i, 0, j], c[i, 1, j], c[i, 2, j], c[i, 3, j]
-    h = tables[BREAKPOINTS][i, j + 1] - tables[BREAKPOINTS][i, j]
+    c3, c2, c1, c0 = f[i, C3, j], f[i, C2, j], f[i, C1, j], f[i, C0, j]
+    h = f[i, BREAKPOINTS, j + 1] - f[i, BREAKPOINTS, j]
     rhs = p - c0
-    p0, p1 = samples[i, j], samples[i, j + 1]
+    p0, p1 = f[i, SAMPLES, j], f[i, SAMPLES, j + 1]
     t = (p - p0) / (p1 - p0) * h if p1 != p0 else 0.5 * h
     t = min(max(t, 0.0), h)
     lo_t, hi_t = 0.0, h
     sign = 1.0 if rising else -1.0
     for _ in range(100):
-        f = ((c3 * t + c2) * t + c1) * t - rhs
-        if f == 0.0:
+        f_t = ((c3 * t + c2) * t + c1) * t - rhs
+        if f_t == 0.0:
             break
-        if sign * f > 0:
+        if sign * f_t > 0:
             hi_t = t
         else:
             lo_t = t
         d = (3.0 * c3 * t + 2.0 * c2) * t + c1
-        step = t - f / d if d != 0.0 else -1.0
+        step = t - f_t / d if d != 0.0 else -1.0
         if not lo_t < step < hi_t:
             step = 0.5 * (lo_t + hi_t)
         if abs(step - t) <= T_TOL * h:
@@ -360,7 +357,7 @@ def volume_on_branch(tables, i, branch, p):
     d = (3.0 * c3 * t + 2.0 * c2) * t + c1
     # at a branch's extremum the slope is 0 up to rounding; never let rounding give it
     # the sign of the neighbouring branch
-    return tables[BREAKPOINTS][i, j] + t, max(d, 0.0) if rising else min(d, 0.0)
+    return f[i, BREAKPOINTS, j] + t, max(d, 0.0) if rising else min(d, 0.0)
 
 
 @njit(cache=True)
@@ -422,7 +419,7 @@ def excess_volume(p, args):
 def _inverse_term(tables, i, branch, k):
     """1/k of segment i, +-inf at a branch end (k = 0) by the branch's side."""
     if k == 0.0:
-        return math.inf if tables[BRANCH_RISING][i, branch] else -math.inf
+        return math.inf if tables[INTS][i, BRANCH_RISING, branch] else -math.inf
     return 1.0 / k
 
 
@@ -456,13 +453,14 @@ def pair_imbalance(w1, tables, v):
 def singular_distance(tables, i, branch, p):
     """Pressure distance from p to the nearer end of segment i's ``branch`` that is an
     extremum of the curve (where the slope is 0); 1.0 kPa if neither is."""
-    first = tables[BRANCH_FIRST][i, branch]
-    last = tables[BRANCH_LAST][i, branch]
+    f, ints = tables
+    first = ints[i, BRANCH_FIRST, branch]
+    last = ints[i, BRANCH_LAST, branch]
     distance = math.inf
     if first > 0:
-        distance = abs(p - tables[SAMPLES][i, first])
-    if last < tables[LAST_PIECE][i] + 1:
-        distance = min(distance, abs(p - tables[SAMPLES][i, last]))
+        distance = abs(p - f[i, SAMPLES, first])
+    if last < ints[i, LAST_PIECE, 0] + 1:
+        distance = min(distance, abs(p - f[i, SAMPLES, last]))
     return 1.0 if distance == math.inf else distance
 
 
@@ -473,7 +471,8 @@ _TOWARD_END = np.array([0.5, 0.25, 0.1, 0.03, 0.01, 0.003, 0.001])
 def slope_profile(tables, i, branch) -> tuple[np.ndarray, np.ndarray]:
     """Segment i's slope profile on ``branch`` (``CurveKernel.slope_profile``): its
     points sorted by p, then by value."""
-    room = 2 * int(tables[BRANCH_LAST][i, branch] - tables[BRANCH_FIRST][i, branch])
+    ints = tables[INTS]
+    room = 2 * int(ints[i, BRANCH_LAST, branch] - ints[i, BRANCH_FIRST, branch])
     room += 2 * len(_TOWARD_END) + 1
     p, r = np.empty(room), np.empty(room)
     count = slope_profile_points(tables, i, branch, _TOWARD_END, p, r)
@@ -490,31 +489,31 @@ def slope_profile_points(tables, i, branch, toward_end, p_out, r_out):
     dp/dv and the extremum distance at every sample and more (~200 points a branch),
     and these calls from Python were most of the time spent building the solver's
     tables for a new curve."""
-    first = tables[BRANCH_FIRST][i, branch]
-    last = tables[BRANCH_LAST][i, branch]
-    rising = tables[BRANCH_RISING][i, branch]
-    x = tables[BREAKPOINTS]
-    c = tables[COEFFS]
+    f, ints = tables
+    first = ints[i, BRANCH_FIRST, branch]
+    last = ints[i, BRANCH_LAST, branch]
+    rising = ints[i, BRANCH_RISING, branch]
     count = 0
     for j in range(first, last):
-        h = x[i, j + 1] - x[i, j]
-        count = _profile_point(tables, i, branch, rising, x[i, j], p_out, r_out, count)
-        c3, c2 = c[i, 0, j], c[i, 1, j]
+        x_j, x_next = f[i, BREAKPOINTS, j], f[i, BREAKPOINTS, j + 1]
+        h = x_next - x_j
+        count = _profile_point(tables, i, branch, rising, x_j, p_out, r_out, count)
+        c3, c2 = f[i, C3, j], f[i, C2, j]
         if c3 != 0.0:
             t = -c2 / (3.0 * c3)
             if 0.0 < t < h:  # the slope's extremum inside the interval
-                count = _profile_point(tables, i, branch, rising, x[i, j] + t, p_out, r_out, count)
+                count = _profile_point(tables, i, branch, rising, x_j + t, p_out, r_out, count)
         if j == first and first > 0:  # leaving an extremum sample
-            for f in toward_end:
+            for fraction in toward_end:
                 count = _profile_point(
-                    tables, i, branch, rising, x[i, j] + h * f, p_out, r_out, count
+                    tables, i, branch, rising, x_j + h * fraction, p_out, r_out, count
                 )
-        if j == last - 1 and last < tables[LAST_PIECE][i] + 1:  # arriving at one
-            for f in toward_end:
+        if j == last - 1 and last < ints[i, LAST_PIECE, 0] + 1:  # arriving at one
+            for fraction in toward_end:
                 count = _profile_point(
-                    tables, i, branch, rising, x[i, j + 1] - h * f, p_out, r_out, count
+                    tables, i, branch, rising, x_next - h * fraction, p_out, r_out, count
                 )
-    return _profile_point(tables, i, branch, rising, x[i, last], p_out, r_out, count)
+    return _profile_point(tables, i, branch, rising, f[i, BREAKPOINTS, last], p_out, r_out, count)
 
 
 @njit(**INTERNAL_LEAF)

@@ -22,6 +22,8 @@ from labrig.model.actuator.array_loops import copy_into
 from labrig.model.actuator.curve_tables import (
     BRANCH_RISING,
     BREAKPOINTS,
+    FLOATS,
+    INTS,
     INVERSE_SLOPE_SUM,
     compensated_sum,
     fold_screen,
@@ -46,7 +48,7 @@ def at_volume_of(tables, branches, m, v_m):
     """The state on ``branches`` where segment m holds v_m (its pressure sets the
     others'); (p, v, k). ``labrig.model.actuator.path._Tracer.at_volume_of`` calls this too."""
     p, k_m = pressure_and_slope(tables, m, v_m)
-    k_m = max(k_m, 0.0) if tables[BRANCH_RISING][m, branches[m]] else min(k_m, 0.0)
+    k_m = max(k_m, 0.0) if tables[INTS][m, BRANCH_RISING, branches[m]] else min(k_m, 0.0)
     v, k = volumes_on_branches(tables, branches, p)
     v[m], k[m] = v_m, k_m
     return p, v, k
@@ -56,7 +58,7 @@ def at_volume_of(tables, branches, m, v_m):
 def _spacing_near(tables, i, v):
     """Width of segment i's table interval around v."""
     j = piece_index(tables, i, v)
-    return tables[BREAKPOINTS][i, j + 1] - tables[BREAKPOINTS][i, j]
+    return tables[FLOATS][i, BREAKPOINTS, j + 1] - tables[FLOATS][i, BREAKPOINTS, j]
 
 
 @njit(**INTERNAL_LEAF)

@@ -52,10 +52,9 @@ if not COMPILED:
 
 # The options of a leaf function (one that allocates no array): compiled without
 # numba's reference counting. A compiled function takes a reference to every array it
-# is passed, with an atomic increment and decrement each, and the solver's tables are
-# eleven arrays: in a scan these atomic counts took half the time (perf, an n = 4
-# chunk), more than the arithmetic of the small functions they wrapped. A leaf only
-# reads arrays its caller holds, so it needs none.
+# is passed, with an atomic increment and decrement each, which in the solver's small
+# functions costs more than their arithmetic (perf, an n = 4 chunk), and compiling it
+# costs code in every call. A leaf only reads arrays its caller holds, so it needs none.
 LEAF = {"cache": True, "_nrt": False}
 
 # The option of a function compiled code calls from one place only: numba copies its
