@@ -280,3 +280,32 @@ def test_a_softening_segment_beside_a_stiff_one_is_stable_and_grows_no_step_limi
                 assert got == 0.0
             else:
                 assert largest <= got <= largest * 1.01 + 1e-9
+
+
+def test_a_single_segment_reads_its_curve_at_the_pumps_volume_between_steps():
+    """One segment takes all the pump gives: its sensor reads p(V(t)) + Q/c exactly
+    (scipy's PCHIP of its table), and the history's straight lines between the plant's
+    steps, as the DAQ reads them at 1 kHz, stay within 0.03 kPa of it where the curve
+    turns (its peak, its knots) and 0.01 kPa at 99 % of the samples."""
+    from labrig.model.segments.catalog import load_segment
+
+    curve = load_segment("B50-T20")
+    rate = 40 / 60
+    fill_s = 20 / rate
+
+    def supplied_ml(t):
+        return rate * min(t, fill_s) - rate * min(max(t - fill_s - 5, 0.0), fill_s)
+
+    plant = Plant([curve], supplied_ml, history_s=1e3)
+    end_s = 2 * fill_s + 5
+    for t in np.arange(0.1, end_s, 0.1):
+        plant.advance_to(float(t))
+    times = np.arange(0.0, end_s, 0.001)
+    volume = np.array([supplied_ml(t) for t in times])
+    flow = np.where(times < fill_s, rate, np.where(times < fill_s + 5, 0.0, -rate))
+    expected = PchipInterpolator(curve.v_ml, curve.p_kpa)(volume) + flow / plant._conductances[0]
+    # a sample within a millisecond of the pump's start or stop falls on a step across it
+    away = np.abs(times[:, None] - np.array([0.0, fill_s, fill_s + 5, end_s])).min(axis=1) > 1e-3
+    error = np.abs(plant.pressure_kpa_at(times) - expected)[away]
+    assert error.max() < 0.03
+    assert np.percentile(error, 99) < 0.01
