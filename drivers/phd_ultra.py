@@ -237,6 +237,9 @@ class PhdUltra:
         self._counters_ml = dict.fromkeys(_COUNTERS, 0.0)
         self._stale_counters = set(_COUNTERS)
         self._last_state: PumpState | None = None
+        # whether a counter's prompt shows the motor running (``>``, ``<``): a poll in
+        # motion is then that counter alone
+        self._prompt_shows_motion = True
 
     # ---- opening and closing -------------------------------------------------------
 
@@ -877,15 +880,27 @@ class PhdUltra:
         the stamp is the middle of the status query.
 
         A counter changes only while the motor runs its way, so a poll asks only for
-        what may have changed: the moving counter, and a resting one whose last reading
-        may be out of date (``_stale_counters``). Polls in motion are two exchanges
-        instead of three, polls at rest the status line alone: each exchange is a round
-        trip on the port, and the runner polls five times a second."""
+        what may have changed, one command at a time: in a motion the last poll saw,
+        the moving counter alone, whose prompt (``>`` or ``<``: the motor running that
+        way) says the motion goes on; a prompt that says anything else (idle, target,
+        stalled, the other way) is followed by the full poll. The full poll is the
+        status line, then the moving counter and a resting one whose last reading may
+        be out of date (``_stale_counters``). Each exchange is a round trip on the
+        port, and the runner polls five times a second: a poll in a steady motion is
+        one exchange, a poll at rest the status line alone."""
         with self._status_lock:
+            motion = self._last_state
+            asked = self._motion_counter()
+            if asked is not None and (status := self._motion_poll(asked)) is not None:
+                return status
             t0_s = self.clock.now()
             line, prompt_state = self.read_status_line()
             state = _state(line, prompt_state)
             t_s = 0.5 * (t0_s + self.clock.now())
+            if asked is not None and state is motion:
+                # the counter's prompt said otherwise, the status line says the motion
+                # goes on: firmware whose prompt does not show motion gets full polls
+                self._prompt_shows_motion = False
             if state is not self._last_state:
                 # whatever happened between the polls (a run from the keypad that
                 # ended) may have moved either counter
@@ -902,12 +917,35 @@ class PhdUltra:
                     self._stale_counters.add(counter)  # read again once it has stopped
                 else:
                     self._stale_counters.discard(counter)
-            return PumpStatus(
-                t_s=t_s,
-                state=state,
-                infused_ml=self._counters_ml["ivolume"],
-                withdrawn_ml=self._counters_ml["wvolume"],
-            )
+            return self._status_at(t_s, state)
+
+    def _motion_counter(self) -> str | None:
+        """The counter whose reply alone can tell that the motion the last poll saw goes
+        on: the moving one, when no other counter is out of date and this pump's
+        prompt shows motion (status lock held)."""
+        counter = _MOVING_COUNTER.get(self._last_state)
+        if counter is None or not self._prompt_shows_motion:
+            return None
+        return counter if self._stale_counters <= {counter} else None
+
+    def _motion_poll(self, counter: str) -> PumpStatus | None:
+        """The status from ``counter``'s reply if its prompt shows the motor still
+        running the same way, else None (the full poll reads the counter again)."""
+        t0_s = self.clock.now()
+        reply = self._query(counter)
+        t_s = 0.5 * (t0_s + self.clock.now())
+        if reply.state is not self._last_state:
+            return None
+        self._counters_ml[counter] = parse_volume_ml(reply.text)
+        return self._status_at(t_s, self._last_state)
+
+    def _status_at(self, t_s: float, state: PumpState) -> PumpStatus:
+        return PumpStatus(
+            t_s=t_s,
+            state=state,
+            infused_ml=self._counters_ml["ivolume"],
+            withdrawn_ml=self._counters_ml["wvolume"],
+        )
 
     def wait_until_stopped(
         self, *, poll_s: float = 1.0, timeout_s: float | None = None, on_status=None

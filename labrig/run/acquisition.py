@@ -223,7 +223,9 @@ class Acquisition:
     def _watch_loop(self) -> None:
         """Trips when a watched signal went quiet, or the camera's stream failed (its
         reader keeps what went wrong: the camera loop would see it only at its next
-        batch, up to a camera period later)."""
+        batch, up to a camera period later). It looks when the first watched signal
+        would be overdue, at once when the camera's stream fails or the loops are told
+        to stop, and every watch period while nothing is watched (or after a trip)."""
         length = self.rig.length
         stream_fault = getattr(length, "stream_fault", None)
 
@@ -235,7 +237,20 @@ class Acquisition:
             if reason := self.watch.overdue():
                 self.monitor.trip(reason, "faulted")
 
-        self._device_loop("watch", self.timing.watch_period_s, watch_once)
+        def fault_seen() -> bool:
+            return stream_fault is not None and stream_fault() is not None
+
+        def woken() -> bool:
+            return self._stop_loops.is_set() or fault_seen()
+
+        while not self._stop_loops.is_set() and self._read_once("watch", watch_once):
+            wait_s = self.watch.next_due_s() - self.clock.now()
+            if not 0 < wait_s < math.inf:
+                wait_s = self.timing.watch_period_s  # nothing watched, or tripped
+            # at least a microsecond: a due time a rounding short of the clock's
+            # nanoseconds must not wake the loop at the same instant again
+            wait_s = max(wait_s, 1e-6)
+            self.clock.wait_for(self._stop_loops.is_set if fault_seen() else woken, wait_s)
 
     def _device_loop(
         self,
@@ -251,15 +266,8 @@ class Acquisition:
         start_s, k = self.clock.now(), 0
         token = rephase() if rephase is not None else None
         while not self._stop_loops.is_set():
-            try:
-                read_once()
-            except (LabrigError, OSError) as exc:
-                self.monitor.fault(exc, device)
+            if not self._read_once(device, read_once):
                 return
-            except Exception as exc:
-                # a loop that died quietly would leave its interlock blind: fault the run
-                self.monitor.trip(f"{device}: internal error: {exc!r}", "faulted")
-                raise
             if period_s is None:
                 continue
             # deadlines on a fixed grid (start + k periods, no accumulated rounding); a
@@ -270,6 +278,20 @@ class Acquisition:
                 self.clock.sleep(wait_s)
             elif self.clock.wait_for(lambda seen=token: rephase() != seen, wait_s):
                 token, start_s, k = rephase(), self.clock.now(), 0
+
+    def _read_once(self, device: str, read_once: Callable[[], None]) -> bool:
+        """One read of a loop; False when a device error faulted the run (the loop
+        ends)."""
+        try:
+            read_once()
+        except (LabrigError, OSError) as exc:
+            self.monitor.fault(exc, device)
+            return False
+        except Exception as exc:
+            # a loop that died quietly would leave its interlock blind: fault the run
+            self.monitor.trip(f"{device}: internal error: {exc!r}", "faulted")
+            raise
+        return True
 
     # --- readings: judged, then recorded -------------------------------------------
     def _read_pressure(self) -> None:

@@ -26,10 +26,10 @@ from labrig.time.clock import Clock
 
 log = logging.getLogger(__name__)
 
-# How often (clock seconds) the writer writes what was queued: once per DAQ block, not
-# once per append (each wake-up is a hand-over of the simulated rig's clock), and well
-# within the run file's 0.5 s flush.
-WRITE_PERIOD_S = 0.2
+# How often (clock seconds) the writer writes what was queued: every two or three DAQ
+# blocks, not once per append (each wake-up is a hand-over of the simulated rig's
+# clock), and as often as the run file flushes (0.5 s): a live view sees no later data.
+WRITE_PERIOD_S = 0.5
 
 
 class BackgroundWriter:

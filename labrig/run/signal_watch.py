@@ -3,9 +3,10 @@
 An interlock on a reading sees only the readings that come; a sensor whose DAQ stalls
 or is unplugged, or a camera that stops streaming, sends none, and nothing would trip.
 ``SignalWatch`` keeps, per signal, the clock time of its newest sample and names the
-first signal that has been quiet for longer than its allowance; the runner asks it a
-few times a second from a loop of its own, so a reading loop blocked inside a driver
-cannot hide its own silence.
+first signal that has been quiet for longer than its allowance; the runner asks it from
+a loop of its own, so a reading loop blocked inside a driver cannot hide its own
+silence, when the first watched signal would be overdue (``next_due_s``): a signal that
+keeps coming moves that time on, and the loop wakes a few times a second.
 
 A device slow to start (a UVC webcam takes 0.3-1 s to its first frame) is watched only
 from its first sample on: ``expect(..., start_s=...)`` takes the first time reported
@@ -14,6 +15,7 @@ as the stream's start, and gives the first sample after it ``start_s`` to come.
 
 from __future__ import annotations
 
+import math
 import threading
 
 from labrig.time.clock import Clock
@@ -67,6 +69,18 @@ class SignalWatch:
         with self._lock:
             newest_s = self._newest_s.get(name)
         return 0.0 if newest_s is None else self.clock.now() - newest_s
+
+    def next_due_s(self) -> float:
+        """The earliest clock time at which a watched signal that sends nothing more
+        is overdue (infinity when none is watched): the watch need not look before."""
+        with self._lock:
+            due = [since_s + start_s for since_s, start_s, _ in self._starting.values()]
+            due += [
+                newest_s + self._allowed_s[name]
+                for name, newest_s in self._newest_s.items()
+                if name not in self._starting
+            ]
+        return min(due, default=math.inf)
 
     def overdue(self) -> str | None:
         """The reason to stop for the first signal quiet beyond its allowance, or None."""

@@ -41,6 +41,41 @@ def test_a_quick_push_decays_into_a_linear_segment_as_an_rc_circuit():
     assert plant.volumes_ml[0] == pytest.approx(volume * c_s / (c_m + c_s), rel=1e-3)
 
 
+def test_a_plant_at_rest_is_held_where_it_settled_without_integrating(monkeypatch):
+    """The RC circuit above asked every 0.1 s for 10 s, as a run's loops ask during a
+    technician's prompt: at each time the analytic decay, and once it has settled (its
+    rates below the integrator's tolerance over an interval) the intervals are held, not
+    integrated: scipy's integrator is started for the first few only."""
+    import labrig.sim.dynamic_plant as dynamic_plant
+
+    calls = []
+    solve = dynamic_plant.solve_ivp
+    monkeypatch.setattr(
+        dynamic_plant, "solve_ivp", lambda *a, **k: calls.append(1) or solve(*a, **k)
+    )
+    c_m, k, r, volume = 0.1, 10.0, 1.0, 1.0
+    plumbing = Plumbing(fluid=WATER, dead_volume_ml=1e-6, line_compliance_ml_per_kpa=c_m)
+    plant = DynamicPlant(
+        [linear_segment(k)],
+        lambda t: 0.0,
+        plumbing=plumbing,
+        coupling=Coupling(r, 0.0, 1e-7),
+        wall_damping=False,
+    )
+    plant.connect("reservoir", 1.0)
+    plant.push_reservoir(volume, 1e-4, 1.0)
+    c_s = 1 / k
+    tau = r * c_m * c_s / (c_m + c_s)
+    final = volume / (c_m + c_s)
+    times = 1.0 + 1e-4 + 0.1 * np.arange(1, 101)
+    for t in times:
+        plant.advance_to(t)
+    expected = final + (volume / c_m - final) * np.exp(-(times - 1.0 - 1e-4) / tau)
+    np.testing.assert_allclose(plant.pressure_kpa_at(times), expected, rtol=5e-3, atol=1e-5)
+    assert plant.volumes_ml[0] == pytest.approx(volume * c_s / (c_m + c_s), rel=1e-5)
+    assert 2 <= len(calls) <= 20
+
+
 def test_air_obeys_the_isothermal_gas_law_at_rest():
     segments = [load_segment("B44-T30"), load_segment("B48-T26")]
     plumbing = Plumbing(
