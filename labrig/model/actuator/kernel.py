@@ -27,19 +27,18 @@ class CurveKernel:
 
     def __init__(self, curve: SegmentCurve) -> None:
         self.name = curve.name
-        pp = curve._p
-        self.x = [float(x) for x in pp.x]
+        pieces = curve.pieces
+        self.x = [float(x) for x in pieces.x]
         self.last_piece = len(self.x) - 2
-        self.c3, self.c2, self.c1, self.c0 = (row.tolist() for row in pp.c)
+        self.c3, self.c2, self.c1, self.c0 = (row.tolist() for row in pieces.p_coefficients)
         self.samples = curve.p_kpa.tolist()
         self.v_first = self.x[0]
         self.v_last = self.x[-1]
         self.p_first = self.samples[0]
         self.p_last = self.samples[-1]
-        self.slope_first = float(curve._start_slope_kpa_per_ml)
-        self.slope_last = float(curve._end_slope_kpa_per_ml)
-        lp = curve._l
-        self.lc3, self.lc2, self.lc1, self.lc0 = (row.tolist() for row in lp.c)
+        self.slope_first = float(pieces.start_slope_kpa_per_ml)
+        self.slope_last = float(pieces.end_slope_kpa_per_ml)
+        self.lc3, self.lc2, self.lc1, self.lc0 = (row.tolist() for row in pieces.l_coefficients)
         self.branches = curve.branches
         self.n_branches = len(self.branches)
         self.peak_branch = curve.peak_branch

@@ -5,7 +5,9 @@ tests/benchmarks/bench_scan_wall.py), and every scan did it again for the same t
 
 The file holds each segment's name, source, V0 and its three tables as they were
 tabulated (float64, so the tables and the scan's results are the same bits as freshly
-built: the scan file's library digest checks it on a resume). It is named by a hash of
+built: the scan file's library digest checks it on a resume), and the pieces of each
+curve's PCHIP that the solver's kernels read (``PchipPieces``), so that a warm scan
+never imports scipy's interpolation to compute them again. It is named by a hash of
 what the tables depend on: the library's segment names, every file of
 ``labrig.model.segments`` (the code and data that tabulate them) and the versions of
 Python, numpy and scipy; any change to those names another file, and the old one is
@@ -26,11 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
-from labrig.model.segments.curve import SegmentCurve
+from labrig.model.segments.curve import PchipPieces, SegmentCurve
 
 CACHE_VARIABLE = "LABRIG_CACHE_DIR"
 SEGMENTS_PACKAGE = Path(__file__).resolve().parents[1] / "segments"
-_FORMAT = "labrig scan library 1"
+_FORMAT = "labrig scan library 2"
 _PREFIX = "scan-library-"
 
 
@@ -88,7 +90,14 @@ def _read(path: Path, key: str, names: Sequence[str]) -> tuple[SegmentCurve, ...
             if str(stored["key"]) != key or list(stored["names"]) != list(names):
                 return None
             return tuple(
-                SegmentCurve(
+                SegmentCurve.with_pieces(
+                    PchipPieces(
+                        stored[f"x_{i}"],
+                        stored[f"p_coefficients_{i}"],
+                        stored[f"l_coefficients_{i}"],
+                        float(stored["start_slope_kpa_per_ml"][i]),
+                        float(stored["end_slope_kpa_per_ml"][i]),
+                    ),
                     name=str(name),
                     v_ml=stored[f"v_ml_{i}"],
                     p_kpa=stored[f"p_kpa_{i}"],
@@ -111,9 +120,16 @@ def _write(path: Path, label: str, key: str, curves: tuple[SegmentCurve, ...]) -
         "names": np.array([c.name for c in curves]),
         "source": np.array([c.source for c in curves]),
         "V0_ml": np.array([c.V0_ml for c in curves], dtype=float),
+        "start_slope_kpa_per_ml": np.array([c.pieces.start_slope_kpa_per_ml for c in curves]),
+        "end_slope_kpa_per_ml": np.array([c.pieces.end_slope_kpa_per_ml for c in curves]),
     }
     for i, c in enumerate(curves):
         arrays |= {f"v_ml_{i}": c.v_ml, f"p_kpa_{i}": c.p_kpa, f"l_mm_{i}": c.l_mm}
+        arrays |= {
+            f"x_{i}": c.pieces.x,
+            f"p_coefficients_{i}": c.pieces.p_coefficients,
+            f"l_coefficients_{i}": c.pieces.l_coefficients,
+        }
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         handle, temporary = tempfile.mkstemp(dir=path.parent, suffix=".npz")

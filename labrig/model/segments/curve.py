@@ -22,11 +22,30 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from labrig.model.segments.resolution import MeasuredImport
+
+if TYPE_CHECKING:
+    from scipy.interpolate import PchipInterpolator
+
+
+@dataclass(frozen=True)
+class PchipPieces:
+    """What the path solver's kernels read of a curve (``labrig.model.actuator.kernel``):
+    the breakpoints and cubic coefficients of its PCHIP for p(v) and l(v), in scipy's
+    ``PPoly`` layout (highest power first, a column per piece), and p's slopes at the two
+    ends. Apart from the interpolants so that a library read from a scan's cache gives
+    them as stored, without importing scipy's interpolation, which was most of a warm
+    scan's start-up."""
+
+    x: np.ndarray
+    p_coefficients: np.ndarray
+    l_coefficients: np.ndarray
+    start_slope_kpa_per_ml: float
+    end_slope_kpa_per_ml: float
 
 
 @dataclass(frozen=True)
@@ -93,10 +112,33 @@ class SegmentCurve:
         object.__setattr__(self, "p_kpa", p)
         object.__setattr__(self, "l_mm", length)
 
+    @classmethod
+    def with_pieces(cls, pieces: PchipPieces, **fields) -> SegmentCurve:
+        """The curve of ``fields`` whose PCHIP pieces are known already (stored with its
+        tables by ``labrig.model.scan.library_cache``): they and the end slopes are not
+        computed again, and scipy is imported only if the curve itself is evaluated."""
+        curve = cls(**fields)
+        curve.__dict__.update(
+            pieces=pieces,
+            _start_slope_kpa_per_ml=pieces.start_slope_kpa_per_ml,
+            _end_slope_kpa_per_ml=pieces.end_slope_kpa_per_ml,
+        )
+        return curve
+
     # --- interpolants --------------------------------------------------------------
     @cached_property
+    def pieces(self) -> PchipPieces:
+        return PchipPieces(
+            self._p.x,
+            self._p.c,
+            self._l.c,
+            self._start_slope_kpa_per_ml,
+            self._end_slope_kpa_per_ml,
+        )
+
+    @cached_property
     def _p(self) -> PchipInterpolator:
-        return PchipInterpolator(self.v_ml, self.p_kpa, extrapolate=False)
+        return _pchip(self.v_ml, self.p_kpa)
 
     @cached_property
     def _dp(self) -> PchipInterpolator:
@@ -108,7 +150,7 @@ class SegmentCurve:
 
     @cached_property
     def _l(self) -> PchipInterpolator:
-        return PchipInterpolator(self.v_ml, self.l_mm, extrapolate=False)
+        return _pchip(self.v_ml, self.l_mm)
 
     @property
     def v_max_ml(self) -> float:
@@ -325,3 +367,12 @@ class SegmentCurve:
         p = np.atleast_1d(np.asarray(p_kpa, dtype=float))
         pairs = [self.volume_on_branch(b.index, p) for b in self.branches]
         return np.stack([v for v, _ in pairs], axis=-1), np.stack([k for _, k in pairs], axis=-1)
+
+
+def _pchip(v_ml: np.ndarray, values: np.ndarray) -> PchipInterpolator:
+    """The PCHIP of ``values`` over ``v_ml``, undefined outside them. scipy's
+    interpolation is imported at a curve's first evaluation, not with this module: a
+    curve given its pieces (``SegmentCurve.with_pieces``) may never need it."""
+    from scipy.interpolate import PchipInterpolator
+
+    return PchipInterpolator(v_ml, values, extrapolate=False)

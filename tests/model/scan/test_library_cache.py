@@ -3,6 +3,8 @@ for the same segments, code and versions, and never a reason for a scan to fail.
 
 import dataclasses
 import shutil
+import subprocess
+import sys
 
 import h5py
 import numpy as np
@@ -59,6 +61,29 @@ def test_the_cached_tables_are_the_built_ones_bit_for_bit(cache, monkeypatch):
             else:
                 assert x == y and type(x) is type(y), field.name
     assert ScanLibrary("s", read).digest == ScanLibrary("s", built).digest
+    for a, b in zip(read, built, strict=True):
+        for field in dataclasses.fields(a.pieces):
+            x, y = getattr(a.pieces, field.name), getattr(b.pieces, field.name)
+            assert np.asarray(x).tobytes() == np.asarray(y).tobytes(), field.name
+
+
+def test_a_warm_librarys_kernels_never_import_scipys_interpolation(cache):
+    """A scan's kernels from the cached library: the PCHIP pieces as stored, so the
+    process never imports scipy.interpolate (most of a warm scan's start-up)."""
+    library_cache.cached_curves("small", SMALL, _built)
+    child = f"""
+import sys
+from labrig.model.actuator.kernel import kernel_of
+from labrig.model.scan import library_cache
+curves = library_cache.cached_curves("small", {list(SMALL)!r}, None)
+kernels = [kernel_of(c) for c in curves]
+assert kernels[0].pressure(kernels[0].x[1]) == float(curves[0].p_kpa[1])
+print(sorted(m for m in sys.modules if m.startswith("scipy.interpolate")))
+"""
+    out = subprocess.run(
+        [sys.executable, "-c", child], capture_output=True, text=True, check=True
+    ).stdout
+    assert out.strip() == "[]"
 
 
 def test_other_segments_or_code_are_built_anew(cache, monkeypatch, tmp_path):
