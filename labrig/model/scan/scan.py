@@ -85,7 +85,7 @@ def load_library(spec: str | None) -> ScanLibrary:
             from labrig.model.segments.gent import gent_membrane as build
         else:
             from labrig.model.segments.catalog import analytical_segment as build
-        from labrig.model.scan.library_cache import cached_curves
+        from labrig.model.segments.curve_cache import cached_curves
 
         curves = cached_curves(name, segment_names, lambda: tuple(build(n) for n in segment_names))
         return ScanLibrary(name, curves)

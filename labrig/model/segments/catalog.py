@@ -140,6 +140,17 @@ def _canonical(name: str) -> str:
 
 @cache
 def _analytical(canonical: str) -> SegmentCurve:
+    """The segment, tabulated once per install (``curve_cache``): a command that needs
+    two segments otherwise spends most of its time importing scipy's solvers and
+    tabulating them."""
+    from labrig.model.segments.curve_cache import cached_curves
+
+    label = "segment-" + canonical.replace(":", "-")  # a file's name on every system
+    (curve,) = cached_curves(label, [canonical], lambda: (_tabulated(canonical),))
+    return curve
+
+
+def _tabulated(canonical: str) -> SegmentCurve:
     library, braid, tube = parse_library_name(canonical)
     if library == CALIBRATED:
         from labrig.model.segments.calibrated import calibrated_curve

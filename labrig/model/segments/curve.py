@@ -115,7 +115,7 @@ class SegmentCurve:
     @classmethod
     def with_pieces(cls, pieces: PchipPieces, **fields) -> SegmentCurve:
         """The curve of ``fields`` whose PCHIP pieces are known already (stored with its
-        tables by ``labrig.model.scan.library_cache``): they and the end slopes are not
+        tables by ``labrig.model.segments.curve_cache``): they and the end slopes are not
         computed again, and scipy is imported only if the curve itself is evaluated."""
         curve = cls(**fields)
         curve.__dict__.update(

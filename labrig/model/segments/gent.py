@@ -18,7 +18,6 @@ from dataclasses import dataclass
 from functools import cache, cached_property
 
 import numpy as np
-from scipy.optimize import brentq, minimize_scalar
 
 from labrig.model.segments.curve import SegmentCurve
 from labrig.model.segments.tabulate import tabulate
@@ -53,6 +52,8 @@ def gent_density(invariant_excess, j_m: float):
 
 def lock_stretch(j_m: float) -> float:
     """Stretch at which the Gent energy diverges: 2 lambda^2 + lambda^-4 - 3 = J_m."""
+    from scipy.optimize import brentq  # here: a segment name is checked against GENT_NAMES
+
     return brentq(lambda lam: 2 * lam**2 + lam**-4 - 3 - j_m, 1.0, np.sqrt(j_m + 3))
 
 
@@ -82,6 +83,8 @@ class GentSphere:
     @cached_property
     def end_stretch(self) -> float:
         """Stretch where the stiffening branch reaches P_END_KPA, just short of the lock."""
+        from scipy.optimize import brentq
+
         lock = lock_stretch(self.j_m)
         start = self.extremum_stretches[-1] if self.extremum_stretches else 1.0
         return brentq(lambda lam: self.state(lam)[1] - P_END_KPA, start, lock * (1 - 1e-12))
@@ -90,6 +93,8 @@ class GentSphere:
     def extremum_stretches(self) -> tuple[float, ...]:
         """Stretches of the pressure peak and valley (empty for small J_m, where p(v)
         only rises), located on a grid and refined to 1e-12."""
+        from scipy.optimize import minimize_scalar
+
         lam = np.linspace(1.0, lock_stretch(self.j_m), 4001)[:-1]
         p = gent_pressure_ratio(lam, self.j_m)
         turns = np.flatnonzero(np.diff(np.sign(np.diff(p)))) + 1

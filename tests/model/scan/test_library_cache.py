@@ -2,6 +2,7 @@
 for the same segments, code and versions, and never a reason for a scan to fail."""
 
 import dataclasses
+import os
 import shutil
 import subprocess
 import sys
@@ -12,7 +13,6 @@ import pytest
 from support.scan_helpers import SMALL, assert_same_contents, small_library
 
 from labrig.errors import InputError
-from labrig.model.scan import library_cache
 from labrig.model.scan.scan import (
     TRANSITION_FIELDS,
     ChunkResult,
@@ -21,6 +21,7 @@ from labrig.model.scan.scan import (
     make_chunks,
 )
 from labrig.model.scan.scan_file import ScanFile, read_scan
+from labrig.model.segments import curve_cache
 from labrig.model.segments.catalog import analytical_segment
 from labrig.model.segments.measured import load_csv, write_csv
 
@@ -29,8 +30,8 @@ from labrig.model.segments.measured import load_csv, write_csv
 def cache(tmp_path, monkeypatch):
     """An empty cache folder, and a process that has loaded no library yet."""
     folder = tmp_path / "cache"
-    monkeypatch.setenv(library_cache.CACHE_VARIABLE, str(folder))
-    monkeypatch.setattr(library_cache, "_IN_PROCESS", {})
+    monkeypatch.setenv(curve_cache.CACHE_VARIABLE, str(folder))
+    monkeypatch.setattr(curve_cache, "_IN_PROCESS", {})
     return folder
 
 
@@ -43,15 +44,15 @@ def _never():
 
 
 def _new_process(monkeypatch):
-    monkeypatch.setattr(library_cache, "_IN_PROCESS", {})
+    monkeypatch.setattr(curve_cache, "_IN_PROCESS", {})
 
 
 def test_the_cached_tables_are_the_built_ones_bit_for_bit(cache, monkeypatch):
-    built = library_cache.cached_curves("small", SMALL, _built)
-    assert len(list(cache.glob("*.npz"))) == 1
-    assert library_cache.cached_curves("small", SMALL, _never) is built  # same process
+    built = curve_cache.cached_curves("small", SMALL, _built)
+    assert len(list(cache.glob("curves-small-*"))) == 1
+    assert curve_cache.cached_curves("small", SMALL, _never) is built  # same process
     _new_process(monkeypatch)
-    read = library_cache.cached_curves("small", SMALL, _never)
+    read = curve_cache.cached_curves("small", SMALL, _never)
     assert read is not built
     for a, b in zip(read, built, strict=True):
         for field in dataclasses.fields(a):
@@ -70,12 +71,12 @@ def test_the_cached_tables_are_the_built_ones_bit_for_bit(cache, monkeypatch):
 def test_a_warm_librarys_kernels_never_import_scipys_interpolation(cache):
     """A scan's kernels from the cached library: the PCHIP pieces as stored, so the
     process never imports scipy.interpolate (most of a warm scan's start-up)."""
-    library_cache.cached_curves("small", SMALL, _built)
+    curve_cache.cached_curves("small", SMALL, _built)
     child = f"""
 import sys
 from labrig.model.actuator.kernel import kernel_of
-from labrig.model.scan import library_cache
-curves = library_cache.cached_curves("small", {list(SMALL)!r}, None)
+from labrig.model.segments import curve_cache
+curves = curve_cache.cached_curves("small", {list(SMALL)!r}, None)
 kernels = [kernel_of(c) for c in curves]
 assert kernels[0].pressure(kernels[0].x[1]) == float(curves[0].p_kpa[1])
 print(sorted(m for m in sys.modules if m.startswith("scipy.interpolate")))
@@ -87,44 +88,75 @@ print(sorted(m for m in sys.modules if m.startswith("scipy.interpolate")))
 
 
 def test_other_segments_or_code_are_built_anew(cache, monkeypatch, tmp_path):
-    library_cache.cached_curves("small", SMALL, _built)
+    curve_cache.cached_curves("small", SMALL, _built)
     _new_process(monkeypatch)
     rebuilt = []
-    library_cache.cached_curves("fewer", SMALL[:-1], lambda: rebuilt.append(1) or _built()[:-1])
+    curve_cache.cached_curves("fewer", SMALL[:-1], lambda: rebuilt.append(1) or _built()[:-1])
     assert rebuilt == [1]
     code = tmp_path / "segments"
-    shutil.copytree(library_cache.SEGMENTS_PACKAGE, code, ignore=shutil.ignore_patterns("__py*"))
-    monkeypatch.setattr(library_cache, "SEGMENTS_PACKAGE", code)
+    shutil.copytree(curve_cache.SEGMENTS_PACKAGE, code, ignore=shutil.ignore_patterns("__py*"))
+    monkeypatch.setattr(curve_cache, "SEGMENTS_PACKAGE", code)
     _new_process(monkeypatch)
-    library_cache.cached_curves("small", SMALL, _never)  # a copy of the same code
+    curve_cache.cached_curves("small", SMALL, _never)  # a copy of the same code
     with (code / "tabulate.py").open("a") as source:
         source.write("# changed\n")
     _new_process(monkeypatch)
-    library_cache.cached_curves("small", SMALL, lambda: rebuilt.append(2) or _built())
+    curve_cache.cached_curves("small", SMALL, lambda: rebuilt.append(2) or _built())
     assert rebuilt == [1, 2]
     # the file of the code before is gone, the other library's kept
-    assert len(list(cache.glob("scan-library-small-*"))) == 1
-    assert len(list(cache.glob("scan-library-fewer-*"))) == 1
+    assert len(list(cache.glob("curves-small-*"))) == 1
+    assert len(list(cache.glob("curves-fewer-*"))) == 1
+
+
+def test_a_label_that_begins_with_another_keeps_its_file(cache, monkeypatch):
+    """A segment's label may begin with another's (``segment-B46-T2`` and
+    ``segment-B46-T20``): a new file of one never removes the other's."""
+    curve_cache.cached_curves("small-b", SMALL, _built)
+    monkeypatch.setattr(curve_cache, "_FORMAT", "another format")  # a new key for both
+    _new_process(monkeypatch)
+    curve_cache.cached_curves("small", SMALL, _built)
+    assert len(list(cache.glob("curves-small-b-*"))) == 1
+
+
+def test_a_library_segment_is_tabulated_once_per_install(tmp_path):
+    """``analytical_segment`` in a fresh process: the first tabulates and keeps the
+    table, the next reads it, the same bits, without importing scipy's solvers."""
+    child = """
+import sys
+from labrig.model.segments.catalog import analytical_segment
+curve = analytical_segment("B48-T30")
+print("scipy.optimize" in sys.modules, curve.p_kpa.tobytes().hex()[:4000], curve.l_mm.sum())
+"""
+    env = os.environ | {curve_cache.CACHE_VARIABLE: str(tmp_path)}
+    runs = [
+        subprocess.run(
+            [sys.executable, "-c", child], capture_output=True, text=True, check=True, env=env
+        ).stdout.split()
+        for _ in range(2)
+    ]
+    assert runs[0][0] == "True" and runs[1][0] == "False"
+    assert runs[0][1:] == runs[1][1:]
+    assert len(list(tmp_path.glob("curves-segment-B48-T30-*.npz"))) == 1
 
 
 def test_a_damaged_or_unwritable_cache_only_costs_the_build(cache, monkeypatch, tmp_path):
-    library_cache.cached_curves("small", SMALL, _built)
-    (stored,) = cache.glob("*.npz")
+    curve_cache.cached_curves("small", SMALL, _built)
+    (stored,) = cache.glob("curves-small-*")
     stored.write_bytes(b"not a numpy file")
     _new_process(monkeypatch)
-    assert len(library_cache.cached_curves("small", SMALL, _built)) == len(SMALL)
+    assert len(curve_cache.cached_curves("small", SMALL, _built)) == len(SMALL)
     a_file = tmp_path / "a-file"
     a_file.write_text("")
-    monkeypatch.setenv(library_cache.CACHE_VARIABLE, str(a_file / "cache"))
+    monkeypatch.setenv(curve_cache.CACHE_VARIABLE, str(a_file / "cache"))
     _new_process(monkeypatch)
-    assert len(library_cache.cached_curves("small", SMALL, _built)) == len(SMALL)
+    assert len(curve_cache.cached_curves("small", SMALL, _built)) == len(SMALL)
 
 
 def test_measured_tables_are_not_kept(cache, tmp_path):
     write_csv(analytical_segment("B50-T20"), tmp_path / "m.csv")
     measured = (load_csv(tmp_path / "m.csv", name="m"),) * 2
-    library_cache.cached_curves("measured", ["m", "m"], lambda: measured)
-    assert not list(cache.glob("*.npz"))
+    curve_cache.cached_curves("measured", ["m", "m"], lambda: measured)
+    assert not list(cache.glob("curves-measured-*"))
 
 
 def _results(library, n: int, chunk_size: int) -> list[ChunkResult]:

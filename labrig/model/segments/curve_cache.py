@@ -1,14 +1,17 @@
-"""A named library's tabulated segments kept between scans, as numba keeps the compiled
-solver: tabulating the 36 braided segments (an Ogden membrane solved at every volume of
-each table) took more CPU than the actuators of a whole n = 3 scan (3.5 s of CPU against 2.6 s;
-tests/benchmarks/bench_scan_wall.py), and every scan did it again for the same tables.
+"""Tabulated segments kept between processes, as numba keeps the compiled solver: a
+braided segment is an Ogden membrane solved at every volume of its table, and a scan's
+36 took more CPU than the actuators of a whole n = 3 scan (3.5 s against 2.6 s;
+tests/benchmarks/bench_scan_wall.py); a single command (``labrig model path``, a run's
+dry run and simulated specimen) spent most of its time importing scipy's solvers and
+tabulating its two segments. Each named library (a scan's) and each library segment
+(``catalog.analytical_segment``) is kept in a file of its own.
 
-The file holds each segment's name, source, V0 and its three tables as they were
-tabulated (float64, so the tables and the scan's results are the same bits as freshly
-built: the scan file's library digest checks it on a resume), and the pieces of each
-curve's PCHIP that the solver's kernels read (``PchipPieces``), so that a warm scan
-never imports scipy's interpolation to compute them again. It is named by a hash of
-what the tables depend on: the library's segment names, every file of
+A file holds each segment's name, source, V0 and its three tables as they were
+tabulated (float64, so the tables and everything computed from them are the same bits
+as freshly built: a scan file's library digest checks it on a resume), and the pieces
+of each curve's PCHIP that the solver's kernels read (``PchipPieces``), so that a warm
+scan never imports scipy's interpolation to compute them again. It is named by a hash
+of what the tables depend on: the segment names, every file of
 ``labrig.model.segments`` (the code and data that tabulate them) and the versions of
 Python, numpy and scipy; any change to those names another file, and the old one is
 removed when the new one is written. The folder is ``$LABRIG_CACHE_DIR`` if set, else
@@ -31,9 +34,10 @@ import numpy as np
 from labrig.model.segments.curve import PchipPieces, SegmentCurve
 
 CACHE_VARIABLE = "LABRIG_CACHE_DIR"
-SEGMENTS_PACKAGE = Path(__file__).resolve().parents[1] / "segments"
-_FORMAT = "labrig scan library 2"
-_PREFIX = "scan-library-"
+SEGMENTS_PACKAGE = Path(__file__).resolve().parent
+_FORMAT = "labrig curves 3"
+_PREFIX = "curves-"
+_KEY_CHARACTERS = 32
 
 
 def cache_folder() -> Path:
@@ -49,30 +53,51 @@ def cache_folder() -> Path:
 
 
 def _key(label: str, names: Sequence[str]) -> str:
-    """A hash of everything the library's tables depend on."""
+    """A hash of everything the tables of ``names`` depend on."""
     import scipy
 
     h = hashlib.sha256()
     for part in (_FORMAT, label, *names, platform.python_version(), np.__version__):
         h.update(part.encode() + b"\0")
     h.update(scipy.__version__.encode() + b"\0")
-    for path in sorted(SEGMENTS_PACKAGE.rglob("*")):
-        if path.is_file() and "__pycache__" not in path.parts:
+    h.update(_package_digest().encode())
+    return h.hexdigest()
+
+
+def _package_digest() -> str:
+    """The hash of every file of ``SEGMENTS_PACKAGE``, read again only when a file's
+    size or modification time changed: a command asks for each of its segments."""
+    files = sorted(
+        path
+        for path in SEGMENTS_PACKAGE.rglob("*")
+        if path.is_file() and "__pycache__" not in path.parts
+    )
+    stamp = tuple((path, path.stat().st_mtime_ns, path.stat().st_size) for path in files)
+    digest = _PACKAGE_DIGESTS.get(stamp)
+    if digest is None:
+        h = hashlib.sha256()
+        for path in files:
             h.update(path.relative_to(SEGMENTS_PACKAGE).as_posix().encode() + b"\0")
             h.update(path.read_bytes())
-    return h.hexdigest()
+        digest = _PACKAGE_DIGESTS[stamp] = h.hexdigest()
+    return digest
+
+
+_PACKAGE_DIGESTS: dict[tuple, str] = {}
 
 
 def cached_curves(
     label: str, names: Sequence[str], build: Callable[[], tuple[SegmentCurve, ...]]
 ) -> tuple[SegmentCurve, ...]:
-    """The curves of library ``label`` (segments ``names``, in order), read from the
-    cache, or built by ``build`` and stored there for the next scan; the same objects
-    for every scan of the process (each curve's kernel is built once per curve)."""
+    """The curves of ``label`` (a library, or one segment: segments ``names``, in
+    order; a label names files, so letters, digits and ``-_.`` only), read from the
+    cache, or built by ``build`` and stored there for the next process; the same
+    objects for every call of the process (each curve's kernel is built once per
+    curve)."""
     key = _key(label, names)
     curves = _IN_PROCESS.get(key)
     if curves is None:
-        path = cache_folder() / f"{_PREFIX}{label}-{key[:32]}.npz"
+        path = cache_folder() / f"{_PREFIX}{label}-{key[:_KEY_CHARACTERS]}.npz"
         curves = _read(path, key, names)
         if curves is None:
             curves = build()
@@ -143,6 +168,8 @@ def _write(path: Path, label: str, key: str, curves: tuple[SegmentCurve, ...]) -
     except OSError:  # a full disk
         Path(temporary).unlink(missing_ok=True)
         return
-    for older in path.parent.glob(f"{_PREFIX}{label}-*.npz"):  # of code since changed
+    # of code since changed (a key's length of any characters: ``label-*`` would
+    # match another label that begins with this one)
+    for older in path.parent.glob(f"{_PREFIX}{label}-{'?' * _KEY_CHARACTERS}.npz"):
         if older != path:
             older.unlink(missing_ok=True)
