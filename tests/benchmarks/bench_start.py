@@ -1,9 +1,10 @@
-"""Benchmark: how long a command takes from the shell, cold (numba's compile cache
-empty, as on a fresh install) and warm (the same command again). Prints numbers;
-asserts nothing.
+"""Benchmark: how long a command takes from the shell, cold (numba's compile cache and
+labrig's tabulated segments empty, as on a fresh install) and warm (the same command
+again). Prints numbers; asserts nothing.
 
-Each command runs in a fresh process, as a user runs it, with ``NUMBA_CACHE_DIR``
-pointed at a new temporary folder, so nothing compiled before is found: the first run
+Each command runs in a fresh process, as a user runs it, with ``NUMBA_CACHE_DIR`` and
+``LABRIG_CACHE_DIR`` pointed at a new temporary folder, so nothing compiled or
+tabulated before is found: the first run
 is a fresh install's first command (Python's own byte-code caches are kept, as pip
 writes them at install time). Rows:
 
@@ -44,10 +45,11 @@ def _seconds(args: list[str], env: dict[str, str]) -> float:
 
 
 def _cold_and_warm(args, repeat: int, *, jit: str | None = None, out: Path | None = None):
-    """(cold, median warm) seconds of ``labrig ARGS`` with an empty compile cache."""
+    """(cold, median warm) seconds of ``labrig ARGS`` with empty caches."""
     with tempfile.TemporaryDirectory() as cache:
         env = {k: v for k, v in os.environ.items() if k != "LABRIG_JIT"}
         env["NUMBA_CACHE_DIR"] = cache
+        env["LABRIG_CACHE_DIR"] = str(Path(cache) / "segments")
         # each command alone: no compile left running in the background by a scan
         env["LABRIG_BACKGROUND_COMPILE"] = "0"
         if jit is not None:
@@ -88,7 +90,7 @@ def main() -> None:
             cold, warm = _cold_and_warm(command, args.repeat, jit=jit, out=out)
             rows.append((label, cold, warm))
             print(f"  {label}: cold {cold:.2f} s, warm {warm:.2f} s", file=sys.stderr)
-    header = ("command", "cold: empty compile cache (s)", "warm: median of later runs (s)")
+    header = ("command", "cold: empty caches (s)", "warm: median of later runs (s)")
     table = [(label, f"{cold:.2f}", f"{warm:.2f}") for label, cold, warm in rows]
     doc.publish("start", markdown_table(header, table, right={1, 2}))
 
