@@ -10,6 +10,7 @@ with the protocol it uses beside it, on this Python's kernel.
 from __future__ import annotations
 
 import shutil
+import signal
 import sys
 import tempfile
 from pathlib import Path
@@ -34,7 +35,13 @@ def execute(workdir: Path):
         kernel_name="python3",
         resources={"metadata": {"path": str(workdir)}},
     )
-    client.execute()
+    # the notebook client leaves Python's default Ctrl-C handler where it found another
+    # (a test worker's, which ignores it): put back what was there
+    handler = signal.getsignal(signal.SIGINT)
+    try:
+        client.execute()
+    finally:
+        signal.signal(signal.SIGINT, handler)
     return notebook
 
 
