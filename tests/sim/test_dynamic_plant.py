@@ -16,29 +16,41 @@ def linear_segment(k_kpa_per_ml: float) -> SegmentCurve:
     return SegmentCurve("linear", v, k_kpa_per_ml * v, np.full_like(v, 30.0), V0_ml=5.0)
 
 
-def test_a_quick_push_decays_into_a_linear_segment_as_an_rc_circuit():
-    # manifold compliance C_m (the line's), segment compliance C_s = 1/k, resistance R:
-    # after a quick push of V the manifold falls from V/C_m to V/(C_m + C_s) with
-    # tau = R C_m C_s / (C_m + C_s) = 0.05 s
-    c_m, k, r, volume = 0.1, 10.0, 1.0, 1.0
-    plumbing = Plumbing(fluid=WATER, dead_volume_ml=1e-6, line_compliance_ml_per_kpa=c_m)
+# manifold compliance C_m (the line's), segment compliance C_s = 1/k, resistance R:
+# after a quick push of V the manifold falls from V/C_m to V/(C_m + C_s) with
+# tau = R C_m C_s / (C_m + C_s) = 0.05 s
+C_M, K, R, VOLUME, PUSH_END_S = 0.1, 10.0, 1.0, 1.0, 1.0 + 1e-4
+C_S = 1 / K
+TAU_S = R * C_M * C_S / (C_M + C_S)
+FINAL_KPA = VOLUME / (C_M + C_S)
+
+
+def pushed_rc_circuit() -> DynamicPlant:
+    """A linear segment behind the line's compliance and a resistance, pushed by VOLUME
+    from the reservoir over 0.1 ms at t = 1 s."""
+    plumbing = Plumbing(fluid=WATER, dead_volume_ml=1e-6, line_compliance_ml_per_kpa=C_M)
     plant = DynamicPlant(
-        [linear_segment(k)],
+        [linear_segment(K)],
         lambda t: 0.0,
         plumbing=plumbing,
-        coupling=Coupling(r, 0.0, 1e-7),
+        coupling=Coupling(R, 0.0, 1e-7),
         wall_damping=False,
     )
     plant.connect("reservoir", 1.0)
-    plant.push_reservoir(volume, 1e-4, 1.0)
-    c_s = 1 / k
-    tau = r * c_m * c_s / (c_m + c_s)
-    t = 1.0 + 1e-4 + np.array([0.5, 1.0, 2.0, 4.0]) * tau
-    final = volume / (c_m + c_s)
-    expected = final + (volume / c_m - final) * np.exp(-(t - 1.0 - 1e-4) / tau)
-    np.testing.assert_allclose(plant.pressure_kpa_at(t), expected, rtol=5e-3)
-    plant.advance_to(1.0 + 40 * tau)
-    assert plant.volumes_ml[0] == pytest.approx(volume * c_s / (c_m + c_s), rel=1e-3)
+    plant.push_reservoir(VOLUME, 1e-4, 1.0)
+    return plant
+
+
+def rc_decay_kpa(t_s):
+    return FINAL_KPA + (VOLUME / C_M - FINAL_KPA) * np.exp(-(t_s - PUSH_END_S) / TAU_S)
+
+
+def test_a_quick_push_decays_into_a_linear_segment_as_an_rc_circuit():
+    plant = pushed_rc_circuit()
+    t = PUSH_END_S + np.array([0.5, 1.0, 2.0, 4.0]) * TAU_S
+    np.testing.assert_allclose(plant.pressure_kpa_at(t), rc_decay_kpa(t), rtol=5e-3)
+    plant.advance_to(1.0 + 40 * TAU_S)
+    assert plant.volumes_ml[0] == pytest.approx(VOLUME * C_S / (C_M + C_S), rel=1e-3)
 
 
 def test_a_plant_at_rest_is_held_where_it_settled_without_integrating(monkeypatch):
@@ -53,26 +65,14 @@ def test_a_plant_at_rest_is_held_where_it_settled_without_integrating(monkeypatc
     monkeypatch.setattr(
         dynamic_plant, "solve_ivp", lambda *a, **k: calls.append(1) or solve(*a, **k)
     )
-    c_m, k, r, volume = 0.1, 10.0, 1.0, 1.0
-    plumbing = Plumbing(fluid=WATER, dead_volume_ml=1e-6, line_compliance_ml_per_kpa=c_m)
-    plant = DynamicPlant(
-        [linear_segment(k)],
-        lambda t: 0.0,
-        plumbing=plumbing,
-        coupling=Coupling(r, 0.0, 1e-7),
-        wall_damping=False,
-    )
-    plant.connect("reservoir", 1.0)
-    plant.push_reservoir(volume, 1e-4, 1.0)
-    c_s = 1 / k
-    tau = r * c_m * c_s / (c_m + c_s)
-    final = volume / (c_m + c_s)
-    times = 1.0 + 1e-4 + 0.1 * np.arange(1, 101)
+    plant = pushed_rc_circuit()
+    times = PUSH_END_S + 0.1 * np.arange(1, 101)
     for t in times:
         plant.advance_to(t)
-    expected = final + (volume / c_m - final) * np.exp(-(times - 1.0 - 1e-4) / tau)
-    np.testing.assert_allclose(plant.pressure_kpa_at(times), expected, rtol=5e-3, atol=1e-5)
-    assert plant.volumes_ml[0] == pytest.approx(volume * c_s / (c_m + c_s), rel=1e-5)
+    np.testing.assert_allclose(
+        plant.pressure_kpa_at(times), rc_decay_kpa(times), rtol=5e-3, atol=1e-5
+    )
+    assert plant.volumes_ml[0] == pytest.approx(VOLUME * C_S / (C_M + C_S), rel=1e-5)
     assert 2 <= len(calls) <= 20
 
 
