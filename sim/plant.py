@@ -45,7 +45,6 @@ from collections.abc import Callable, Sequence
 from operator import mul, sub
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from labrig.model.segments.curve import SegmentCurve
 from labrig.sim.specimen import SpecimenBehaviour
@@ -54,23 +53,22 @@ from labrig.sim.specimen import SpecimenBehaviour
 class ScalarCurve:
     """p(v), dp/dv and l(v) of one segment for one volume at a time, in plain floats.
 
-    The same PCHIP interpolant as SegmentCurve, evaluated with bisect and Horner's rule:
-    the plant takes tens of thousands of tiny steps per run, and numpy's per-call
-    overhead would dominate them.
+    The same PCHIP pieces as SegmentCurve (read from the cache with its tables, without
+    scipy), evaluated with bisect and Horner's rule: the plant takes tens of thousands
+    of tiny steps per run, and numpy's per-call overhead would dominate them.
     """
 
     def __init__(self, curve: SegmentCurve) -> None:
-        pressure = PchipInterpolator(curve.v_ml, curve.p_kpa)
-        length = PchipInterpolator(curve.v_ml, curve.l_mm)
-        self.x = curve.v_ml.tolist()
+        pieces = curve.pieces
+        self.x = pieces.x.tolist()
         # the knots between the intervals: bisecting them gives a volume's interval,
         # the first one below the table and the last one above it
         self._inner_knots = self.x[1:-1]
-        self.p_coef = pressure.c.T.tolist()
-        self.l_coef = length.c.T.tolist()
+        self.p_coef = pieces.p_coefficients.T.tolist()
+        self.l_coef = pieces.l_coefficients.T.tolist()
         self.v_end = self.x[-1]
         self.p_end = float(curve.p_kpa[-1])
-        self.slope_end = float(pressure.derivative()(self.v_end))
+        self.slope_end = pieces.end_slope_kpa_per_ml
         self.l_end = float(curve.l_mm[-1])
 
     def pressure_and_slope(self, v: float) -> tuple[float, float]:

@@ -22,14 +22,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from labrig.model.segments.resolution import MeasuredImport
-
-if TYPE_CHECKING:
-    from scipy.interpolate import PchipInterpolator
 
 
 @dataclass(frozen=True)
@@ -46,6 +42,59 @@ class PchipPieces:
     l_coefficients: np.ndarray
     start_slope_kpa_per_ml: float
     end_slope_kpa_per_ml: float
+
+
+class PiecewisePolynomial:
+    """A piecewise polynomial in scipy's ``PPoly`` layout (highest power first, a column
+    per piece between breakpoints ``x``), evaluated, differentiated and integrated with
+    numpy in the same operations and order as ``PPoly`` without extrapolation, so the
+    same bits: a curve read with its pieces from the cache is evaluated without
+    importing scipy's interpolation, most of a simulated run's start-up."""
+
+    def __init__(self, x: np.ndarray, coefficients: np.ndarray) -> None:
+        self.x = x
+        self.c = coefficients
+
+    def __call__(self, v):
+        """The value at ``v`` (NaN outside the breakpoints): ``PPoly``'s sum from the
+        constant term up, the power of the offset built by repeated products."""
+        v = np.asarray(v, dtype=float)
+        x = self.x
+        # half-open pieces [x_k, x_k+1), the last one closed
+        k = np.clip(np.searchsorted(x, v, side="right") - 1, 0, len(x) - 2)
+        with np.errstate(invalid="ignore"):  # an infinite v: NaN, as out of range
+            s = v - x[k]
+            total = 0.0 + self.c[-1, k]
+            power = s
+            for row in range(len(self.c) - 2, -1, -1):
+                total = total + self.c[row, k] * power
+                if row:
+                    power = power * s
+        return np.where((v >= x[0]) & (v <= x[-1]), total, np.nan)
+
+    def derivative(self) -> PiecewisePolynomial:
+        """d/dv, as ``PPoly.derivative``: each power's coefficient times the power."""
+        powers = np.arange(len(self.c) - 1, 0, -1, dtype=float)
+        return PiecewisePolynomial(self.x, self.c[:-1] * powers[:, None])
+
+    def antiderivative(self) -> PiecewisePolynomial:
+        """The integral from ``x[0]``, as ``PPoly.antiderivative``: each coefficient
+        over its new power, and each piece's constant the previous piece's value at
+        its end, piece after piece."""
+        c = np.zeros((len(self.c) + 1, self.c.shape[1]))
+        c[:-1] = self.c / np.arange(len(self.c), 0, -1, dtype=float)[:, None]
+        rows = c.tolist()
+        constant = rows[-1]
+        for piece in range(1, len(self.x) - 1):
+            s = float(self.x[piece] - self.x[piece - 1])
+            total, power = 0.0 + constant[piece - 1], s
+            for row in range(len(rows) - 2, -1, -1):
+                total = total + rows[row][piece - 1] * power
+                if row:
+                    power = power * s
+            constant[piece] = total
+        c[-1] = constant
+        return PiecewisePolynomial(self.x, c)
 
 
 @dataclass(frozen=True)
@@ -116,53 +165,55 @@ class SegmentCurve:
     def with_pieces(cls, pieces: PchipPieces, **fields) -> SegmentCurve:
         """The curve of ``fields`` whose PCHIP pieces are known already (stored with its
         tables by ``labrig.model.segments.curve_cache``): they and the end slopes are not
-        computed again, and scipy is imported only if the curve itself is evaluated."""
+        computed again, and scipy is not imported at all."""
         curve = cls(**fields)
-        curve.__dict__.update(
-            pieces=pieces,
-            _start_slope_kpa_per_ml=pieces.start_slope_kpa_per_ml,
-            _end_slope_kpa_per_ml=pieces.end_slope_kpa_per_ml,
-        )
+        curve.__dict__["pieces"] = pieces
         return curve
 
     # --- interpolants --------------------------------------------------------------
     @cached_property
     def pieces(self) -> PchipPieces:
+        """scipy's PCHIP of the tables: imported here, at a curve's first evaluation and
+        not with this module, since a curve given its pieces never needs it."""
+        from scipy.interpolate import PchipInterpolator
+
+        pressure = PchipInterpolator(self.v_ml, self.p_kpa)
+        slope = PiecewisePolynomial(pressure.x, pressure.c).derivative()
         return PchipPieces(
-            self._p.x,
-            self._p.c,
-            self._l.c,
-            self._start_slope_kpa_per_ml,
-            self._end_slope_kpa_per_ml,
+            pressure.x,
+            pressure.c,
+            PchipInterpolator(self.v_ml, self.l_mm).c,
+            float(slope(self.v_ml[0])),
+            float(slope(self.v_max_ml)),
         )
 
     @cached_property
-    def _p(self) -> PchipInterpolator:
-        return _pchip(self.v_ml, self.p_kpa)
+    def _p(self) -> PiecewisePolynomial:
+        return PiecewisePolynomial(self.pieces.x, self.pieces.p_coefficients)
 
     @cached_property
-    def _dp(self) -> PchipInterpolator:
+    def _dp(self) -> PiecewisePolynomial:
         return self._p.derivative()
 
     @cached_property
-    def _energy(self) -> PchipInterpolator:
+    def _energy(self) -> PiecewisePolynomial:
         return self._p.antiderivative()
 
     @cached_property
-    def _l(self) -> PchipInterpolator:
-        return _pchip(self.v_ml, self.l_mm)
+    def _l(self) -> PiecewisePolynomial:
+        return PiecewisePolynomial(self.pieces.x, self.pieces.l_coefficients)
+
+    @property
+    def _end_slope_kpa_per_ml(self) -> float:
+        return self.pieces.end_slope_kpa_per_ml
+
+    @property
+    def _start_slope_kpa_per_ml(self) -> float:
+        return self.pieces.start_slope_kpa_per_ml
 
     @property
     def v_max_ml(self) -> float:
         return float(self.v_ml[-1])
-
-    @cached_property
-    def _end_slope_kpa_per_ml(self) -> float:
-        return float(self._dp(self.v_max_ml))
-
-    @cached_property
-    def _start_slope_kpa_per_ml(self) -> float:
-        return float(self._dp(self.v_ml[0]))
 
     def pressure_kpa(self, v_ml):
         """p(v) in kPa; linear past both ends of the table."""
@@ -331,9 +382,10 @@ class SegmentCurve:
         position = np.searchsorted(ascending, p, side="right") - 1
         position = np.clip(position, 0, b.last - b.first - 1)
         interval = b.first + position if b.rising else b.last - 1 - position
-        coef = self._p.c[:, interval]
-        x0 = self._p.x[interval]
-        h = self._p.x[interval + 1] - x0
+        pieces = self.pieces
+        coef = pieces.p_coefficients[:, interval]
+        x0 = pieces.x[interval]
+        h = pieces.x[interval + 1] - x0
         rhs = p - coef[3]
         lo = np.zeros_like(h)
         hi = h.copy()
@@ -367,12 +419,3 @@ class SegmentCurve:
         p = np.atleast_1d(np.asarray(p_kpa, dtype=float))
         pairs = [self.volume_on_branch(b.index, p) for b in self.branches]
         return np.stack([v for v, _ in pairs], axis=-1), np.stack([k for _, k in pairs], axis=-1)
-
-
-def _pchip(v_ml: np.ndarray, values: np.ndarray) -> PchipInterpolator:
-    """The PCHIP of ``values`` over ``v_ml``, undefined outside them. scipy's
-    interpolation is imported at a curve's first evaluation, not with this module: a
-    curve given its pieces (``SegmentCurve.with_pieces``) may never need it."""
-    from scipy.interpolate import PchipInterpolator
-
-    return PchipInterpolator(v_ml, values, extrapolate=False)
