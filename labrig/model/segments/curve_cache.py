@@ -23,6 +23,7 @@ or skipped: the cache only ever saves time.
 from __future__ import annotations
 
 import hashlib
+import importlib.metadata
 import os
 import platform
 import tempfile
@@ -54,12 +55,11 @@ def cache_folder() -> Path:
 
 def _key(label: str, names: Sequence[str]) -> str:
     """A hash of everything the tables of ``names`` depend on."""
-    import scipy
-
     h = hashlib.sha256()
     for part in (_FORMAT, label, *names, platform.python_version(), np.__version__):
         h.update(part.encode() + b"\0")
-    h.update(scipy.__version__.encode() + b"\0")
+    # the installed version from its metadata: importing scipy to read it costs a run
+    h.update(importlib.metadata.version("scipy").encode() + b"\0")
     h.update(_package_digest().encode())
     return h.hexdigest()
 

@@ -15,7 +15,6 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 Evaluate = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
@@ -38,6 +37,10 @@ def tabulate(
     """Sample ``evaluate`` (vectorised t -> (v_ml, p_kpa, l_mm), v increasing in t) from
     the sorted ``knots`` until PCHIP in v is within tolerance at every interval's
     parametric midpoint. Returns (t, v_ml, p_kpa, l_mm)."""
+    # here, not at the top: a run reads its segments' tables from the cache, and
+    # importing this module (through gent.py) must not cost it scipy's interpolation
+    from scipy.interpolate import PchipInterpolator
+
     t = np.asarray(knots, dtype=float)
     v, p, length = evaluate(t)
     for _ in range(max_rounds):

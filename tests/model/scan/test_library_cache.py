@@ -6,6 +6,7 @@ import os
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -74,6 +75,7 @@ def test_a_warm_librarys_kernels_never_import_scipys_interpolation(cache):
     curve_cache.cached_curves("small", SMALL, _built)
     child = f"""
 import sys
+from pathlib import Path
 from labrig.model.actuator.kernel import kernel_of
 from labrig.model.segments import curve_cache
 curves = curve_cache.cached_curves("small", {list(SMALL)!r}, None)
@@ -123,6 +125,7 @@ def test_a_library_segment_is_tabulated_once_per_install(tmp_path):
     table, the next reads it, the same bits, without importing scipy's solvers."""
     child = """
 import sys
+from pathlib import Path
 from labrig.model.segments.catalog import analytical_segment
 curve = analytical_segment("B48-T30")
 print("scipy.optimize" in sys.modules, curve.p_kpa.tobytes().hex()[:4000], curve.l_mm.sum())
@@ -230,3 +233,31 @@ def test_chunks_written_together_make_the_file_written_one_by_one(tmp_path):
         scan.append([results[0], results[2]])
     scan.close(workers=1, parent_peak_rss_mib=0.0)
     assert_same_contents(one, together)
+
+
+def test_a_dry_run_with_its_segments_tabulated_imports_no_scipy(tmp_path):
+    """The demo's checks (its model peak) from tables kept by an earlier command: scipy,
+    a second of a simulated run's start-up, is for tabulating and solving, neither of
+    which a run whose segments are in the cache does."""
+    demo = Path(__file__).parents[3] / "protocols" / "demo.yaml"
+    child = """
+import atexit, sys
+atexit.register(lambda: print(sorted(m for m in sys.modules if m.startswith("scipy"))))
+import labrig.cli
+sys.argv = ["labrig", "run", sys.argv[1], "--sim", "--dry-run"]
+labrig.cli.main()
+"""
+    env = os.environ | {curve_cache.CACHE_VARIABLE: str(tmp_path)}
+    runs = [
+        subprocess.run(
+            [sys.executable, "-c", child, str(demo)],
+            capture_output=True,
+            text=True,
+            check=True,
+            env=env,
+        ).stdout.splitlines()
+        for _ in range(2)
+    ]
+    assert "model peak" in "\n".join(runs[1])
+    assert runs[0][-1] != "[]"  # the first tabulated them, with scipy
+    assert runs[1][-1] == "[]"
