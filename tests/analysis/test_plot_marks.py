@@ -2,7 +2,6 @@
 the model's own curve marked apart and unlabelled."""
 
 import pytest
-from matplotlib.figure import Figure
 from support.simulated_runs import simulate_run
 
 from labrig.analysis import analyse
@@ -26,6 +25,8 @@ def test_only_the_snaps_get_a_label(demo_pair):
     snaps = [m.measured for m in result.comparison.matches if m.predicted and m.measured]
     assert steep and snaps
     assert not set(map(id, steep)) & set(map(id, snaps))
+    from matplotlib.figure import Figure
+
     ax = Figure().add_subplot()
     _mark_transitions(ax, result, "p", result.grid_ml, result.mean_p)
     labelled = [text.get_text() for text in ax.texts]
@@ -41,6 +42,8 @@ def test_only_the_snaps_get_a_label(demo_pair):
 
 def test_without_a_model_every_transition_is_labelled(demo_pair):
     import dataclasses
+
+    from matplotlib.figure import Figure
 
     result = dataclasses.replace(demo_pair, comparison=None)
     ax = Figure().add_subplot()

@@ -6,7 +6,6 @@ import subprocess
 import sys
 
 import numpy as np
-import pandas as pd
 import pytest
 from support.api_runs import cli
 
@@ -98,6 +97,8 @@ def campaign(quick_run, tmp_path_factory):
 
 
 def test_open_runs_is_runs_json_and_csv(campaign, tmp_path, capsys):
+    import pandas as pd  # imported where it runs, not in every worker's collection
+
     code, out, err = cli(["runs", campaign, "--json", "--csv", tmp_path / "runs.csv"], capsys)
     assert code == 0, err
     printed = json.loads(out)["runs"]
@@ -178,6 +179,8 @@ def test_the_long_campaign_is_one_row_per_transition(campaign, capsys):
     """One row per transition of compare --json (paper_transitions, then unpredicted),
     in the vocabulary's names, with the protocol's parameters; a run without a
     comparison and a broken file are one row each, saying why."""
+    import pandas as pd
+
     code, out, err = cli(["compare", campaign / "a_quick.h5", "--json"], capsys)
     assert code == 0, err
     printed = json.loads(out)

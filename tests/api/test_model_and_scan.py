@@ -3,7 +3,6 @@
 import json
 
 import h5py
-import matplotlib
 import numpy as np
 import pytest
 from support.api_runs import cli
@@ -11,17 +10,21 @@ from support.api_runs import cli
 import labrig
 from labrig.errors import InputError
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
-
 
 @pytest.fixture(autouse=True)
-def _close_figures():
-    yield
-    plt.close("all")
+def plt():
+    """pyplot on Agg, every figure closed after each test; imported when the tests run,
+    not as every worker collects them (matplotlib is a second of CPU a process)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as pyplot
+
+    yield pyplot
+    pyplot.close("all")
 
 
-def test_a_path_plot_on_one_axes_is_the_pressure_panel():
+def test_a_path_plot_on_one_axes_is_the_pressure_panel(plt):
     path = labrig.actuator("B48-T30", "B50-T20").path()
     _, ax = plt.subplots()
     assert path.plot(ax=ax) is ax

@@ -1,7 +1,6 @@
 """The tutorial notebook runs top to bottom on this install, and is committed with its
 outputs (so GitHub shows them); ``python tests/support/tutorial.py`` stores them."""
 
-import nbformat
 import pytest
 from support.tutorial import NOTEBOOK, execute
 
@@ -23,6 +22,8 @@ def test_the_tutorial_runs_top_to_bottom(tmp_path):
 
 
 def test_the_committed_tutorial_holds_its_outputs():
+    import nbformat
+
     notebook = nbformat.read(NOTEBOOK, as_version=4)
     nbformat.validate(notebook)
     code = [cell for cell in notebook.cells if cell.cell_type == "code"]

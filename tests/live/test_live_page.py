@@ -12,8 +12,6 @@ import shutil
 from pathlib import Path
 
 import pytest
-from playwright.sync_api import TimeoutError as PlaywrightTimeout
-from playwright.sync_api import sync_playwright
 
 HERE = Path(__file__).parent
 ARTIFACTS = HERE.parent / "artifacts"
@@ -42,6 +40,8 @@ def browser():
             "no Chromium found (tried $LABRIG_CHROMIUM, chromium, chromium-browser, "
             "google-chrome); .ci/run installs Debian's: apt-get install chromium"
         )
+    from playwright.sync_api import sync_playwright  # here: not in every worker's collection
+
     with sync_playwright() as playwright:
         browser = playwright.chromium.launch(executable_path=executable, headless=True)
         yield browser
@@ -67,6 +67,8 @@ def open_page(browser, run, **options):
 def waiting(page, run, wait, *args):
     """``wait(*args)``; on a timeout, an AssertionError saying what the page and the
     run had to say (script errors, the live state, the run's last lines)."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
+
     try:
         return wait(*args, timeout=WAIT_MS)
     except PlaywrightTimeout:
