@@ -63,13 +63,7 @@ class PiecewisePolynomial:
         # half-open pieces [x_k, x_k+1), the last one closed
         k = np.clip(np.searchsorted(x, v, side="right") - 1, 0, len(x) - 2)
         with np.errstate(invalid="ignore"):  # an infinite v: NaN, as out of range
-            s = v - x[k]
-            total = 0.0 + self.c[-1, k]
-            power = s
-            for row in range(len(self.c) - 2, -1, -1):
-                total = total + self.c[row, k] * power
-                if row:
-                    power = power * s
+            total = _power_sum([row[k] for row in self.c], v - x[k])
         return np.where((v >= x[0]) & (v <= x[-1]), total, np.nan)
 
     def derivative(self) -> PiecewisePolynomial:
@@ -84,17 +78,24 @@ class PiecewisePolynomial:
         c = np.zeros((len(self.c) + 1, self.c.shape[1]))
         c[:-1] = self.c / np.arange(len(self.c), 0, -1, dtype=float)[:, None]
         rows = c.tolist()
-        constant = rows[-1]
         for piece in range(1, len(self.x) - 1):
             s = float(self.x[piece] - self.x[piece - 1])
-            total, power = 0.0 + constant[piece - 1], s
-            for row in range(len(rows) - 2, -1, -1):
-                total = total + rows[row][piece - 1] * power
-                if row:
-                    power = power * s
-            constant[piece] = total
-        c[-1] = constant
+            rows[-1][piece] = _power_sum([row[piece - 1] for row in rows], s)
+        c[-1] = rows[-1]
         return PiecewisePolynomial(self.x, c)
+
+
+def _power_sum(coefficients, s):
+    """sum c_r s^(m-r) over the coefficients, highest power first, in ``PPoly``'s order:
+    from the constant term up, each power of ``s`` the product of the one before (so the
+    same bits as scipy). For arrays of pieces or for one piece's plain floats."""
+    total = 0.0 + coefficients[-1]
+    power = s
+    for row in range(len(coefficients) - 2, -1, -1):
+        total = total + coefficients[row] * power
+        if row:
+            power = power * s
+    return total
 
 
 @dataclass(frozen=True)
