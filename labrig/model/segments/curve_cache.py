@@ -72,7 +72,8 @@ def _package_digest() -> str:
         for path in SEGMENTS_PACKAGE.rglob("*")
         if path.is_file() and "__pycache__" not in path.parts
     )
-    stamp = tuple((path, path.stat().st_mtime_ns, path.stat().st_size) for path in files)
+    stats = [(path, path.stat()) for path in files]
+    stamp = tuple((path, stat.st_mtime_ns, stat.st_size) for path, stat in stats)
     digest = _PACKAGE_DIGESTS.get(stamp)
     if digest is None:
         h = hashlib.sha256()
