@@ -55,9 +55,9 @@ from labrig.model.actuator.curve_tables import (
     excess_volume_at,
     inverse_sum_of,
     pair_imbalance,
-    piece_index,
     pressure_and_slope,
     profiles_of,
+    spacing_near,
     tables_of,
     total_energy,
     total_length,
@@ -200,12 +200,6 @@ def _branch_of(tables, i, v):
         if v <= tables[FLOATS][i, V_HI, index]:
             return index
     return tables[INTS][i, N_BRANCHES, 0] - 1
-
-
-@njit(**INTERNAL_LEAF)
-def _spacing_near(tables, i, v):
-    j = piece_index(tables, i, v)
-    return tables[FLOATS][i, BREAKPOINTS, j + 1] - tables[FLOATS][i, BREAKPOINTS, j]
 
 
 @njit(**INTERNAL)
@@ -421,7 +415,7 @@ def _combinations_near(tables, w, near_ml):
         b = _branch_of(tables, i, w[i])
         options[i, 0] = b
         count = 1
-        tol = _max(1e-6 * _spacing_near(tables, i, w[i]), near_ml)
+        tol = _max(1e-6 * spacing_near(tables, i, w[i]), near_ml)
         for other in (b - 1, b + 1):
             if (
                 0 <= other < tables[INTS][i, N_BRANCHES, 0]

@@ -162,6 +162,13 @@ def piece_index(tables, i, v):
 
 
 @njit(**LEAF)
+def spacing_near(tables, i, v):
+    """Width of segment i's table interval around v: the scale of a tolerance in v."""
+    j = piece_index(tables, i, v)
+    return tables[FLOATS][i, BREAKPOINTS, j + 1] - tables[FLOATS][i, BREAKPOINTS, j]
+
+
+@njit(**LEAF)
 def piece_integral(f, i, j, t):
     """Integral of segment i's pressure over its piece j from its start to t in (``f``
     the floats of the tables)."""

@@ -21,19 +21,17 @@ import numpy as np
 from labrig.model.actuator.array_loops import copy_into
 from labrig.model.actuator.curve_tables import (
     BRANCH_RISING,
-    BREAKPOINTS,
-    FLOATS,
     INTS,
     INVERSE_SLOPE_SUM,
     compensated_sum,
     fold_screen,
     inverse_slope_sum_at,
     inverse_sum_of,
-    piece_index,
     pressure_and_slope,
+    spacing_near,
     volumes_on_branches,
 )
-from labrig.model.actuator.jit import INTERNAL_LEAF, LEAF, njit
+from labrig.model.actuator.jit import INTERNAL_LEAF, njit
 from labrig.model.actuator.roots import bracketed_root
 
 NOT_FOUND, AT_PRESSURE, AT_VOLUME, START = range(4)
@@ -52,13 +50,6 @@ def at_volume_of(tables, branches, m, v_m):
     v, k = volumes_on_branches(tables, branches, p)
     v[m], k[m] = v_m, k_m
     return p, v, k
-
-
-@njit(**LEAF)
-def _spacing_near(tables, i, v):
-    """Width of segment i's table interval around v."""
-    j = piece_index(tables, i, v)
-    return tables[FLOATS][i, BREAKPOINTS, j + 1] - tables[FLOATS][i, BREAKPOINTS, j]
 
 
 @njit(**INTERNAL_LEAF)
@@ -136,7 +127,7 @@ def find_fold(
             if not (c_s >= 0 or turned):
                 continue
             a_m, c_m = a_v[m], c_v[m]
-            if abs(c_m - a_m) > 2.0 * _spacing_near(tables, m, a_m):
+            if abs(c_m - a_m) > 2.0 * spacing_near(tables, m, a_m):
                 # 8 sub-intervals between a, 7 states at volumes of segment m, and c;
                 # the first is put on top of the pile, so that they are checked in order
                 if top + _SPLIT > _MAX_PENDING:
